@@ -1,0 +1,48 @@
+"""What every controller offers, compiled or not.
+
+A controller is a frozen description. ``pack(T_s)`` turns it into two float64 vectors
+for the compiled loop: constant parameters ``cp`` and an initial state ``cs``. The
+Python face, ``init``/``step``, runs the very same compiled kernel, so a test, the
+fast loop and a replay of measured data all compute the same numbers.
+"""
+
+from __future__ import annotations
+
+from typing import ClassVar
+
+import numpy as np
+
+
+class Controller:
+    """Base of the controllers; subclasses are frozen dataclasses with a ``kind`` code."""
+
+    kind: ClassVar[int]
+    name: str
+    u_min: float
+    u_max: float
+
+    def pack(self, sample_time_s: float) -> tuple[np.ndarray, np.ndarray]:  # pragma: no cover
+        raise NotImplementedError
+
+    def with_limits(self, u_min: float, u_max: float) -> Controller:  # pragma: no cover
+        raise NotImplementedError
+
+    @property
+    def has_limits(self) -> bool:
+        return bool(np.isfinite(self.u_min) and np.isfinite(self.u_max))
+
+    def init(self, sample_time_s: float) -> tuple[np.ndarray, np.ndarray]:
+        """Initial state: ``(cp, cs)``; pass it to :meth:`step`."""
+        cp, cs = self.pack(sample_time_s)
+        return cp, cs.copy()
+
+    def step(
+        self, state: tuple[np.ndarray, np.ndarray], r: float, y: float
+    ) -> tuple[float, tuple[np.ndarray, np.ndarray]]:
+        """One sample: command ``u`` for reference ``r`` and measurement ``y``, and the new state."""
+        from fuzzyservo.controllers.kernels import controller_step
+
+        cp, cs = state
+        cs = cs.copy()
+        u = controller_step(self.kind, cp, cs, float(r), float(y))
+        return float(u), (cp, cs)

@@ -1,0 +1,31 @@
+"""Dispatch from a controller's ``kind`` code to its compiled step kernel.
+
+One place lists every controller kind the compiled loop knows; a new controller adds
+its kernel here.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+from fuzzyservo.controllers.classical import (
+    KIND_OPEN_LOOP,
+    KIND_P,
+    KIND_PI,
+    open_loop_step,
+    p_step,
+    pi_step,
+)
+
+
+@njit(cache=True)
+def controller_step(kind: int, cp: np.ndarray, cs: np.ndarray, r: float, y: float) -> float:
+    """Command for reference ``r`` and measurement ``y``; updates the state ``cs`` in place."""
+    if kind == KIND_P:
+        return p_step(cp, cs, r, y)
+    if kind == KIND_PI:
+        return pi_step(cp, cs, r, y)
+    if kind == KIND_OPEN_LOOP:
+        return open_loop_step(cp, cs, r, y)
+    return np.nan

@@ -1,0 +1,35 @@
+"""Errors raised at the edges (files, command line); never inside a simulation loop.
+
+Every message says what is wrong, where (file and key), the value, and the fix, on one line.
+"""
+
+from __future__ import annotations
+
+
+class FuzzyservoError(Exception):
+    """Base class of the errors the command line turns into one line and exit status 2."""
+
+
+class ConfigError(FuzzyservoError, ValueError):
+    """A rig, controller or study file (or a value in it) that cannot be used.
+
+    Parameters
+    ----------
+    message:
+        What is wrong and how to fix it.
+    file:
+        The file the value came from, if any.
+    key:
+        Dotted path of the key inside the file, e.g. ``plant.parameters.bulk_modulus``.
+    """
+
+    def __init__(self, message: str, *, file: str | None = None, key: str | None = None):
+        self.file = file
+        self.key = key
+        self.detail = message
+        where = ": ".join(part for part in (file, key) if part)
+        super().__init__(f"{where}: {message}" if where else message)
+
+
+class DataError(FuzzyservoError, ValueError):
+    """A measured-data file that cannot be used (unknown unit, bad time column, NaN ...)."""

@@ -1,0 +1,52 @@
+"""Controller files (YAML) to controller objects.
+
+    name: p_k10
+    kind: P                 # P | PI | open_loop
+    description: ...
+    source: seed 002 §5
+    gain: 10                # V/V (P, open_loop)
+    kp: 1.0                 # PI
+    ki: 0.5                 # PI, 1/s
+    output_limits: [-3, 3]  # V, optional: default is the rig actuator's command range
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from fuzzyservo.controllers.base import Controller
+from fuzzyservo.controllers.classical import PI, OpenLoop, P
+from fuzzyservo.errors import ConfigError
+from fuzzyservo.io._yaml import Node, read_yaml
+
+_COMMON = ("name", "kind", "description", "source", "output_limits")
+_KINDS = {
+    "P": ("gain",),
+    "PI": ("kp", "ki"),
+    "open_loop": ("gain",),
+}
+
+
+def load_controller(path: str | Path) -> Controller:
+    """Read and validate a controller file; raise :class:`ConfigError` naming file and key."""
+    file = str(path)
+    root = Node(read_yaml(path), file)
+    kind = root.str("kind")
+    if kind not in _KINDS:
+        root.fail(f"unknown controller kind {kind!r}; choose one of {sorted(_KINDS)}", key="kind")
+    root.only((*_COMMON, *_KINDS[kind]))
+    name = root.str("name", default=Path(file).stem)
+    limits = {}
+    if root.has("output_limits"):
+        lo_hi = root.numbers("output_limits")
+        if len(lo_hi) != 2 or not lo_hi[0] < lo_hi[1]:
+            root.fail(f"must be [u_min, u_max] with u_min < u_max (V), got {lo_hi}", key="output_limits")
+        limits = {"u_min": lo_hi[0], "u_max": lo_hi[1]}
+    try:
+        if kind == "P":
+            return P(gain=root.number("gain"), name=name, **limits)
+        if kind == "PI":
+            return PI(kp=root.number("kp"), ki=root.number("ki"), name=name, **limits)
+        return OpenLoop(gain=root.number("gain", default=1.0), name=name, **limits)
+    except ValueError as exc:
+        raise ConfigError(str(exc), file=file) from None

@@ -1,0 +1,255 @@
+"""Rig files (YAML) to :class:`~fuzzyservo.rig.Rig` objects.
+
+Layout of a rig file (every number as ``{value, unit, source}``; see ``rigs/``)::
+
+    name: dinca_cylinder
+    title: ...
+    source: ...
+    plant:    {type: open_centre_cylinder, parameters: {...}, initial: {...}}
+    feedback: {signal: y, offset: ..., gain: ..., ratio: ...}
+    sensors:  {name: {signal, offset, gain, ratio}}          # optional extra readings
+    actuator: {name: converter, gain: ..., lower: ..., upper: ...}
+    controller: {sample_time: ...}
+    output:   {signal: y, display_unit: cm}
+    scenarios: {name: {duration, warmup, reference, load, overrides, initial, description}}
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+from fuzzyservo.errors import ConfigError
+from fuzzyservo.io._yaml import Node, read_yaml
+from fuzzyservo.params import check, fields_by_key
+from fuzzyservo.plants import PLANTS, PlantModel
+from fuzzyservo.rig import Actuator, LinearSensor, Rig, Scenario
+from fuzzyservo.signals import Affine, Constant, Pulse, Signal, Sines, Steps
+from fuzzyservo.units import parse_unit, to_si
+
+_TOP = ("name", "title", "source", "plant", "feedback", "sensors", "actuator", "controller", "output", "scenarios")
+
+
+def load_rig(path: str | Path) -> Rig:
+    """Read and validate a rig file; raise :class:`ConfigError` naming file and key."""
+    file = str(path)
+    root = Node(read_yaml(path), file)
+    root.only(_TOP)
+    plant_node = root.child("plant")
+    plant_node.only(("type", "parameters", "initial"))
+    type_name = plant_node.str("type")
+    if type_name not in PLANTS:
+        plant_node.fail(f"unknown plant type {type_name!r}; choose one of {sorted(PLANTS)}", key="type")
+    plant = PLANTS[type_name]
+    params = _params(plant, plant_node.child("parameters"))
+    initial = _initial(plant, plant_node.child("initial", default={}))
+
+    feedback = _sensor(root.child("feedback"), plant)
+    sensors = {name: _sensor(node, plant) for name, node in root.children("sensors").items()}
+    actuator = _actuator(root.child("actuator"), plant)
+    ctrl = root.child("controller")
+    ctrl.only(("sample_time",))
+    sample_time = ctrl.quantity("sample_time", "s")
+    if not sample_time > 0:
+        ctrl.fail(f"must be > 0 s, got {sample_time}", key="sample_time")
+
+    out = root.child("output")
+    out.only(("signal", "display_unit"))
+    output = out.str("signal")
+    if output not in plant.signals:
+        out.fail(f"unknown signal {output!r}; choose one of {list(plant.signals)}", key="signal")
+    display_units: dict[str, str] = {}
+    if out.has("display_unit"):
+        unit = out.str("display_unit")
+        try:
+            to_si(1.0, unit, plant.signal_units[output])
+        except ValueError as exc:
+            out.fail(str(exc), key="display_unit")
+        display_units[output] = unit
+
+    scenario_nodes = root.children("scenarios")
+    if not scenario_nodes:
+        root.fail("no scenarios; add at least one under 'scenarios:'", key="scenarios")
+    scenarios = {
+        name: _scenario(name, node, plant, params, feedback) for name, node in scenario_nodes.items()
+    }
+    try:
+        return Rig(
+            name=root.str("name", default=Path(file).stem),
+            title=root.str("title", default=""),
+            source=root.str("source", default=""),
+            plant=plant,
+            params=params,
+            initial=initial,
+            feedback=feedback,
+            sensors=sensors,
+            actuator=actuator,
+            sample_time_s=sample_time,
+            output=output,
+            display_units=display_units,
+            scenarios=scenarios,
+            path=file,
+        )
+    except ValueError as exc:
+        raise ConfigError(str(exc), file=file) from None
+
+
+def _params(plant: PlantModel, node: Node) -> Any:
+    by_key = fields_by_key(plant.params_cls)
+    node.only(by_key)
+    values = {}
+    for key, f in by_key.items():
+        values[f.name] = node.quantity(key, f.metadata["unit"], default=f.metadata.get("default_value"))
+    return _build_params(plant, values, node)
+
+
+def _build_params(plant: PlantModel, values: dict[str, float], node: Node) -> Any:
+    try:
+        params = plant.params_cls(**values)
+        check(params)
+    except ValueError as exc:
+        key, _, rest = str(exc).partition(": ")
+        if key in fields_by_key(plant.params_cls):
+            node.fail(rest, key=key)
+        node.fail(str(exc))
+    return params
+
+
+def _initial(plant: PlantModel, node: Node) -> dict[str, float]:
+    node.only(plant.initial_keys)
+    return {kw: node.quantity(key, unit) for key, (kw, unit) in plant.initial_keys.items() if node.has(key)}
+
+
+def _sensor(node: Node, plant: PlantModel) -> LinearSensor:
+    node.only(("signal", "offset", "gain", "ratio", "unit"))
+    signal = node.str("signal")
+    if signal not in plant.states:
+        node.fail(f"unknown state {signal!r}; sensors read one of {list(plant.states)}", key="signal")
+    signal_unit = plant.signal_units[signal]
+    unit = node.str("unit", default="V")
+    gain = node.quantity("gain", f"{unit}/({signal_unit})")
+    ratio = node.quantity("ratio", "1", default=1.0)
+    if gain == 0 or ratio == 0:
+        node.fail("gain and ratio must not be zero", key="gain" if gain == 0 else "ratio")
+    return LinearSensor(
+        signal=signal, offset=node.quantity("offset", unit, default=0.0), gain=gain, ratio=ratio, unit=unit
+    )
+
+
+def _actuator(node: Node, plant: PlantModel) -> Actuator:
+    node.only(("name", "gain", "lower", "upper"))
+    name, unit = plant.input
+    lower = node.quantity("lower", unit)
+    upper = node.quantity("upper", unit)
+    if not lower < upper:
+        node.fail(f"`lower < upper` must hold, but got (lower={lower} {unit}, upper={upper} {unit}); swap them")
+    gain = node.quantity("gain", f"{unit}/V")
+    if gain == 0:
+        node.fail("must not be zero", key="gain")
+    return Actuator(name=node.str("name", default=name), gain=gain, lower=lower, upper=upper, unit=unit)
+
+
+_SCENARIO_KEYS = ("description", "duration", "warmup", "reference", "load", "overrides", "initial")
+
+
+def _scenario(name: str, node: Node, plant: PlantModel, params: Any, feedback: LinearSensor) -> Scenario:
+    node.only(_SCENARIO_KEYS)
+    duration = node.quantity("duration", "s")
+    warmup = node.quantity("warmup", "s", default=0.0)
+    if not duration > 0:
+        node.fail(f"must be > 0 s, got {duration}", key="duration")
+    if not 0 <= warmup < duration:
+        node.fail(f"must lie in [0, duration = {duration} s), got {warmup} s", key="warmup")
+    reference = _reference(node.child("reference"), plant, feedback)
+    load = Constant(0.0)
+    if node.has("load"):
+        load_name, load_unit = plant.load
+        load = _signal(node.child("load"), load_unit, lambda s: s)
+    overrides = {}
+    if node.has("overrides"):
+        ov = node.child("overrides")
+        by_key = fields_by_key(plant.params_cls)
+        ov.only(by_key)
+        for key in ov.data:
+            overrides[by_key[key].name] = ov.quantity(key, by_key[key].metadata["unit"])
+        import dataclasses
+
+        _build_params(plant, {**dataclasses.asdict(params), **overrides}, ov)
+    initial = _initial(plant, node.child("initial", default={}))
+    return Scenario(
+        name=name,
+        duration_s=duration,
+        warmup_s=warmup,
+        reference=reference,
+        load=load,
+        overrides=overrides,
+        initial=initial,
+        description=node.str("description", default=""),
+    )
+
+
+def _reference(node: Node, plant: PlantModel, feedback: LinearSensor) -> Signal:
+    """A reference in the feedback unit, or in the unit of the sensed signal (through the sensor)."""
+    unit = node.str("unit", default=feedback.unit)
+    try:
+        dims = parse_unit(unit).dims
+    except ValueError as exc:
+        node.fail(str(exc), key="unit")
+    if dims == parse_unit(feedback.unit).dims:
+        return _signal(node, feedback.unit, lambda s: s)
+    sensed_unit = plant.signal_units[feedback.signal]
+    if dims == parse_unit(sensed_unit).dims:
+        return _signal(node, sensed_unit, lambda s: Affine(s, gain=feedback.slope, offset=feedback.offset))
+    node.fail(
+        f"unit {unit!r} is neither the feedback unit ({feedback.unit}) nor that of "
+        f"{feedback.signal!r} ({sensed_unit}); give the reference in one of them",
+        key="unit",
+    )
+    raise AssertionError  # unreachable: fail raises
+
+
+_SIGNAL_KEYS = {
+    "constant": ("value",),
+    "steps": ("times_s", "values", "initial"),
+    "pulse": ("base", "amplitude", "period_s", "duty", "delay_s"),
+    "sines": ("amplitudes", "frequencies_hz", "phases_rad", "offset"),
+}
+
+
+def _signal(node: Node, si_unit: str, wrap) -> Signal:
+    kind = node.str("type")
+    if kind not in _SIGNAL_KEYS:
+        node.fail(f"unknown signal type {kind!r}; choose one of {sorted(_SIGNAL_KEYS)}", key="type")
+    node.only(("type", "unit", *_SIGNAL_KEYS[kind]))
+    unit = node.str("unit", default=si_unit)
+    try:
+        scale = to_si(1.0, unit, si_unit)
+    except ValueError as exc:
+        node.fail(str(exc), key="unit")
+    try:
+        if kind == "constant":
+            signal: Signal = Constant(scale * node.number("value"))
+        elif kind == "steps":
+            signal = Steps(
+                times_s=tuple(node.numbers("times_s")),
+                values=tuple(scale * v for v in node.numbers("values")),
+                initial=scale * node.number("initial", default=0.0),
+            )
+        elif kind == "pulse":
+            signal = Pulse(
+                base=scale * node.number("base"),
+                amplitude=scale * node.number("amplitude"),
+                period_s=node.number("period_s"),
+                duty=node.number("duty", default=0.5),
+                delay_s=node.number("delay_s", default=0.0),
+            )
+        else:
+            signal = Sines(
+                amplitudes=tuple(scale * v for v in node.numbers("amplitudes")),
+                frequencies_hz=tuple(node.numbers("frequencies_hz")),
+                phases_rad=tuple(node.numbers("phases_rad", default=[])),
+                offset=scale * node.number("offset", default=0.0),
+            )
+    except ValueError as exc:
+        node.fail(str(exc))
+    return wrap(signal)

@@ -1,0 +1,340 @@
+"""Open-centre servo-valve driving an asymmetric cylinder (seed 002, Dinca & Corcau).
+
+States (SI): ``y`` piston position [m] (0 at the seed's initial chamber lengths),
+``v`` velocity [m/s], and the liquid volumes at reference density ``xi1..xi4`` [m³]
+of the valve chambers 1 (supply side), 2 (return side) and the cylinder chambers 3
+(piston side) and 4 (rod side). The liquid mass is ``m = ρ0·xi`` (seed eq. 3-4, 8-9);
+pressures follow from the compressible-liquid law ρ = ρ0(1 + p/E) (eq. 1):
+
+    p = E·(xi / V − 1)                                         (eq. 5, 6, 10, 11)
+    V1, V2 constant;  V3 = S3·(l30 + y),  V4 = S4·(l40 − y)     (eq. 7)
+
+Mass form: ``d(xi)/dt`` is the net volume flow at reference density, so the total
+liquid mass is a linear invariant that any integrator conserves exactly.
+
+    dxi1/dt = Qa − Q1 − Q3          (eq. 3)
+    dxi2/dt = Q2 + Q4 − Qr          (eq. 4)
+    dxi3/dt = Q1 − Q2               (eq. 8)
+    dxi4/dt = Q3 − Q4               (eq. 9)
+    m·dv/dt = p3·S3 − p4·S4 − f·v − F_load + F_stop           (eq. 12)
+
+Valve slot flows (eq. 13-16) with Δi = i − I_bias:
+
+    Q1 = (a + b·Δi)·√(p1 − p3),  Q2 = (a − b·Δi)·√(p3 − p2)
+    Q3 = (a − b·Δi)·√(p1 − p4),  Q4 = (a + b·Δi)·√(p4 − p2)
+    Qa = Ra·√(pa − p1),          Qr = Rr·√(p2 − pr)             (eq. 17-18)
+
+Closing-current logic: beyond Δi ≥ +I_cl slots 2 and 3 are shut, beyond Δi ≤ −I_cl
+slots 1 and 4 (the seed's formulas close each slot where its opening coefficient
+reaches zero, I_cl = a/b = 3.70 mA; its prose swaps the two pairs). Every √ is the
+regularised orifice law of :func:`~fuzzyservo.components.orifice.signed_sqrt_flow`.
+
+End stops: the chamber lengths never fall below ``dead_length_m``; a stiff
+spring-damper acts beyond that point (the seed is silent; MODELLING.md "chamber
+volumes must never reach zero").
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from numba import njit
+
+from fuzzyservo.components.orifice import signed_sqrt_flow
+from fuzzyservo.params import index_of, quantity
+
+STATES = ("y", "v", "xi1", "xi2", "xi3", "xi4")
+SIGNALS = (
+    "y", "v", "p1", "p2", "p3", "p4",
+    "q_a", "q_r", "q1", "q2", "q3", "q4", "f_stop",
+)  # fmt: skip
+SIGNAL_UNITS = {
+    "y": "m", "v": "m/s", "p1": "Pa", "p2": "Pa", "p3": "Pa", "p4": "Pa",
+    "q_a": "m^3/s", "q_r": "m^3/s", "q1": "m^3/s", "q2": "m^3/s", "q3": "m^3/s",
+    "q4": "m^3/s", "f_stop": "N",
+}  # fmt: skip
+INPUT = ("i", "A")  # the plant input: servo-valve current
+LOAD = ("f_load", "N")  # external force opposing extension (+y)
+
+
+@dataclass(frozen=True)
+class CylinderParams:
+    """Seed 002 section 4 parameters, SI units (the rig file gives each with its source)."""
+
+    piston_diameter_m: float = quantity("piston_diameter", "m", positive=True)
+    rod_diameter_m: float = quantity("rod_diameter", "m", positive=True)
+    chamber_length_3_m: float = quantity("initial_chamber_length_3", "m", positive=True)
+    chamber_length_4_m: float = quantity("initial_chamber_length_4", "m", positive=True)
+    piston_mass_kg: float = quantity("piston_mass", "kg", positive=True)
+    viscous_friction_n_s_m: float = quantity("viscous_friction", "N*s/m", nonnegative=True)
+    valve_volume_1_m3: float = quantity("valve_chamber_volume_1", "m^3", positive=True)
+    valve_volume_2_m3: float = quantity("valve_chamber_volume_2", "m^3", positive=True)
+    slot_coeff_a_m3_s_sqrtpa: float = quantity("slot_coefficient_a", "m^3/(s*sqrt(Pa))", positive=True)
+    slot_coeff_b_m3_s_a_sqrtpa: float = quantity(
+        "slot_coefficient_b", "m^3/(s*A*sqrt(Pa))", positive=True
+    )
+    closing_current_a: float = quantity("closing_current", "A", positive=True)
+    bias_current_a: float = quantity("bias_current", "A")
+    density_kg_m3: float = quantity("density", "kg/m^3", positive=True)
+    bulk_modulus_pa: float = quantity("bulk_modulus", "Pa", positive=True)
+    supply_resistance_m3_s_sqrtpa: float = quantity("supply_resistance", "m^3/(s*sqrt(Pa))", positive=True)
+    return_resistance_m3_s_sqrtpa: float = quantity("return_resistance", "m^3/(s*sqrt(Pa))", positive=True)
+    supply_pressure_pa: float = quantity("supply_pressure", "Pa", positive=True)
+    return_pressure_pa: float = quantity("return_pressure", "Pa", nonnegative=True)
+    laminar_pressure_pa: float = quantity("laminar_pressure", "Pa", positive=True)
+    dead_length_m: float = quantity("dead_length", "m", positive=True)
+    end_stop_stiffness_n_m: float = quantity("end_stop_stiffness", "N/m", positive=True)
+    end_stop_damping_n_s_m: float = quantity("end_stop_damping", "N*s/m", nonnegative=True)
+
+    def __post_init__(self) -> None:
+        if self.rod_diameter_m >= self.piston_diameter_m:
+            raise ValueError(
+                f"rod_diameter: must be smaller than piston_diameter "
+                f"(rod {self.rod_diameter_m} m >= piston {self.piston_diameter_m} m)"
+            )
+        if self.supply_pressure_pa <= self.return_pressure_pa:
+            raise ValueError(
+                f"supply_pressure: must exceed return_pressure "
+                f"(got {self.supply_pressure_pa} Pa <= {self.return_pressure_pa} Pa)"
+            )
+        for key, length in (
+            ("initial_chamber_length_3", self.chamber_length_3_m),
+            ("initial_chamber_length_4", self.chamber_length_4_m),
+        ):
+            if self.dead_length_m >= length:
+                raise ValueError(
+                    f"dead_length: must be shorter than {key} ({self.dead_length_m} m >= {length} m)"
+                )
+
+    @property
+    def area_3_m2(self) -> float:
+        """Piston-side area S3 = π·dp²/4 [m²] (seed 002 §4: 7.068 cm²)."""
+        return math.pi * self.piston_diameter_m**2 / 4.0
+
+    @property
+    def area_4_m2(self) -> float:
+        """Rod-side annulus S4 = π·(dp² − dt²)/4 [m²] (seed 002 §4: 5.529 cm²)."""
+        return math.pi * (self.piston_diameter_m**2 - self.rod_diameter_m**2) / 4.0
+
+    @property
+    def stroke_limits_m(self) -> tuple[float, float]:
+        """Positions where the end stops engage: chamber 3 or 4 at its dead length."""
+        return (self.dead_length_m - self.chamber_length_3_m, self.chamber_length_4_m - self.dead_length_m)
+
+
+_P = {name: index_of(CylinderParams, name) for name in CylinderParams.__dataclass_fields__}
+P_DP = _P["piston_diameter_m"]
+P_DT = _P["rod_diameter_m"]
+P_L30 = _P["chamber_length_3_m"]
+P_L40 = _P["chamber_length_4_m"]
+P_M = _P["piston_mass_kg"]
+P_F = _P["viscous_friction_n_s_m"]
+P_V1 = _P["valve_volume_1_m3"]
+P_V2 = _P["valve_volume_2_m3"]
+P_A = _P["slot_coeff_a_m3_s_sqrtpa"]
+P_B = _P["slot_coeff_b_m3_s_a_sqrtpa"]
+P_ICL = _P["closing_current_a"]
+P_IBIAS = _P["bias_current_a"]
+P_E = _P["bulk_modulus_pa"]
+P_RA = _P["supply_resistance_m3_s_sqrtpa"]
+P_RR = _P["return_resistance_m3_s_sqrtpa"]
+P_PA = _P["supply_pressure_pa"]
+P_PR = _P["return_pressure_pa"]
+P_PLAM = _P["laminar_pressure_pa"]
+P_LDEAD = _P["dead_length_m"]
+P_KSTOP = _P["end_stop_stiffness_n_m"]
+P_CSTOP = _P["end_stop_damping_n_s_m"]
+
+# Chamber lengths never fall below this fraction of the dead length, even deep in an
+# end stop, so that a volume can never reach zero whatever the integrator tries.
+_MIN_LENGTH_FRACTION = 0.05
+
+
+@njit(cache=True)
+def _geometry(y: float, p: np.ndarray) -> tuple[float, float, float, float]:
+    s3 = math.pi * p[P_DP] ** 2 / 4.0
+    s4 = s3 - math.pi * p[P_DT] ** 2 / 4.0
+    lmin = _MIN_LENGTH_FRACTION * p[P_LDEAD]
+    l3 = max(p[P_L30] + y, lmin)
+    l4 = max(p[P_L40] - y, lmin)
+    return s3, s4, s3 * l3, s4 * l4
+
+
+@njit(cache=True)
+def _stop_force(y: float, v: float, p: np.ndarray) -> float:
+    """End-stop force [N]: spring-damper beyond the dead length, zero inside the stroke."""
+    lo = p[P_LDEAD] - p[P_L30]
+    hi = p[P_L40] - p[P_LDEAD]
+    if y < lo:
+        return p[P_KSTOP] * (lo - y) - p[P_CSTOP] * v * (1.0 if v < 0.0 else 0.0)
+    if y > hi:
+        return -p[P_KSTOP] * (y - hi) - p[P_CSTOP] * v * (1.0 if v > 0.0 else 0.0)
+    return 0.0
+
+
+@njit(cache=True)
+def _slot_coefficients(i: float, p: np.ndarray) -> tuple[float, float]:
+    """Opening coefficients (a + b·Δi, a − b·Δi) with the closing-current logic (eq. 13-16)."""
+    di = i - p[P_IBIAS]
+    c14 = p[P_A] + p[P_B] * di
+    c23 = p[P_A] - p[P_B] * di
+    if di >= p[P_ICL]:
+        c23 = 0.0
+    if di <= -p[P_ICL]:
+        c14 = 0.0
+    return max(c14, 0.0), max(c23, 0.0)
+
+
+@njit(cache=True)
+def pressures(x: np.ndarray, p: np.ndarray) -> tuple[float, float, float, float]:
+    """Pressures p1..p4 [Pa] from the liquid volumes (seed 002 eq. 5, 6, 10, 11)."""
+    e = p[P_E]
+    _, _, v3, v4 = _geometry(x[0], p)
+    return (
+        e * (x[2] / p[P_V1] - 1.0),
+        e * (x[3] / p[P_V2] - 1.0),
+        e * (x[4] / v3 - 1.0),
+        e * (x[5] / v4 - 1.0),
+    )
+
+
+@njit(cache=True)
+def flows(x: np.ndarray, i: float, p: np.ndarray) -> tuple[float, float, float, float, float, float]:
+    """Flows (Qa, Qr, Q1, Q2, Q3, Q4) [m³/s] for state ``x`` and valve current ``i`` [A]."""
+    p1, p2, p3, p4 = pressures(x, p)
+    return _flows(p1, p2, p3, p4, i, p)
+
+
+@njit(cache=True, inline="always")
+def _flows(
+    p1: float, p2: float, p3: float, p4: float, i: float, p: np.ndarray
+) -> tuple[float, float, float, float, float, float]:
+    lam = p[P_PLAM]
+    c14, c23 = _slot_coefficients(i, p)
+    qa = signed_sqrt_flow(p[P_RA], p[P_PA] - p1, lam)
+    qr = signed_sqrt_flow(p[P_RR], p2 - p[P_PR], lam)
+    q1 = signed_sqrt_flow(c14, p1 - p3, lam)
+    q2 = signed_sqrt_flow(c23, p3 - p2, lam)
+    q3 = signed_sqrt_flow(c23, p1 - p4, lam)
+    q4 = signed_sqrt_flow(c14, p4 - p2, lam)
+    return qa, qr, q1, q2, q3, q4
+
+
+@njit(cache=True)
+def rhs(x: np.ndarray, i: float, f_load: float, p: np.ndarray, dx: np.ndarray) -> None:
+    """Right-hand side dx/dt of the seed-002 servo-actuator (module docstring, eq. 1-18).
+
+    ``x`` states (STATES), ``i`` valve current [A], ``f_load`` external force [N]
+    opposing extension, ``p`` packed :class:`CylinderParams`; writes ``dx``.
+    """
+    y = x[0]
+    v = x[1]
+    s3, s4, _, _ = _geometry(y, p)
+    p1, p2, p3, p4 = pressures(x, p)
+    qa, qr, q1, q2, q3, q4 = _flows(p1, p2, p3, p4, i, p)
+    dx[0] = v
+    dx[1] = (p3 * s3 - p4 * s4 - p[P_F] * v - f_load + _stop_force(y, v, p)) / p[P_M]
+    dx[2] = qa - q1 - q3
+    dx[3] = q2 + q4 - qr
+    dx[4] = q1 - q2
+    dx[5] = q3 - q4
+
+
+@njit(cache=True)
+def signals(x: np.ndarray, i: float, f_load: float, p: np.ndarray, out: np.ndarray) -> None:
+    """Every signal of SIGNALS for state ``x``; writes ``out``."""
+    p1, p2, p3, p4 = pressures(x, p)
+    qa, qr, q1, q2, q3, q4 = flows(x, i, p)
+    out[0] = x[0]
+    out[1] = x[1]
+    out[2] = p1
+    out[3] = p2
+    out[4] = p3
+    out[5] = p4
+    out[6] = qa
+    out[7] = qr
+    out[8] = q1
+    out[9] = q2
+    out[10] = q3
+    out[11] = q4
+    out[12] = _stop_force(x[0], x[1], p)
+
+
+@njit(cache=True)
+def in_end_stop(x: np.ndarray, p: np.ndarray) -> bool:
+    """True when the piston is beyond either end-stop position."""
+    return x[0] < p[P_LDEAD] - p[P_L30] or x[0] > p[P_L40] - p[P_LDEAD]
+
+
+def state_scale(params: CylinderParams) -> np.ndarray:
+    """Unit of local error per state: 1 µm, 1 mm/s, and 1 kPa of pressure in each chamber."""
+    e = params.bulk_modulus_pa
+    dp = 1e3
+    v3 = params.area_3_m2 * params.chamber_length_3_m
+    v4 = params.area_4_m2 * params.chamber_length_4_m
+    return np.array(
+        [1e-6, 1e-3, params.valve_volume_1_m3 * dp / e, params.valve_volume_2_m3 * dp / e,
+         v3 * dp / e, v4 * dp / e]
+    )  # fmt: skip
+
+
+# Initial conditions a rig file may set: file key -> (keyword of initial_state, SI unit)
+INITIAL_KEYS = {
+    "position": ("y_m", "m"),
+    "pressure_1": ("p1_pa", "Pa"),
+    "pressure_2": ("p2_pa", "Pa"),
+    "pressure_3": ("p3_pa", "Pa"),
+    "pressure_4": ("p4_pa", "Pa"),
+    "mass_3": ("m3_kg", "kg"),
+    "mass_4": ("m4_kg", "kg"),
+}
+
+
+def initial_state(
+    params: CylinderParams,
+    *,
+    y_m: float = 0.0,
+    p1_pa: float | None = None,
+    p2_pa: float | None = None,
+    p3_pa: float | None = None,
+    p4_pa: float | None = None,
+    m3_kg: float | None = None,
+    m4_kg: float | None = None,
+) -> np.ndarray:
+    """State at rest at position ``y_m`` with the given pressures or chamber masses.
+
+    Defaults (seed 002 eq. 2): p1 = pa, p2 = pr; p3 = p4 = (pa + pr)/2 unless given.
+    A chamber mass m3 or m4 (seed 002 §4 gives m30 = 12.040 g, m40 = 68.280 g at
+    y = 0) sets the pressure through m = ρ0·V·(1 + p/E).
+    """
+    pa, pr = params.supply_pressure_pa, params.return_pressure_pa
+    e = params.bulk_modulus_pa
+    v3 = params.area_3_m2 * (params.chamber_length_3_m + y_m)
+    v4 = params.area_4_m2 * (params.chamber_length_4_m - y_m)
+    if m3_kg is not None:
+        p3_pa = pressure_from_mass(m3_kg, v3, params)
+    if m4_kg is not None:
+        p4_pa = pressure_from_mass(m4_kg, v4, params)
+    p1 = pa if p1_pa is None else p1_pa
+    p2 = pr if p2_pa is None else p2_pa
+    p3 = 0.5 * (pa + pr) if p3_pa is None else p3_pa
+    p4 = 0.5 * (pa + pr) if p4_pa is None else p4_pa
+    return np.array(
+        [y_m, 0.0, params.valve_volume_1_m3 * (1 + p1 / e), params.valve_volume_2_m3 * (1 + p2 / e),
+         v3 * (1 + p3 / e), v4 * (1 + p4 / e)]
+    )  # fmt: skip
+
+
+def pressure_from_mass(mass_kg: float, volume_m3: float, params: CylinderParams) -> float:
+    """Invert m = ρ0·V·(1 + p/E) for p [Pa] (seed 002 §4 gives m30, m40 this way)."""
+    return params.bulk_modulus_pa * (mass_kg / (params.density_kg_m3 * volume_m3) - 1.0)
+
+
+def typical_state(params: CylinderParams) -> np.ndarray:
+    """Typical magnitude of each state (finite-difference increments): 1 mm, 0.1 m/s, volumes."""
+    return np.array(
+        [1e-3, 0.1, params.valve_volume_1_m3, params.valve_volume_2_m3,
+         params.area_3_m2 * params.chamber_length_3_m, params.area_4_m2 * params.chamber_length_4_m]
+    )  # fmt: skip

@@ -1,0 +1,146 @@
+"""Servo-valve driving an axial-piston motor: the EHS 160 rig of seed 000 (Selim et al.).
+
+States (SI): ``spool`` the valve's spool position expressed as its equivalent input
+voltage [V], ``w`` motor speed [rad/s], ``theta`` motor angle [rad], ``p_load`` load
+pressure P_x [Pa].
+
+    τ_x · dspool/dt = K_a·u − spool                                  (eq. 8)
+    Q = K_x · spool · sqrt((P_s − sgn(Q)·P_x) / P_s)                   (eq. 9)
+    (V_c / (4·K_h)) · dP_x/dt = Q − V_m·w − L_e·P_x                   (eq. 17)
+    J · dw/dt = V_m·P_x − B_e·w − T_f·tanh(w/w_c) − T_L               (eq. 14-15)
+    dtheta/dt = w
+
+``u`` is the amplifier input [V]; K_a = −1 and K_x < 0 (Table 2) so that a positive
+input drives the motor forward. Eq. 9 is printed as sqrt(P_s − |P_x|): for a
+motoring load (P_x with the sign of the flow, every scenario of the seed) the two
+are the same; the signed form above keeps the flow physical when the load overruns.
+The square root is regularised near zero (``laminar_pressure_pa``), and the Coulomb
+friction is smoothed over ``coulomb_velocity_rad_s`` so the right-hand side is
+Lipschitz (MODELLING.md "Friction").
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from numba import njit
+
+from fuzzyservo.params import index_of, quantity
+
+STATES = ("spool", "w", "theta", "p_load")
+SIGNALS = ("spool", "w", "theta", "p_load", "q_valve", "t_friction")
+SIGNAL_UNITS = {
+    "spool": "V",
+    "w": "rad/s",
+    "theta": "rad",
+    "p_load": "Pa",
+    "q_valve": "m^3/s",
+    "t_friction": "N*m",
+}
+INPUT = ("u_valve", "V")  # the plant input: servo-amplifier input voltage
+LOAD = ("t_load", "N*m")  # load torque opposing forward rotation (the brake)
+
+
+@dataclass(frozen=True)
+class MotorParams:
+    """Seed 000 Table 2, SI units (the rig file gives each with its source)."""
+
+    valve_time_constant_s: float = quantity("valve_time_constant", "s", positive=True)
+    amplifier_gain: float = quantity("amplifier_gain", "1", nonzero=True)
+    valve_flow_gain_m3_s_v: float = quantity("valve_flow_gain", "m^3/(s*V)", nonzero=True)
+    supply_pressure_pa: float = quantity("supply_pressure", "Pa", positive=True)
+    motor_displacement_m3_rad: float = quantity("motor_displacement", "m^3/rad", positive=True)
+    oil_volume_m3: float = quantity("oil_volume", "m^3", positive=True)
+    leakage_m5_n_s: float = quantity("leakage_coefficient", "m^5/(N*s)", nonnegative=True)
+    bulk_modulus_pa: float = quantity("bulk_modulus", "Pa", positive=True)
+    viscous_friction_n_m_s: float = quantity("viscous_friction", "N*m*s/rad", nonnegative=True)
+    inertia_kg_m2: float = quantity("inertia", "N*m*s^2/rad", positive=True)
+    coulomb_torque_n_m: float = quantity("coulomb_torque", "N*m", nonnegative=True)
+    coulomb_velocity_rad_s: float = quantity("coulomb_velocity", "rad/s", positive=True)
+    laminar_pressure_pa: float = quantity("laminar_pressure", "Pa", positive=True)
+
+
+_P = {name: index_of(MotorParams, name) for name in MotorParams.__dataclass_fields__}
+P_TAU = _P["valve_time_constant_s"]
+P_KA = _P["amplifier_gain"]
+P_KX = _P["valve_flow_gain_m3_s_v"]
+P_PS = _P["supply_pressure_pa"]
+P_VM = _P["motor_displacement_m3_rad"]
+P_VC = _P["oil_volume_m3"]
+P_LE = _P["leakage_m5_n_s"]
+P_KH = _P["bulk_modulus_pa"]
+P_B = _P["viscous_friction_n_m_s"]
+P_J = _P["inertia_kg_m2"]
+P_TF = _P["coulomb_torque_n_m"]
+P_WC = _P["coulomb_velocity_rad_s"]
+P_PLAM = _P["laminar_pressure_pa"]
+
+
+@njit(cache=True)
+def valve_flow(spool: float, p_load: float, p: np.ndarray) -> float:
+    """Servo-valve flow Q [m³/s] (seed 000 eq. 9), regularised near P_x = ±P_s."""
+    q0 = p[P_KX] * spool
+    dp = p[P_PS] - (p_load if q0 >= 0.0 else -p_load)
+    lam = p[P_PLAM]
+    # dp/(dp²+lam²)^(1/4) ≈ sqrt(dp) for dp ≫ lam, linear through zero below
+    return q0 * dp / math.sqrt(math.sqrt(dp * dp + lam * lam) * p[P_PS])
+
+
+@njit(cache=True)
+def friction_torque(w: float, p: np.ndarray) -> float:
+    """Viscous plus smoothed Coulomb friction torque [N·m] (seed 000 eq. 10, Table 2)."""
+    return p[P_B] * w + p[P_TF] * math.tanh(w / p[P_WC])
+
+
+@njit(cache=True)
+def rhs(x: np.ndarray, u: float, t_load: float, p: np.ndarray, dx: np.ndarray) -> None:
+    """Right-hand side dx/dt of the EHS 160 servo motor (module docstring).
+
+    ``x`` states (STATES), ``u`` amplifier input [V], ``t_load`` load torque [N·m],
+    ``p`` packed :class:`MotorParams`; writes ``dx``.
+    """
+    spool = x[0]
+    w = x[1]
+    pl = x[3]
+    q = valve_flow(spool, pl, p)
+    dx[0] = (p[P_KA] * u - spool) / p[P_TAU]
+    dx[1] = (p[P_VM] * pl - friction_torque(w, p) - t_load) / p[P_J]
+    dx[2] = w
+    dx[3] = 4.0 * p[P_KH] / p[P_VC] * (q - p[P_VM] * w - p[P_LE] * pl)
+
+
+@njit(cache=True)
+def signals(x: np.ndarray, u: float, t_load: float, p: np.ndarray, out: np.ndarray) -> None:
+    """Every signal of SIGNALS for state ``x``; writes ``out``."""
+    out[0] = x[0]
+    out[1] = x[1]
+    out[2] = x[2]
+    out[3] = x[3]
+    out[4] = valve_flow(x[0], x[3], p)
+    out[5] = friction_torque(x[1], p)
+
+
+@njit(cache=True)
+def in_end_stop(x: np.ndarray, p: np.ndarray) -> bool:
+    """A motor has no end stop."""
+    return False
+
+
+def state_scale(params: MotorParams) -> np.ndarray:
+    """Unit of local error per state: 1 mV of spool, 0.01 rad/s, 1 mrad, 1 kPa."""
+    return np.array([1e-3, 1e-2, 1e-3, 1e3])
+
+
+def typical_state(params: MotorParams) -> np.ndarray:
+    """Typical magnitude of each state (finite-difference increments): 1 V, 10 rad/s, 1 rad, 1 MPa."""
+    return np.array([1.0, 10.0, 1.0, 1e6])
+
+
+INITIAL_KEYS = {"speed": ("w_rad_s", "rad/s"), "angle": ("theta_rad", "rad")}
+
+
+def initial_state(params: MotorParams, *, w_rad_s: float = 0.0, theta_rad: float = 0.0) -> np.ndarray:
+    """State at rest (spool centred, no load pressure) unless a speed is given."""
+    return np.array([0.0, w_rad_s, theta_rad, 0.0])

@@ -1,0 +1,160 @@
+"""A rig: a plant with its parameters, sensors, actuator, sample time and scenarios.
+
+Typed and frozen; :mod:`fuzzyservo.io.rigs` builds it from a rig file.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from fuzzyservo.params import check, fields_by_key
+from fuzzyservo.plants import PlantModel
+from fuzzyservo.signals import Constant, Signal
+
+
+@dataclass(frozen=True)
+class LinearSensor:
+    """``reading = offset + gain · signal / ratio`` [V] (e.g. seed 002 eq. 19:
+    U_R = 5.75 V + 0.1936 V/cm · y; seed 000: 3.44 V/rad after the 7.5 gear)."""
+
+    signal: str
+    offset: float = 0.0
+    gain: float = 1.0
+    ratio: float = 1.0
+    unit: str = "V"
+
+    def __post_init__(self) -> None:
+        if self.gain == 0 or self.ratio == 0:
+            raise ValueError(f"sensor on {self.signal!r}: gain and ratio must not be zero")
+
+    @property
+    def slope(self) -> float:
+        """Reading per unit of the sensed signal (gain / ratio)."""
+        return self.gain / self.ratio
+
+    def read(self, value: np.ndarray | float) -> np.ndarray | float:
+        return self.offset + self.slope * value
+
+    def invert(self, reading: np.ndarray | float) -> np.ndarray | float:
+        return (reading - self.offset) / self.slope
+
+
+@dataclass(frozen=True)
+class Actuator:
+    """Command-to-plant-input stage: ``a = clip(gain·u, lower, upper)`` (seed 002: the
+    voltage-current converter, 10 mA/V, ±30 mA)."""
+
+    name: str
+    gain: float
+    lower: float
+    upper: float
+    unit: str
+
+    def __post_init__(self) -> None:
+        if self.gain == 0:
+            raise ValueError(f"actuator {self.name!r}: gain must not be zero")
+        if not self.lower < self.upper:
+            raise ValueError(
+                f"actuator {self.name!r}: `lower < upper` must hold, but got "
+                f"(lower={self.lower}, upper={self.upper})"
+            )
+
+    @property
+    def command_limits(self) -> tuple[float, float]:
+        """The command range [V] that maps onto the actuator limits."""
+        a, b = self.lower / self.gain, self.upper / self.gain
+        return (min(a, b), max(a, b))
+
+
+@dataclass(frozen=True)
+class Scenario:
+    """A run to simulate: reference (feedback unit), load (plant load unit), duration.
+
+    ``warmup_s``: metrics ignore what happens before (e.g. the move from the initial
+    position to the first command level). ``overrides``: parameter values (SI, by field
+    name) this scenario changes, e.g. a supply pressure. ``initial``: initial-state
+    keywords of the plant.
+    """
+
+    name: str
+    duration_s: float
+    reference: Signal
+    load: Signal = Constant(0.0)
+    warmup_s: float = 0.0
+    overrides: dict[str, float] = field(default_factory=dict)
+    initial: dict[str, float] = field(default_factory=dict)
+    description: str = ""
+
+    def __post_init__(self) -> None:
+        if not self.duration_s > 0:
+            raise ValueError(f"scenario {self.name!r}: duration must be > 0 s, got {self.duration_s}")
+        if not 0 <= self.warmup_s < self.duration_s:
+            raise ValueError(
+                f"scenario {self.name!r}: warmup must lie in [0, duration), got {self.warmup_s} s"
+            )
+
+
+@dataclass(frozen=True)
+class Rig:
+    """A servo system ready to simulate."""
+
+    name: str
+    plant: PlantModel
+    params: Any
+    feedback: LinearSensor
+    actuator: Actuator
+    sample_time_s: float
+    output: str
+    scenarios: dict[str, Scenario]
+    initial: dict[str, float] = field(default_factory=dict)
+    sensors: dict[str, LinearSensor] = field(default_factory=dict)
+    display_units: dict[str, str] = field(default_factory=dict)
+    title: str = ""
+    source: str = ""
+    path: str = ""
+
+    def __post_init__(self) -> None:
+        if not self.sample_time_s > 0:
+            raise ValueError(f"sample_time must be > 0 s, got {self.sample_time_s}")
+        for sensor in (self.feedback, *self.sensors.values()):
+            if sensor.signal not in self.plant.states:
+                raise ValueError(
+                    f"sensor signal {sensor.signal!r} is not a state of {self.plant.type_name}; "
+                    f"choose one of {list(self.plant.states)}"
+                )
+        if self.output not in self.plant.signals:
+            raise ValueError(
+                f"output {self.output!r} is not a signal of {self.plant.type_name}; "
+                f"choose one of {list(self.plant.signals)}"
+            )
+
+    def scenario(self, name: str | None = None) -> Scenario:
+        """The named scenario (the first one when ``name`` is None)."""
+        if name is None:
+            return next(iter(self.scenarios.values()))
+        if name not in self.scenarios:
+            raise KeyError(f"unknown scenario {name!r}; this rig has {sorted(self.scenarios)}")
+        return self.scenarios[name]
+
+    def params_for(self, scenario: Scenario) -> Any:
+        """The plant parameters with the scenario's overrides applied (and re-checked)."""
+        if not scenario.overrides:
+            return self.params
+        new = dataclasses.replace(self.params, **scenario.overrides)
+        check(new)
+        return new
+
+    def with_params(self, **changes: float) -> Rig:
+        """A copy with plant parameters changed (by field name, SI)."""
+        new = dataclasses.replace(self.params, **changes)
+        check(new)
+        return dataclasses.replace(self, params=new)
+
+
+def param_field_name(params_cls: type, key: str) -> str:
+    """Field name of the parameter a file calls ``key``."""
+    return fields_by_key(params_cls)[key].name

@@ -1,0 +1,70 @@
+"""The result of a closed-loop run: every signal, the command, the saturation flag, a status."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+
+@dataclass(frozen=True)
+class SimResult:
+    """Sampled record of a closed-loop run (one row per control sample).
+
+    All arrays have the length of ``t``. Plant signals are SI (units in ``units``).
+    ``reference`` and ``feedback`` are in the rig's feedback unit (V), ``command`` is
+    the controller output (V), ``actuator`` the plant input after the actuator
+    (e.g. valve current [A]), ``saturated`` true where the actuator sits at a limit.
+    ``reference_output`` is the reference mapped to the judged output's unit through
+    the feedback sensor, so ``output`` and ``reference_output`` compare directly.
+
+    ``status``: ``ok``; ``end_stop`` (the run finished but the piston hit a stop);
+    ``diverged`` or ``step_failure`` (the run stopped; samples after ``message``'s
+    time are NaN).
+    """
+
+    rig: str
+    scenario: str
+    controller: str
+    t: np.ndarray
+    reference: np.ndarray
+    reference_output: np.ndarray
+    feedback: np.ndarray
+    output: np.ndarray
+    command: np.ndarray
+    actuator: np.ndarray
+    saturated: np.ndarray
+    signals: dict[str, np.ndarray]
+    units: dict[str, str]
+    output_name: str
+    actuator_name: str
+    actuator_limits: tuple[float, float]
+    sample_time_s: float
+    warmup_s: float = 0.0
+    status: str = "ok"
+    message: str = ""
+    integration_steps: int = 0
+    display_units: dict[str, str] = field(default_factory=dict)
+
+    @property
+    def ok(self) -> bool:
+        """True when the run completed (``ok`` or ``end_stop``)."""
+        return self.status in ("ok", "end_stop")
+
+    @property
+    def output_unit(self) -> str:
+        return self.units[self.output_name]
+
+    def signal(self, name: str) -> np.ndarray:
+        """A plant signal, or one of reference/feedback/command/actuator/output."""
+        extra = {
+            "reference": self.reference,
+            "reference_output": self.reference_output,
+            "feedback": self.feedback,
+            "command": self.command,
+            "actuator": self.actuator,
+            "output": self.output,
+        }
+        if name in extra:
+            return extra[name]
+        return self.signals[name]

@@ -60,10 +60,16 @@ def check(params: Any) -> None:
             continue
         value = getattr(params, f.name)
         key, unit = meta["key"], meta["unit"]
-        if not isinstance(value, int | float) or isinstance(value, bool) or not math.isfinite(value):
+        if (
+            not isinstance(value, int | float)
+            or isinstance(value, bool)
+            or not math.isfinite(value)
+        ):
             raise ValueError(f"{key}: must be a finite number in {unit}, got {value!r}")
         if meta["positive"] and not value > 0:
-            raise ValueError(f"{key}: must be > 0 {unit} (physical), got {value!r}; give a positive value")
+            raise ValueError(
+                f"{key}: must be > 0 {unit} (physical), got {value!r}; give a positive value"
+            )
         if meta["nonnegative"] and value < 0:
             raise ValueError(f"{key}: must be >= 0 {unit} (physical), got {value!r}")
         if meta["nonzero"] and value == 0:

@@ -83,7 +83,7 @@ class Scenario:
     name: str
     duration_s: float
     reference: Signal
-    load: Signal = Constant(0.0)
+    load: Signal = field(default_factory=Constant)
     warmup_s: float = 0.0
     overrides: dict[str, float] = field(default_factory=dict)
     initial: dict[str, float] = field(default_factory=dict)
@@ -91,7 +91,9 @@ class Scenario:
 
     def __post_init__(self) -> None:
         if not self.duration_s > 0:
-            raise ValueError(f"scenario {self.name!r}: duration must be > 0 s, got {self.duration_s}")
+            raise ValueError(
+                f"scenario {self.name!r}: duration must be > 0 s, got {self.duration_s}"
+            )
         if not 0 <= self.warmup_s < self.duration_s:
             raise ValueError(
                 f"scenario {self.name!r}: warmup must lie in [0, duration), got {self.warmup_s} s"

@@ -16,8 +16,8 @@ import ast
 import math
 import re
 from dataclasses import dataclass
-from functools import lru_cache
 from fractions import Fraction
+from functools import lru_cache
 
 # Base dimensions: length, mass, time, current, angle (kept apart so rad/s and Hz differ)
 _BASES = ("m", "kg", "s", "A", "rad")
@@ -31,10 +31,16 @@ class Unit:
     dims: tuple[Fraction, ...]
 
     def __mul__(self, other: Unit) -> Unit:
-        return Unit(self.factor * other.factor, tuple(a + b for a, b in zip(self.dims, other.dims, strict=True)))
+        return Unit(
+            self.factor * other.factor,
+            tuple(a + b for a, b in zip(self.dims, other.dims, strict=True)),
+        )
 
     def __truediv__(self, other: Unit) -> Unit:
-        return Unit(self.factor / other.factor, tuple(a - b for a, b in zip(self.dims, other.dims, strict=True)))
+        return Unit(
+            self.factor / other.factor,
+            tuple(a - b for a, b in zip(self.dims, other.dims, strict=True)),
+        )
 
     def __pow__(self, n: Fraction) -> Unit:
         return Unit(self.factor ** float(n), tuple(a * n for a in self.dims))
@@ -48,7 +54,9 @@ class Unit:
         return "*".join(parts) or "1"
 
 
-def _u(factor: float, m: float = 0, kg: float = 0, s: float = 0, a: float = 0, rad: float = 0) -> Unit:
+def _u(
+    factor: float, m: float = 0, kg: float = 0, s: float = 0, a: float = 0, rad: float = 0
+) -> Unit:
     return Unit(factor, tuple(Fraction(x).limit_denominator(8) for x in (m, kg, s, a, rad)))
 
 
@@ -159,7 +167,9 @@ def parse_unit(text: str) -> Unit:
     try:
         tree = ast.parse(expr, mode="eval")
     except SyntaxError as exc:
-        raise ValueError(f"cannot read unit {text!r}: write it like 'l/(min*sqrt(bar))' or 'm^3/s'") from exc
+        raise ValueError(
+            f"cannot read unit {text!r}: write it like 'l/(min*sqrt(bar))' or 'm^3/s'"
+        ) from exc
     return _evaluate(tree, text)
 
 

@@ -57,7 +57,9 @@ def pi_step(cp: np.ndarray, cs: np.ndarray, r: float, y: float) -> float:
 
 def _limits(u_min: float, u_max: float) -> None:
     if not u_min < u_max:
-        raise ValueError(f"output_limits: `u_min < u_max` must hold, but got (u_min={u_min}, u_max={u_max})")
+        raise ValueError(
+            f"output_limits: `u_min < u_max` must hold, but got (u_min={u_min}, u_max={u_max})"
+        )
 
 
 @dataclass(frozen=True)

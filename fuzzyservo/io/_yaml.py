@@ -25,14 +25,18 @@ def read_yaml(path: str | Path) -> dict[str, Any]:
     """Parse a YAML file whose top level is a mapping."""
     p = Path(path)
     if not p.is_file():
-        raise ConfigError(f"file not found (looked in {p.resolve().parent}); check the path", file=str(path))
+        raise ConfigError(
+            f"file not found (looked in {p.resolve().parent}); check the path", file=str(path)
+        )
     try:
         data = yaml.safe_load(p.read_text(encoding="utf-8"))
     except yaml.YAMLError as exc:
         mark = getattr(exc, "problem_mark", None)
         where = f"line {mark.line + 1}, column {mark.column + 1}: " if mark else ""
         problem = getattr(exc, "problem", None) or str(exc).splitlines()[0]
-        raise ConfigError(f"{where}not valid YAML ({problem}); fix the syntax", file=str(path)) from None
+        raise ConfigError(
+            f"{where}not valid YAML ({problem}); fix the syntax", file=str(path)
+        ) from None
     if not isinstance(data, dict):
         raise ConfigError("the file must hold a YAML mapping (key: value lines)", file=str(path))
     return data
@@ -53,7 +57,9 @@ class Node:
         return f"{self.key}.{key}" if self.key else key
 
     def fail(self, message: str, key: str | None = None) -> ConfigError:
-        raise ConfigError(message, file=self.file, key=self.path(key) if key else (self.key or None))
+        raise ConfigError(
+            message, file=self.file, key=self.path(key) if key else (self.key or None)
+        )
 
     # -- structure --------------------------------------------------------------
     def only(self, allowed: Iterable[str]) -> None:
@@ -62,7 +68,9 @@ class Node:
         for key in self.data:
             if key not in allowed:
                 close = difflib.get_close_matches(str(key), allowed, n=1)
-                hint = f"did you mean {close[0]!r}?" if close else f"known keys: {', '.join(allowed)}"
+                hint = (
+                    f"did you mean {close[0]!r}?" if close else f"known keys: {', '.join(allowed)}"
+                )
                 self.fail(f"unknown key; {hint}", key=str(key))
 
     def has(self, key: str) -> bool:
@@ -113,6 +121,12 @@ class Node:
         return [self._as_number(v, f"{key}[{i}]") for i, v in enumerate(value)]
 
     def _as_number(self, value: Any, key: str) -> float:
+        if isinstance(value, str):
+            # YAML 1.1 reads 1.4e9 (no sign after e) as text; accept what a person means
+            try:
+                value = float(value)
+            except ValueError:
+                self.fail(f"must be a number, got {value!r}", key=key)
         if isinstance(value, bool) or not isinstance(value, int | float):
             self.fail(f"must be a number, got {value!r}", key=key)
         if not math.isfinite(value):

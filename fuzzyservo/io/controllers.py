@@ -1,13 +1,13 @@
 """Controller files (YAML) to controller objects.
 
-    name: p_k10
-    kind: P                 # P | PI | open_loop
-    description: ...
-    source: seed 002 §5
-    gain: 10                # V/V (P, open_loop)
-    kp: 1.0                 # PI
-    ki: 0.5                 # PI, 1/s
-    output_limits: [-3, 3]  # V, optional: default is the rig actuator's command range
+name: p_k10
+kind: P                 # P | PI | open_loop
+description: ...
+source: seed 002 §5
+gain: 10                # V/V (P, open_loop)
+kp: 1.0                 # PI
+ki: 0.5                 # PI, 1/s
+output_limits: [-3, 3]  # V, optional: default is the rig actuator's command range
 """
 
 from __future__ import annotations
@@ -40,7 +40,9 @@ def load_controller(path: str | Path) -> Controller:
     if root.has("output_limits"):
         lo_hi = root.numbers("output_limits")
         if len(lo_hi) != 2 or not lo_hi[0] < lo_hi[1]:
-            root.fail(f"must be [u_min, u_max] with u_min < u_max (V), got {lo_hi}", key="output_limits")
+            root.fail(
+                f"must be [u_min, u_max] with u_min < u_max (V), got {lo_hi}", key="output_limits"
+            )
         limits = {"u_min": lo_hi[0], "u_max": lo_hi[1]}
     try:
         if kind == "P":

@@ -27,7 +27,18 @@ from fuzzyservo.rig import Actuator, LinearSensor, Rig, Scenario
 from fuzzyservo.signals import Affine, Constant, Pulse, Signal, Sines, Steps
 from fuzzyservo.units import parse_unit, to_si
 
-_TOP = ("name", "title", "source", "plant", "feedback", "sensors", "actuator", "controller", "output", "scenarios")
+_TOP = (
+    "name",
+    "title",
+    "source",
+    "plant",
+    "feedback",
+    "sensors",
+    "actuator",
+    "controller",
+    "output",
+    "scenarios",
+)
 
 
 def load_rig(path: str | Path) -> Rig:
@@ -39,7 +50,9 @@ def load_rig(path: str | Path) -> Rig:
     plant_node.only(("type", "parameters", "initial"))
     type_name = plant_node.str("type")
     if type_name not in PLANTS:
-        plant_node.fail(f"unknown plant type {type_name!r}; choose one of {sorted(PLANTS)}", key="type")
+        plant_node.fail(
+            f"unknown plant type {type_name!r}; choose one of {sorted(PLANTS)}", key="type"
+        )
     plant = PLANTS[type_name]
     params = _params(plant, plant_node.child("parameters"))
     initial = _initial(plant, plant_node.child("initial", default={}))
@@ -71,7 +84,8 @@ def load_rig(path: str | Path) -> Rig:
     if not scenario_nodes:
         root.fail("no scenarios; add at least one under 'scenarios:'", key="scenarios")
     scenarios = {
-        name: _scenario(name, node, plant, params, feedback) for name, node in scenario_nodes.items()
+        name: _scenario(name, node, plant, params, feedback)
+        for name, node in scenario_nodes.items()
     }
     try:
         return Rig(
@@ -99,7 +113,9 @@ def _params(plant: PlantModel, node: Node) -> Any:
     node.only(by_key)
     values = {}
     for key, f in by_key.items():
-        values[f.name] = node.quantity(key, f.metadata["unit"], default=f.metadata.get("default_value"))
+        values[f.name] = node.quantity(
+            key, f.metadata["unit"], default=f.metadata.get("default_value")
+        )
     return _build_params(plant, values, node)
 
 
@@ -117,14 +133,20 @@ def _build_params(plant: PlantModel, values: dict[str, float], node: Node) -> An
 
 def _initial(plant: PlantModel, node: Node) -> dict[str, float]:
     node.only(plant.initial_keys)
-    return {kw: node.quantity(key, unit) for key, (kw, unit) in plant.initial_keys.items() if node.has(key)}
+    return {
+        kw: node.quantity(key, unit)
+        for key, (kw, unit) in plant.initial_keys.items()
+        if node.has(key)
+    }
 
 
 def _sensor(node: Node, plant: PlantModel) -> LinearSensor:
     node.only(("signal", "offset", "gain", "ratio", "unit"))
     signal = node.str("signal")
     if signal not in plant.states:
-        node.fail(f"unknown state {signal!r}; sensors read one of {list(plant.states)}", key="signal")
+        node.fail(
+            f"unknown state {signal!r}; sensors read one of {list(plant.states)}", key="signal"
+        )
     signal_unit = plant.signal_units[signal]
     unit = node.str("unit", default="V")
     gain = node.quantity("gain", f"{unit}/({signal_unit})")
@@ -132,7 +154,11 @@ def _sensor(node: Node, plant: PlantModel) -> LinearSensor:
     if gain == 0 or ratio == 0:
         node.fail("gain and ratio must not be zero", key="gain" if gain == 0 else "ratio")
     return LinearSensor(
-        signal=signal, offset=node.quantity("offset", unit, default=0.0), gain=gain, ratio=ratio, unit=unit
+        signal=signal,
+        offset=node.quantity("offset", unit, default=0.0),
+        gain=gain,
+        ratio=ratio,
+        unit=unit,
     )
 
 
@@ -142,17 +168,23 @@ def _actuator(node: Node, plant: PlantModel) -> Actuator:
     lower = node.quantity("lower", unit)
     upper = node.quantity("upper", unit)
     if not lower < upper:
-        node.fail(f"`lower < upper` must hold, but got (lower={lower} {unit}, upper={upper} {unit}); swap them")
+        node.fail(
+            f"`lower < upper` must hold, but got (lower={lower} {unit}, upper={upper} {unit}); swap them"
+        )
     gain = node.quantity("gain", f"{unit}/V")
     if gain == 0:
         node.fail("must not be zero", key="gain")
-    return Actuator(name=node.str("name", default=name), gain=gain, lower=lower, upper=upper, unit=unit)
+    return Actuator(
+        name=node.str("name", default=name), gain=gain, lower=lower, upper=upper, unit=unit
+    )
 
 
 _SCENARIO_KEYS = ("description", "duration", "warmup", "reference", "load", "overrides", "initial")
 
 
-def _scenario(name: str, node: Node, plant: PlantModel, params: Any, feedback: LinearSensor) -> Scenario:
+def _scenario(
+    name: str, node: Node, plant: PlantModel, params: Any, feedback: LinearSensor
+) -> Scenario:
     node.only(_SCENARIO_KEYS)
     duration = node.quantity("duration", "s")
     warmup = node.quantity("warmup", "s", default=0.0)
@@ -163,7 +195,7 @@ def _scenario(name: str, node: Node, plant: PlantModel, params: Any, feedback: L
     reference = _reference(node.child("reference"), plant, feedback)
     load = Constant(0.0)
     if node.has("load"):
-        load_name, load_unit = plant.load
+        _, load_unit = plant.load
         load = _signal(node.child("load"), load_unit, lambda s: s)
     overrides = {}
     if node.has("overrides"):
@@ -199,7 +231,9 @@ def _reference(node: Node, plant: PlantModel, feedback: LinearSensor) -> Signal:
         return _signal(node, feedback.unit, lambda s: s)
     sensed_unit = plant.signal_units[feedback.signal]
     if dims == parse_unit(sensed_unit).dims:
-        return _signal(node, sensed_unit, lambda s: Affine(s, gain=feedback.slope, offset=feedback.offset))
+        return _signal(
+            node, sensed_unit, lambda s: Affine(s, gain=feedback.slope, offset=feedback.offset)
+        )
     node.fail(
         f"unit {unit!r} is neither the feedback unit ({feedback.unit}) nor that of "
         f"{feedback.signal!r} ({sensed_unit}); give the reference in one of them",

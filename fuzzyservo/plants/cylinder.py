@@ -71,7 +71,9 @@ class CylinderParams:
     viscous_friction_n_s_m: float = quantity("viscous_friction", "N*s/m", nonnegative=True)
     valve_volume_1_m3: float = quantity("valve_chamber_volume_1", "m^3", positive=True)
     valve_volume_2_m3: float = quantity("valve_chamber_volume_2", "m^3", positive=True)
-    slot_coeff_a_m3_s_sqrtpa: float = quantity("slot_coefficient_a", "m^3/(s*sqrt(Pa))", positive=True)
+    slot_coeff_a_m3_s_sqrtpa: float = quantity(
+        "slot_coefficient_a", "m^3/(s*sqrt(Pa))", positive=True
+    )
     slot_coeff_b_m3_s_a_sqrtpa: float = quantity(
         "slot_coefficient_b", "m^3/(s*A*sqrt(Pa))", positive=True
     )
@@ -79,8 +81,12 @@ class CylinderParams:
     bias_current_a: float = quantity("bias_current", "A")
     density_kg_m3: float = quantity("density", "kg/m^3", positive=True)
     bulk_modulus_pa: float = quantity("bulk_modulus", "Pa", positive=True)
-    supply_resistance_m3_s_sqrtpa: float = quantity("supply_resistance", "m^3/(s*sqrt(Pa))", positive=True)
-    return_resistance_m3_s_sqrtpa: float = quantity("return_resistance", "m^3/(s*sqrt(Pa))", positive=True)
+    supply_resistance_m3_s_sqrtpa: float = quantity(
+        "supply_resistance", "m^3/(s*sqrt(Pa))", positive=True
+    )
+    return_resistance_m3_s_sqrtpa: float = quantity(
+        "return_resistance", "m^3/(s*sqrt(Pa))", positive=True
+    )
     supply_pressure_pa: float = quantity("supply_pressure", "Pa", positive=True)
     return_pressure_pa: float = quantity("return_pressure", "Pa", nonnegative=True)
     laminar_pressure_pa: float = quantity("laminar_pressure", "Pa", positive=True)
@@ -121,7 +127,10 @@ class CylinderParams:
     @property
     def stroke_limits_m(self) -> tuple[float, float]:
         """Positions where the end stops engage: chamber 3 or 4 at its dead length."""
-        return (self.dead_length_m - self.chamber_length_3_m, self.chamber_length_4_m - self.dead_length_m)
+        return (
+            self.dead_length_m - self.chamber_length_3_m,
+            self.chamber_length_4_m - self.dead_length_m,
+        )
 
 
 _P = {name: index_of(CylinderParams, name) for name in CylinderParams.__dataclass_fields__}
@@ -152,31 +161,44 @@ P_CSTOP = _P["end_stop_damping_n_s_m"]
 _MIN_LENGTH_FRACTION = 0.05
 
 
-@njit(cache=True)
-def _geometry(y: float, p: np.ndarray) -> tuple[float, float, float, float]:
-    s3 = math.pi * p[P_DP] ** 2 / 4.0
-    s4 = s3 - math.pi * p[P_DT] ** 2 / 4.0
-    lmin = _MIN_LENGTH_FRACTION * p[P_LDEAD]
-    l3 = max(p[P_L30] + y, lmin)
-    l4 = max(p[P_L40] - y, lmin)
-    return s3, s4, s3 * l3, s4 * l4
+_QUARTER_PI = math.pi / 4.0
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _stop_force(y: float, v: float, p: np.ndarray) -> float:
     """End-stop force [N]: spring-damper beyond the dead length, zero inside the stroke."""
     lo = p[P_LDEAD] - p[P_L30]
     hi = p[P_L40] - p[P_LDEAD]
     if y < lo:
-        return p[P_KSTOP] * (lo - y) - p[P_CSTOP] * v * (1.0 if v < 0.0 else 0.0)
+        return p[P_KSTOP] * (lo - y) - (p[P_CSTOP] * v if v < 0.0 else 0.0)
     if y > hi:
-        return -p[P_KSTOP] * (y - hi) - p[P_CSTOP] * v * (1.0 if v > 0.0 else 0.0)
+        return -p[P_KSTOP] * (y - hi) - (p[P_CSTOP] * v if v > 0.0 else 0.0)
     return 0.0
 
 
-@njit(cache=True)
-def _slot_coefficients(i: float, p: np.ndarray) -> tuple[float, float]:
-    """Opening coefficients (a + b·Δi, a − b·Δi) with the closing-current logic (eq. 13-16)."""
+@njit(cache=True, inline="always")
+def _evaluate(
+    x: np.ndarray, i: float, f_load: float, p: np.ndarray, dx: np.ndarray, out: np.ndarray
+) -> None:
+    """The whole model in one flat function (helpers returning tuples cost 2x in numba).
+
+    Writes dx/dt into ``dx`` and, when ``out`` has room, every signal of SIGNALS.
+    """
+    y = x[0]
+    v = x[1]
+    # geometry (eq. 7); chamber lengths floored so that no volume reaches zero
+    s3 = _QUARTER_PI * p[P_DP] * p[P_DP]
+    s4 = s3 - _QUARTER_PI * p[P_DT] * p[P_DT]
+    lmin = _MIN_LENGTH_FRACTION * p[P_LDEAD]
+    l3 = max(p[P_L30] + y, lmin)
+    l4 = max(p[P_L40] - y, lmin)
+    # pressures from liquid volumes (eq. 5, 6, 10, 11)
+    e = p[P_E]
+    p1 = e * (x[2] / p[P_V1] - 1.0)
+    p2 = e * (x[3] / p[P_V2] - 1.0)
+    p3 = e * (x[4] / (s3 * l3) - 1.0)
+    p4 = e * (x[5] / (s4 * l4) - 1.0)
+    # slot coefficients with the closing-current logic (eq. 13-16)
     di = i - p[P_IBIAS]
     c14 = p[P_A] + p[P_B] * di
     c23 = p[P_A] - p[P_B] * di
@@ -184,82 +206,69 @@ def _slot_coefficients(i: float, p: np.ndarray) -> tuple[float, float]:
         c23 = 0.0
     if di <= -p[P_ICL]:
         c14 = 0.0
-    return max(c14, 0.0), max(c23, 0.0)
-
-
-@njit(cache=True)
-def pressures(x: np.ndarray, p: np.ndarray) -> tuple[float, float, float, float]:
-    """Pressures p1..p4 [Pa] from the liquid volumes (seed 002 eq. 5, 6, 10, 11)."""
-    e = p[P_E]
-    _, _, v3, v4 = _geometry(x[0], p)
-    return (
-        e * (x[2] / p[P_V1] - 1.0),
-        e * (x[3] / p[P_V2] - 1.0),
-        e * (x[4] / v3 - 1.0),
-        e * (x[5] / v4 - 1.0),
-    )
-
-
-@njit(cache=True)
-def flows(x: np.ndarray, i: float, p: np.ndarray) -> tuple[float, float, float, float, float, float]:
-    """Flows (Qa, Qr, Q1, Q2, Q3, Q4) [m³/s] for state ``x`` and valve current ``i`` [A]."""
-    p1, p2, p3, p4 = pressures(x, p)
-    return _flows(p1, p2, p3, p4, i, p)
-
-
-@njit(cache=True, inline="always")
-def _flows(
-    p1: float, p2: float, p3: float, p4: float, i: float, p: np.ndarray
-) -> tuple[float, float, float, float, float, float]:
+    c14 = max(c14, 0.0)
+    c23 = max(c23, 0.0)
     lam = p[P_PLAM]
-    c14, c23 = _slot_coefficients(i, p)
     qa = signed_sqrt_flow(p[P_RA], p[P_PA] - p1, lam)
     qr = signed_sqrt_flow(p[P_RR], p2 - p[P_PR], lam)
     q1 = signed_sqrt_flow(c14, p1 - p3, lam)
     q2 = signed_sqrt_flow(c23, p3 - p2, lam)
     q3 = signed_sqrt_flow(c23, p1 - p4, lam)
     q4 = signed_sqrt_flow(c14, p4 - p2, lam)
-    return qa, qr, q1, q2, q3, q4
+    f_stop = _stop_force(y, v, p)
+    dx[0] = v
+    dx[1] = (p3 * s3 - p4 * s4 - p[P_F] * v - f_load + f_stop) / p[P_M]  # eq. 12
+    dx[2] = qa - q1 - q3  # eq. 3
+    dx[3] = q2 + q4 - qr  # eq. 4
+    dx[4] = q1 - q2  # eq. 8
+    dx[5] = q3 - q4  # eq. 9
+    if out.size >= 13:
+        out[0] = y
+        out[1] = v
+        out[2] = p1
+        out[3] = p2
+        out[4] = p3
+        out[5] = p4
+        out[6] = qa
+        out[7] = qr
+        out[8] = q1
+        out[9] = q2
+        out[10] = q3
+        out[11] = q4
+        out[12] = f_stop
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def rhs(x: np.ndarray, i: float, f_load: float, p: np.ndarray, dx: np.ndarray) -> None:
     """Right-hand side dx/dt of the seed-002 servo-actuator (module docstring, eq. 1-18).
 
     ``x`` states (STATES), ``i`` valve current [A], ``f_load`` external force [N]
     opposing extension, ``p`` packed :class:`CylinderParams`; writes ``dx``.
     """
-    y = x[0]
-    v = x[1]
-    s3, s4, _, _ = _geometry(y, p)
-    p1, p2, p3, p4 = pressures(x, p)
-    qa, qr, q1, q2, q3, q4 = _flows(p1, p2, p3, p4, i, p)
-    dx[0] = v
-    dx[1] = (p3 * s3 - p4 * s4 - p[P_F] * v - f_load + _stop_force(y, v, p)) / p[P_M]
-    dx[2] = qa - q1 - q3
-    dx[3] = q2 + q4 - qr
-    dx[4] = q1 - q2
-    dx[5] = q3 - q4
+    _evaluate(x, i, f_load, p, dx, dx)
 
 
 @njit(cache=True)
 def signals(x: np.ndarray, i: float, f_load: float, p: np.ndarray, out: np.ndarray) -> None:
     """Every signal of SIGNALS for state ``x``; writes ``out``."""
-    p1, p2, p3, p4 = pressures(x, p)
-    qa, qr, q1, q2, q3, q4 = flows(x, i, p)
-    out[0] = x[0]
-    out[1] = x[1]
-    out[2] = p1
-    out[3] = p2
-    out[4] = p3
-    out[5] = p4
-    out[6] = qa
-    out[7] = qr
-    out[8] = q1
-    out[9] = q2
-    out[10] = q3
-    out[11] = q4
-    out[12] = _stop_force(x[0], x[1], p)
+    dx = np.empty(x.size)
+    _evaluate(x, i, f_load, p, dx, out)
+
+
+def pressures(x: np.ndarray, p: np.ndarray) -> tuple[float, float, float, float]:
+    """Pressures p1..p4 [Pa] from the liquid volumes (seed 002 eq. 5, 6, 10, 11)."""
+    out = np.empty(len(SIGNALS))
+    signals(np.asarray(x, dtype=np.float64), 0.0, 0.0, p, out)
+    return out[2], out[3], out[4], out[5]
+
+
+def flows(
+    x: np.ndarray, i: float, p: np.ndarray
+) -> tuple[float, float, float, float, float, float]:
+    """Flows (Qa, Qr, Q1, Q2, Q3, Q4) [m³/s] for state ``x`` and valve current ``i`` [A]."""
+    out = np.empty(len(SIGNALS))
+    signals(np.asarray(x, dtype=np.float64), i, 0.0, p, out)
+    return tuple(out[6:12])
 
 
 @njit(cache=True)

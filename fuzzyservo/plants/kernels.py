@@ -18,7 +18,9 @@ KIND_MOTOR = 1
 
 
 @njit(cache=True)
-def plant_rhs(kind: int, x: np.ndarray, u: float, load: float, p: np.ndarray, dx: np.ndarray) -> None:
+def plant_rhs(
+    kind: int, x: np.ndarray, u: float, load: float, p: np.ndarray, dx: np.ndarray
+) -> None:
     """dx/dt of plant ``kind`` for input ``u`` and load ``load``; writes ``dx``."""
     if kind == KIND_CYLINDER:
         cylinder.rhs(x, u, load, p, dx)
@@ -29,7 +31,9 @@ def plant_rhs(kind: int, x: np.ndarray, u: float, load: float, p: np.ndarray, dx
 
 
 @njit(cache=True)
-def plant_signals(kind: int, x: np.ndarray, u: float, load: float, p: np.ndarray, out: np.ndarray) -> None:
+def plant_signals(
+    kind: int, x: np.ndarray, u: float, load: float, p: np.ndarray, out: np.ndarray
+) -> None:
     """All named signals of plant ``kind`` at state ``x``; writes ``out``."""
     if kind == KIND_CYLINDER:
         cylinder.signals(x, u, load, p, out)
@@ -41,7 +45,12 @@ def plant_signals(kind: int, x: np.ndarray, u: float, load: float, p: np.ndarray
 
 @njit(cache=True)
 def plant_signal_table(
-    kind: int, states: np.ndarray, inputs: np.ndarray, loads: np.ndarray, p: np.ndarray, out: np.ndarray
+    kind: int,
+    states: np.ndarray,
+    inputs: np.ndarray,
+    loads: np.ndarray,
+    p: np.ndarray,
+    out: np.ndarray,
 ) -> None:
     """Signals of every recorded sample (rows of ``states``); rows with a NaN state stay NaN."""
     row = np.empty(out.shape[1])

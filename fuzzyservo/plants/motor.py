@@ -141,6 +141,8 @@ def typical_state(params: MotorParams) -> np.ndarray:
 INITIAL_KEYS = {"speed": ("w_rad_s", "rad/s"), "angle": ("theta_rad", "rad")}
 
 
-def initial_state(params: MotorParams, *, w_rad_s: float = 0.0, theta_rad: float = 0.0) -> np.ndarray:
+def initial_state(
+    params: MotorParams, *, w_rad_s: float = 0.0, theta_rad: float = 0.0
+) -> np.ndarray:
     """State at rest (spool centred, no load pressure) unless a speed is given."""
     return np.array([0.0, w_rad_s, theta_rad, 0.0])

@@ -250,7 +250,9 @@ def closed_loop(
             status = STATUS_DIVERGED
             where = k
             break
-        code, h, steps = integrate_interval(plant_kind, p, x, a, load[k], dt, h, tol, scale, typical)
+        code, h, steps = integrate_interval(
+            plant_kind, p, x, a, load[k], dt, h, tol, scale, typical
+        )
         total += steps
         if code != STATUS_OK:
             status = code

@@ -1,0 +1,36 @@
+"""fuzzyservo: design, simulate and tune fuzzy controllers for electro-hydraulic servo systems.
+
+The public API is small and imported lazily, so ``import fuzzyservo`` pulls in neither
+YAML, matplotlib nor optuna::
+
+    from fuzzyservo import load_rig, load_controller, simulate
+    rig = load_rig("rigs/dinca_cylinder.yaml")
+    result = simulate(rig, load_controller("studies/controllers/p_k10.yaml"), "pulses")
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+__version__ = "0.1.0"
+
+_LAZY = {
+    "load_rig": ("fuzzyservo.io.rigs", "load_rig"),
+    "load_controller": ("fuzzyservo.io.controllers", "load_controller"),
+    "simulate": ("fuzzyservo.simulation", "simulate"),
+    "SimResult": ("fuzzyservo.simulation", "SimResult"),
+    "simulate_reference": ("fuzzyservo.simulation.reference", "simulate_reference"),
+    "result_metrics": ("fuzzyservo.metrics", "result_metrics"),
+    "ConfigError": ("fuzzyservo.errors", "ConfigError"),
+}
+
+__all__ = sorted(_LAZY)
+
+
+def __getattr__(name: str) -> Any:
+    if name in _LAZY:
+        import importlib
+
+        module, attr = _LAZY[name]
+        return getattr(importlib.import_module(module), attr)
+    raise AttributeError(f"module 'fuzzyservo' has no attribute {name!r}")

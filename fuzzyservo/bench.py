@@ -1,0 +1,150 @@
+"""``fuzzyservo bench``: speed of the compiled loop against the scipy reference, same run.
+
+Each case is run after a warm-up (compilation) several times; the median wall time is
+compared with the median of the reference path (``solve_ivp`` LSODA at rtol 1e-6 over
+every control interval, with the same compiled right-hand side), and the accuracy is
+measured against a tight reference (rtol 1e-9). Benchmarks are not tests: nothing
+here asserts a time.
+"""
+
+from __future__ import annotations
+
+import statistics
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from fuzzyservo.simulation import SimResult, simulate
+from fuzzyservo.simulation.reference import simulate_reference
+
+
+@dataclass(frozen=True)
+class BenchCase:
+    """One benchmark: a rig, a controller, a scenario, a simulated duration."""
+
+    name: str
+    rig_file: str
+    controller_file: str
+    scenario: str
+    duration_s: float
+    description: str = ""
+
+
+@dataclass(frozen=True)
+class BenchResult:
+    name: str
+    median_s: float
+    reference_s: float
+    ratio: float
+    runs: int
+    reference_runs: int
+    simulated_s: float
+    integration_steps: int
+    error: dict[str, float] = field(default_factory=dict)
+    description: str = ""
+
+    def to_dict(self) -> dict:
+        return {
+            "name": self.name,
+            "description": self.description,
+            "simulated_s": self.simulated_s,
+            "median_s": self.median_s,
+            "reference_s": self.reference_s,
+            "ratio": self.ratio,
+            "runs": self.runs,
+            "reference_runs": self.reference_runs,
+            "integration_steps": self.integration_steps,
+            "error": self.error,
+        }
+
+
+def project_root() -> Path:
+    """The checkout holding ``rigs/`` and ``studies/`` (the package's parent folder)."""
+    return Path(__file__).resolve().parent.parent
+
+
+CASES = (
+    BenchCase(
+        "dinca_pulses_p10",
+        "rigs/dinca_cylinder.yaml",
+        "studies/controllers/p_k10.yaml",
+        "pulses",
+        20.0,
+        "seed 002 rig, P K=10, 1 V pulses, 20 s simulated at 100 Hz",
+    ),
+    BenchCase(
+        "ehs160_steps_p",
+        "rigs/ehs160_motor.yaml",
+        "studies/controllers/p_kb0105.yaml",
+        "steps",
+        5.0,
+        "seed 000 rig, P Kb=0.105, velocity steps, 5 s simulated at 1 kHz",
+    ),
+)
+
+
+def accuracy(fast: SimResult, tight: SimResult) -> dict[str, float]:
+    """Largest deviation of the fast path from the tight reference, in engineering units."""
+    err: dict[str, float] = {}
+    out = fast.output_name
+    unit = fast.units[out]
+    dev = float(np.nanmax(np.abs(fast.output - tight.output)))
+    if unit == "m":
+        err["position_mm"] = dev * 1e3
+    else:
+        err[f"{out}_{unit.replace('/', '_')}"] = dev
+    pressures = [k for k in ("p1", "p2", "p3", "p4", "p_load") if k in fast.signals]
+    if pressures:
+        err["pressure_bar"] = max(
+            float(np.nanmax(np.abs(fast.signals[k] - tight.signals[k]))) / 1e5 for k in pressures
+        )
+    return err
+
+
+def _median_time(fn: Callable[[], object], runs: int) -> tuple[float, object]:
+    times, last = [], None
+    for _ in range(runs):
+        t0 = time.perf_counter()
+        last = fn()
+        times.append(time.perf_counter() - t0)
+    return statistics.median(times), last
+
+
+def run_case(
+    case: BenchCase, *, runs: int = 7, reference_runs: int = 3, root: Path | None = None
+) -> BenchResult:
+    """Warm up, time the compiled loop and the reference, and measure the accuracy."""
+    from fuzzyservo.io.controllers import load_controller
+    from fuzzyservo.io.rigs import load_rig
+
+    root = root or project_root()
+    rig = load_rig(root / case.rig_file)
+    controller = load_controller(root / case.controller_file)
+    simulate(rig, controller, case.scenario, duration_s=case.duration_s)  # compile / warm caches
+    median_s, fast = _median_time(
+        lambda: simulate(rig, controller, case.scenario, duration_s=case.duration_s), runs
+    )
+    reference_s, _ = _median_time(
+        lambda: simulate_reference(
+            rig, controller, case.scenario, duration_s=case.duration_s, rtol=1e-6
+        ),
+        reference_runs,
+    )
+    tight = simulate_reference(
+        rig, controller, case.scenario, duration_s=case.duration_s, rtol=1e-9
+    )
+    return BenchResult(
+        name=case.name,
+        description=case.description,
+        simulated_s=case.duration_s,
+        median_s=median_s,
+        reference_s=reference_s,
+        ratio=reference_s / median_s,
+        runs=runs,
+        reference_runs=reference_runs,
+        integration_steps=fast.integration_steps,
+        error=accuracy(fast, tight),
+    )

@@ -1,0 +1,299 @@
+"""Command line: argument parsing wiring files -> simulation -> metrics -> tables, plots, JSON.
+
+No numerics here. Every user error becomes one line on stderr and exit status 2.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import sys
+from collections.abc import Sequence
+from pathlib import Path
+
+from fuzzyservo.errors import ConfigError, FuzzyservoError
+
+DEFAULT_RIG = "dinca_cylinder"
+DEFAULT_CONTROLLER = "p_k10"
+EXIT_USAGE = 2
+EXIT_FAILED_RUN = 1
+
+
+# --------------------------------------------------------------------------- files
+def _search_dirs() -> list[Path]:
+    from fuzzyservo.bench import project_root
+
+    return [Path.cwd(), project_root()]
+
+
+def resolve(name: str, folder: str, what: str) -> Path:
+    """A path as given, or a bare name looked up as ``<folder>/<name>.yaml`` (here, then in the checkout)."""
+    given = Path(name)
+    if given.is_file():
+        return given
+    if given.suffix or "/" in name:
+        raise ConfigError(f"{what} file not found; check the path", file=name)
+    for base in _search_dirs():
+        candidate = base / folder / f"{name}.yaml"
+        if candidate.is_file():
+            return candidate
+    known = sorted({p.stem for base in _search_dirs() for p in (base / folder).glob("*.yaml")})
+    raise ConfigError(f"no {what} named {name!r}; known: {', '.join(known) or 'none'}", file=name)
+
+
+def _load(rig_name: str, controller_names: Sequence[str]):
+    from fuzzyservo.io.controllers import load_controller
+    from fuzzyservo.io.rigs import load_rig
+
+    rig = load_rig(resolve(rig_name, "rigs", "rig"))
+    controllers = [
+        load_controller(resolve(c, "studies/controllers", "controller")) for c in controller_names
+    ]
+    return rig, controllers
+
+
+def _scenario_name(rig, scenario: str | None) -> str:
+    if scenario is None:
+        return next(iter(rig.scenarios))
+    if scenario not in rig.scenarios:
+        raise ConfigError(
+            f"unknown scenario {scenario!r}; this rig has {', '.join(rig.scenarios)}",
+            file=rig.path,
+            key="scenarios",
+        )
+    return scenario
+
+
+# --------------------------------------------------------------------------- output
+def _fmt(value: float | None) -> str:
+    if value is None or (isinstance(value, float) and math.isnan(value)):
+        return "n/a"
+    if value == 0:
+        return "0"
+    mag = abs(value)
+    if 1e-3 <= mag < 1e5:
+        return f"{value:.4g}"
+    return f"{value:.3e}"
+
+
+def metrics_table(
+    names: Sequence[str], rows: Sequence[dict[str, float]], unit_notes: dict[str, str]
+) -> str:
+    """A plain-text table: one row per metric, one column per controller."""
+    from fuzzyservo.metrics import METRIC_NAMES
+
+    header = ["metric", *names]
+    lines = [[f"{m}{unit_notes.get(m, '')}", *(_fmt(r.get(m)) for r in rows)] for m in METRIC_NAMES]
+    widths = [max(len(row[i]) for row in [header, *lines]) for i in range(len(header))]
+    out = ["  ".join(h.ljust(w) for h, w in zip(header, widths, strict=True))]
+    out.append("  ".join("-" * w for w in widths))
+    out += ["  ".join(c.ljust(w) for c, w in zip(row, widths, strict=True)) for row in lines]
+    return "\n".join(out)
+
+
+def _unit_notes(result) -> dict[str, str]:
+    unit = result.output_unit
+    return {"sse_abs": f" [{unit}]", "iae": f" [{unit}·s]", "ise": f" [{unit}²·s]", "itae": f" [{unit}·s²]",
+            "peak_command": " [V]"}  # fmt: skip
+
+
+def _write_json(path: str, payload: dict) -> None:
+    Path(path).parent.mkdir(parents=True, exist_ok=True)
+    Path(path).write_text(json.dumps(payload, indent=2, allow_nan=False) + "\n", encoding="utf-8")
+
+
+def _clean(obj):
+    """NaN and inf to None, numpy scalars to float: JSON that any reader accepts."""
+    if isinstance(obj, dict):
+        return {k: _clean(v) for k, v in obj.items()}
+    if isinstance(obj, list | tuple):
+        return [_clean(v) for v in obj]
+    if isinstance(obj, float | int) and not isinstance(obj, bool):
+        f = float(obj)
+        return f if math.isfinite(f) else None
+    if hasattr(obj, "item"):
+        return _clean(obj.item())
+    return obj
+
+
+def _write_csv(path: Path, result) -> None:
+    import numpy as np
+
+    cols = {"t_s": result.t, "ref_V": result.reference, "feedback_V": result.feedback, "u_V": result.command,
+            f"{result.actuator_name}_{result.units.get(result.actuator_name, 'SI')}": result.actuator,
+            "saturated": result.saturated.astype(float)}  # fmt: skip
+    for name, values in result.signals.items():
+        cols[f"{name}_{result.units[name].replace('/', '_').replace('^', '').replace('*', '')}"] = (
+            values
+        )
+    data = np.column_stack(list(cols.values()))
+    np.savetxt(path, data, delimiter=",", header=",".join(cols), comments="", fmt="%.9g")
+
+
+def _report_runs(rig, scenario: str, results, out: Path | None, json_path: str | None) -> int:
+    from fuzzyservo.metrics import result_metrics
+
+    metrics = [result_metrics(r) for r in results]
+    print(
+        f"rig {rig.name} · scenario {scenario} · {rig.scenarios[scenario].description}".rstrip(" ·")
+    )
+    print(
+        metrics_table(
+            [r.controller for r in results], [m.aggregate for m in metrics], _unit_notes(results[0])
+        )
+    )
+    failed = 0
+    for r in results:
+        if r.status != "ok":
+            print(f"{r.controller}: status {r.status}: {r.message}", file=sys.stderr)
+            failed += not r.ok
+    if out is not None:
+        from fuzzyservo import plots
+
+        out.mkdir(parents=True, exist_ok=True)
+        fig = plots.response_figure(list(results))
+        plots.save(fig, out / f"{rig.name}_{scenario}_response.png")
+        for r in results:
+            _write_csv(out / f"{rig.name}_{scenario}_{r.controller}.csv", r)
+        print(f"plots and signals written to {out}/")
+    if json_path:
+        payload = {
+            "rig": rig.name,
+            "scenario": scenario,
+            "runs": [
+                {
+                    "controller": r.controller,
+                    "status": r.status,
+                    "message": r.message,
+                    **m.to_dict(),
+                }
+                for r, m in zip(results, metrics, strict=True)
+            ],
+        }
+        _write_json(json_path, _clean(payload))
+        print(f"JSON written to {json_path}")
+    return EXIT_FAILED_RUN if failed else 0
+
+
+# --------------------------------------------------------------------------- commands
+def cmd_simulate(args: argparse.Namespace) -> int:
+    from fuzzyservo.simulation import simulate
+
+    rig, (controller,) = _load(args.rig, [args.controller])
+    scenario = _scenario_name(rig, args.scenario)
+    result = simulate(rig, controller, scenario, duration_s=args.duration)
+    return _report_runs(rig, scenario, [result], Path(args.out) if args.out else None, args.json)
+
+
+def cmd_compare(args: argparse.Namespace) -> int:
+    from fuzzyservo.simulation import simulate
+
+    rig, controllers = _load(args.rig, args.controllers or [DEFAULT_CONTROLLER])
+    scenario = _scenario_name(rig, args.scenario)
+    names = [c.name for c in controllers]
+    if len(set(names)) != len(names):
+        raise ConfigError(
+            f"two controllers share a name ({names}); give each file a distinct 'name'"
+        )
+    results = [simulate(rig, c, scenario, duration_s=args.duration) for c in controllers]
+    return _report_runs(rig, scenario, results, Path(args.out) if args.out else None, args.json)
+
+
+def cmd_bench(args: argparse.Namespace) -> int:
+    from fuzzyservo import bench
+
+    cases = [c for c in bench.CASES if not args.case or c.name in args.case]
+    if args.case and len(cases) != len(set(args.case)):
+        known = ", ".join(c.name for c in bench.CASES)
+        raise ConfigError(f"unknown bench case in {args.case}; known: {known}")
+    results = []
+    progress = _progress(len(cases), "bench")
+    for case in cases:
+        progress.set_description(case.name)
+        results.append(bench.run_case(case, runs=args.runs, reference_runs=args.reference_runs))
+        progress.update(1)
+    progress.close()
+    print(
+        f"{'case':<20} {'median':>10} {'reference':>10} {'ratio':>7}  error vs rtol 1e-9 reference"
+    )
+    for r in results:
+        err = ", ".join(f"{k} {v:.3g}" for k, v in r.error.items())
+        print(
+            f"{r.name:<20} {r.median_s * 1e3:>8.2f}ms {r.reference_s:>9.3f}s {r.ratio:>6.0f}×  {err}"
+        )
+    if args.json:
+        _write_json(args.json, _clean({"cases": [r.to_dict() for r in results]}))
+        print(f"JSON written to {args.json}")
+    return 0
+
+
+def _progress(total: int, desc: str):
+    from tqdm import tqdm
+
+    return tqdm(
+        total=total, desc=desc, unit="case", file=sys.stderr, disable=not sys.stderr.isatty()
+    )
+
+
+# --------------------------------------------------------------------------- parser
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        prog="fuzzyservo",
+        description="Design, simulate and tune controllers for electro-hydraulic servo systems.",
+    )
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND")
+
+    def common(p: argparse.ArgumentParser) -> None:
+        p.add_argument("--scenario", help="scenario of the rig file (default: its first)")
+        p.add_argument(
+            "--duration", type=float, help="simulated time [s] (default: the scenario's)"
+        )
+        p.add_argument(
+            "--out", default="out", help="folder for plots and CSV signals (default: out)"
+        )
+        p.add_argument("--json", metavar="FILE", help="also write the results as JSON")
+
+    p = sub.add_parser("simulate", help="simulate one controller on a rig scenario")
+    p.add_argument("rig", help="rig file or name under rigs/")
+    p.add_argument("controller", help="controller file or name under studies/controllers/")
+    common(p)
+    p.set_defaults(func=cmd_simulate)
+
+    p = sub.add_parser("compare", help="compare controllers on a rig scenario: table, plots, JSON")
+    p.add_argument(
+        "rig", nargs="?", default=DEFAULT_RIG, help=f"rig file or name (default: {DEFAULT_RIG})"
+    )
+    p.add_argument(
+        "controllers", nargs="*", help=f"controller files or names (default: {DEFAULT_CONTROLLER})"
+    )
+    common(p)
+    p.set_defaults(func=cmd_compare)
+
+    p = sub.add_parser("bench", help="speed of the compiled loop against the scipy reference path")
+    p.add_argument("--json", metavar="FILE", help="write the figures as JSON")
+    p.add_argument("--case", action="append", help="run only this case (repeatable)")
+    p.add_argument("--runs", type=int, default=7, help="timed runs per case (median reported)")
+    p.add_argument("--reference-runs", type=int, default=3, help="timed runs of the reference path")
+    p.set_defaults(func=cmd_bench)
+    return parser
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    if not getattr(args, "func", None):
+        parser.print_help()
+        return EXIT_USAGE
+    try:
+        return args.func(args)
+    except FuzzyservoError as exc:
+        print(f"fuzzyservo: error: {exc}", file=sys.stderr)
+        return EXIT_USAGE
+    except KeyboardInterrupt:
+        print("fuzzyservo: interrupted", file=sys.stderr)
+        return 130
+
+
+if __name__ == "__main__":  # pragma: no cover
+    sys.exit(main())

@@ -1,0 +1,20 @@
+"""Step and tracking metrics of a run: pure functions of sampled arrays.
+
+:func:`step_metrics` scores every reference step after the warm-up (rise and settling
+time, overshoot, steady-state error, saturation time, IAE/ISE/ITAE, peak command) with
+MATLAB ``stepinfo`` conventions; :func:`result_metrics` applies it to a
+:class:`~fuzzyservo.simulation.result.SimResult`. :data:`METRIC_NAMES` lists the
+aggregate metrics in report order, :data:`METRIC_DOCS` gives each one's formula and unit.
+"""
+
+from fuzzyservo.metrics._step import result_metrics, step_metrics
+from fuzzyservo.metrics._types import METRIC_DOCS, METRIC_NAMES, Metrics, StepMetrics
+
+__all__ = [
+    "METRIC_DOCS",
+    "METRIC_NAMES",
+    "Metrics",
+    "StepMetrics",
+    "result_metrics",
+    "step_metrics",
+]

@@ -1,0 +1,11 @@
+"""Figures only: functions take results and return a ``matplotlib.figure.Figure``.
+
+The only place matplotlib is imported. Figures are built on ``Figure`` directly (no
+pyplot, no global backend or state), so they render headless; :func:`save` writes one.
+"""
+
+from fuzzyservo.plots._bars import metrics_bar_figure
+from fuzzyservo.plots._display import save
+from fuzzyservo.plots._response import response_figure
+
+__all__ = ["metrics_bar_figure", "response_figure", "save"]

@@ -69,7 +69,7 @@ def _scenario_name(rig, scenario: str | None) -> str:
 def _fmt(value: float | None) -> str:
     if value is None or (isinstance(value, float) and math.isnan(value)):
         return "n/a"
-    if value == 0:
+    if abs(value) < 1e-9:  # rounding noise (e.g. 1e-14 % overshoot of a creeping response)
         return "0"
     mag = abs(value)
     if 1e-3 <= mag < 1e5:

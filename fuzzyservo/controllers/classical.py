@@ -11,8 +11,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from numba import njit
 
+from fuzzyservo._jit import njit
 from fuzzyservo.controllers.base import Controller
 
 KIND_OPEN_LOOP = 0

@@ -7,8 +7,8 @@ its kernel here.
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
 
+from fuzzyservo._jit import njit
 from fuzzyservo.controllers.classical import (
     KIND_OPEN_LOOP,
     KIND_P,

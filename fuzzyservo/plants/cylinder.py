@@ -40,8 +40,8 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from numba import njit
 
+from fuzzyservo._jit import njit
 from fuzzyservo.components.orifice import signed_sqrt_flow
 from fuzzyservo.params import index_of, quantity
 

@@ -9,8 +9,8 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit
 
+from fuzzyservo._jit import njit
 from fuzzyservo.plants import cylinder, motor
 
 KIND_CYLINDER = 0

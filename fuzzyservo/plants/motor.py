@@ -25,8 +25,8 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from numba import njit
 
+from fuzzyservo._jit import njit
 from fuzzyservo.params import index_of, quantity
 
 STATES = ("spool", "w", "theta", "p_load")

@@ -16,8 +16,8 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit
 
+from fuzzyservo._jit import njit
 from fuzzyservo.controllers.kernels import controller_step
 from fuzzyservo.plants.kernels import plant_in_end_stop, plant_rhs
 

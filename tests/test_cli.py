@@ -1,0 +1,74 @@
+"""The command line: compare, simulate, bench; outputs and their formats."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+
+from fuzzyservo.cli import main
+from fuzzyservo.metrics import METRIC_NAMES
+
+
+def test_compare_writes_table_plots_json(tmp_path, capsys):
+    out = tmp_path / "out"
+    code = main(
+        ["compare", "rigs/dinca_cylinder.yaml", "studies/controllers/p_k10.yaml", "--scenario", "pulses",
+         "--out", str(out), "--json", str(tmp_path / "out.json")]
+    )  # fmt: skip
+    assert code == 0
+    printed = capsys.readouterr().out
+    for name in METRIC_NAMES:
+        assert name in printed
+    payload = json.loads((tmp_path / "out.json").read_text())
+    assert payload["rig"] == "dinca_cylinder" and payload["scenario"] == "pulses"
+    (run,) = payload["runs"]
+    assert run["controller"] == "p_k10" and run["status"] == "ok"
+    assert set(METRIC_NAMES) <= set(run["metrics"])
+    assert len(run["steps"]) == 4
+    assert (out / "dinca_cylinder_pulses_response.png").stat().st_size > 10_000
+    header = (out / "dinca_cylinder_pulses_p_k10.csv").read_text().splitlines()[0]
+    assert header.startswith("t_s,ref_V") and "p3_Pa" in header
+
+
+def test_compare_defaults_to_the_seed002_baseline(tmp_path, capsys, monkeypatch):
+    monkeypatch.chdir(tmp_path)  # names resolve in the checkout when not found here
+    assert main(["compare", "--out", str(tmp_path / "o")]) == 0
+    assert "p_k10" in capsys.readouterr().out
+
+
+def test_simulate_by_name_on_the_motor(tmp_path, capsys):
+    code = main(
+        ["simulate", "ehs160_motor", "p_kb0105", "--scenario", "brake", "--out", str(tmp_path)]
+    )
+    assert code == 0
+    assert (tmp_path / "ehs160_motor_brake_response.png").exists()
+
+
+def test_bench_json(tmp_path):
+    path = tmp_path / "bench.json"
+    code = main(
+        [
+            "bench",
+            "--case",
+            "ehs160_steps_p",
+            "--runs",
+            "1",
+            "--reference-runs",
+            "1",
+            "--json",
+            str(path),
+        ]
+    )
+    assert code == 0
+    (case,) = json.loads(path.read_text())["cases"]
+    assert case["name"] == "ehs160_steps_p"
+    assert {"median_s", "reference_s", "ratio", "error"} <= set(case)
+    assert case["error"]["pressure_bar"] < 0.5  # accuracy, not speed, is what a test may check
+
+
+def test_module_entry_point():
+    done = subprocess.run(
+        [sys.executable, "-m", "fuzzyservo", "--help"], capture_output=True, text=True
+    )
+    assert done.returncode == 0 and "compare" in done.stdout

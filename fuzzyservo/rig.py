@@ -11,7 +11,7 @@ from typing import Any
 
 import numpy as np
 
-from fuzzyservo.params import check, fields_by_key
+from fuzzyservo.params import check
 from fuzzyservo.plants import PlantModel
 from fuzzyservo.signals import Constant, Signal
 
@@ -155,8 +155,3 @@ class Rig:
         new = dataclasses.replace(self.params, **changes)
         check(new)
         return dataclasses.replace(self, params=new)
-
-
-def param_field_name(params_cls: type, key: str) -> str:
-    """Field name of the parameter a file calls ``key``."""
-    return fields_by_key(params_cls)[key].name

@@ -8,6 +8,7 @@ The error is ``e = r − y`` in the rig's feedback unit (volts on both seed rigs
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
 
 import numpy as np
@@ -80,7 +81,7 @@ class OpenLoop(Controller):
         return np.array([self.gain, self.u_min, self.u_max]), np.zeros(1)
 
     def with_limits(self, u_min: float, u_max: float) -> OpenLoop:
-        return _replace(self, u_min=u_min, u_max=u_max)
+        return dataclasses.replace(self, u_min=u_min, u_max=u_max)
 
 
 @dataclass(frozen=True)
@@ -101,7 +102,7 @@ class P(Controller):
         return np.array([self.gain, self.u_min, self.u_max]), np.zeros(1)
 
     def with_limits(self, u_min: float, u_max: float) -> P:
-        return _replace(self, u_min=u_min, u_max=u_max)
+        return dataclasses.replace(self, u_min=u_min, u_max=u_max)
 
 
 @dataclass(frozen=True)
@@ -123,10 +124,4 @@ class PI(Controller):
         return np.array([self.kp, self.ki, self.u_min, self.u_max, sample_time_s]), np.zeros(1)
 
     def with_limits(self, u_min: float, u_max: float) -> PI:
-        return _replace(self, u_min=u_min, u_max=u_max)
-
-
-def _replace(obj, **changes):
-    import dataclasses
-
-    return dataclasses.replace(obj, **changes)
+        return dataclasses.replace(self, u_min=u_min, u_max=u_max)

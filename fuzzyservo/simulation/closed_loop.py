@@ -144,9 +144,9 @@ def assemble(
     for name, sensor in rig.sensors.items():
         signals[name] = np.asarray(sensor.read(states[:, plant.states.index(sensor.signal)]))
         units[name] = sensor.unit
-    load_name, load_unit = plant.load
-    signals[load_name] = prep.load
-    units[load_name] = load_unit
+    for (name, unit), values in ((plant.load, prep.load), (plant.input, actuator)):
+        signals[name] = values
+        units[name] = unit
     fb = rig.feedback
     feedback = np.asarray(fb.read(states[:, plant.states.index(fb.signal)]))
     message = _message(status, where, prep)

@@ -8,6 +8,7 @@ fast loop and a replay of measured data all compute the same numbers.
 
 from __future__ import annotations
 
+import dataclasses
 from typing import ClassVar
 
 import numpy as np
@@ -24,8 +25,15 @@ class Controller:
     def pack(self, sample_time_s: float) -> tuple[np.ndarray, np.ndarray]:  # pragma: no cover
         raise NotImplementedError
 
-    def with_limits(self, u_min: float, u_max: float) -> Controller:  # pragma: no cover
-        raise NotImplementedError
+    def __post_init__(self) -> None:
+        if not self.u_min < self.u_max:
+            raise ValueError(
+                f"output_limits: `u_min < u_max` must hold, but got (u_min={self.u_min}, u_max={self.u_max})"
+            )
+
+    def with_limits(self, u_min: float, u_max: float) -> Controller:
+        """The same controller with other output limits [V]."""
+        return dataclasses.replace(self, u_min=u_min, u_max=u_max)
 
     @property
     def has_limits(self) -> bool:

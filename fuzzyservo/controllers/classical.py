@@ -8,7 +8,6 @@ The error is ``e = r − y`` in the rig's feedback unit (volts on both seed rigs
 
 from __future__ import annotations
 
-import dataclasses
 from dataclasses import dataclass
 
 import numpy as np
@@ -56,34 +55,6 @@ def pi_step(cp: np.ndarray, cs: np.ndarray, r: float, y: float) -> float:
     return u
 
 
-def _limits(u_min: float, u_max: float) -> None:
-    if not u_min < u_max:
-        raise ValueError(
-            f"output_limits: `u_min < u_max` must hold, but got (u_min={u_min}, u_max={u_max})"
-        )
-
-
-@dataclass(frozen=True)
-class OpenLoop(Controller):
-    """Feed-forward ``u = K·r``: the seed-000 open-loop tests apply the command to the valve."""
-
-    gain: float = 1.0
-    u_min: float = -np.inf
-    u_max: float = np.inf
-    name: str = "open_loop"
-
-    kind = KIND_OPEN_LOOP
-
-    def __post_init__(self) -> None:
-        _limits(self.u_min, self.u_max)
-
-    def pack(self, sample_time_s: float) -> tuple[np.ndarray, np.ndarray]:
-        return np.array([self.gain, self.u_min, self.u_max]), np.zeros(1)
-
-    def with_limits(self, u_min: float, u_max: float) -> OpenLoop:
-        return dataclasses.replace(self, u_min=u_min, u_max=u_max)
-
-
 @dataclass(frozen=True)
 class P(Controller):
     """Proportional controller ``u = K·(r − y)`` with output limits (seed 002 §5: K = 10)."""
@@ -95,14 +66,17 @@ class P(Controller):
 
     kind = KIND_P
 
-    def __post_init__(self) -> None:
-        _limits(self.u_min, self.u_max)
-
     def pack(self, sample_time_s: float) -> tuple[np.ndarray, np.ndarray]:
         return np.array([self.gain, self.u_min, self.u_max]), np.zeros(1)
 
-    def with_limits(self, u_min: float, u_max: float) -> P:
-        return dataclasses.replace(self, u_min=u_min, u_max=u_max)
+
+@dataclass(frozen=True)
+class OpenLoop(P):
+    """Feed-forward ``u = K·r``: the seed-000 open-loop tests apply the command to the valve."""
+
+    name: str = "open_loop"
+
+    kind = KIND_OPEN_LOOP
 
 
 @dataclass(frozen=True)
@@ -117,11 +91,5 @@ class PI(Controller):
 
     kind = KIND_PI
 
-    def __post_init__(self) -> None:
-        _limits(self.u_min, self.u_max)
-
     def pack(self, sample_time_s: float) -> tuple[np.ndarray, np.ndarray]:
         return np.array([self.kp, self.ki, self.u_min, self.u_max, sample_time_s]), np.zeros(1)
-
-    def with_limits(self, u_min: float, u_max: float) -> PI:
-        return dataclasses.replace(self, u_min=u_min, u_max=u_max)

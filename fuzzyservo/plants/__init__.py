@@ -7,6 +7,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass
+from types import ModuleType
 from typing import Any
 
 import numpy as np
@@ -33,38 +34,44 @@ class PlantModel:
     typical_state: Callable[[Any], np.ndarray]
     description: str
 
+    @classmethod
+    def from_module(
+        cls, type_name: str, kind: int, module: ModuleType, description: str
+    ) -> PlantModel:
+        """Collect a plant module's declarations (STATES, SIGNALS, ..., initial_state)."""
+        return cls(
+            type_name=type_name,
+            kind=kind,
+            params_cls=module.PARAMS,
+            states=module.STATES,
+            signals=module.SIGNALS,
+            signal_units=module.SIGNAL_UNITS,
+            input=module.INPUT,
+            load=module.LOAD,
+            initial_keys=module.INITIAL_KEYS,
+            initial_state=module.initial_state,
+            state_scale=module.state_scale,
+            typical_state=module.typical_state,
+            description=description,
+        )
+
 
 PLANTS: dict[str, PlantModel] = {
-    "open_centre_cylinder": PlantModel(
-        type_name="open_centre_cylinder",
-        kind=KIND_CYLINDER,
-        params_cls=cylinder.CylinderParams,
-        states=cylinder.STATES,
-        signals=cylinder.SIGNALS,
-        signal_units=cylinder.SIGNAL_UNITS,
-        input=cylinder.INPUT,
-        load=cylinder.LOAD,
-        initial_keys=cylinder.INITIAL_KEYS,
-        initial_state=cylinder.initial_state,
-        state_scale=cylinder.state_scale,
-        typical_state=cylinder.typical_state,
-        description="open-centre servo-valve + asymmetric cylinder (seed 002)",
-    ),
-    "servo_motor": PlantModel(
-        type_name="servo_motor",
-        kind=KIND_MOTOR,
-        params_cls=motor.MotorParams,
-        states=motor.STATES,
-        signals=motor.SIGNALS,
-        signal_units=motor.SIGNAL_UNITS,
-        input=motor.INPUT,
-        load=motor.LOAD,
-        initial_keys=motor.INITIAL_KEYS,
-        initial_state=motor.initial_state,
-        state_scale=motor.state_scale,
-        typical_state=motor.typical_state,
-        description="servo-valve + axial-piston motor, velocity loop (seed 000)",
-    ),
+    model.type_name: model
+    for model in (
+        PlantModel.from_module(
+            "open_centre_cylinder",
+            KIND_CYLINDER,
+            cylinder,
+            "open-centre servo-valve + asymmetric cylinder (seed 002)",
+        ),
+        PlantModel.from_module(
+            "servo_motor",
+            KIND_MOTOR,
+            motor,
+            "servo-valve + axial-piston motor, velocity loop (seed 000)",
+        ),
+    )
 }
 
 __all__ = ["PLANTS", "PlantModel"]

@@ -133,6 +133,7 @@ class CylinderParams:
         )
 
 
+PARAMS = CylinderParams
 _P = {name: index_of(CylinderParams, name) for name in CylinderParams.__dataclass_fields__}
 P_DP = _P["piston_diameter_m"]
 P_DT = _P["rod_diameter_m"]

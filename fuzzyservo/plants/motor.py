@@ -62,6 +62,7 @@ class MotorParams:
     laminar_pressure_pa: float = quantity("laminar_pressure", "Pa", positive=True)
 
 
+PARAMS = MotorParams
 _P = {name: index_of(MotorParams, name) for name in MotorParams.__dataclass_fields__}
 P_TAU = _P["valve_time_constant_s"]
 P_KA = _P["amplifier_gain"]

@@ -65,19 +65,22 @@ def check(params: Any) -> None:
             or isinstance(value, bool)
             or not math.isfinite(value)
         ):
-            raise ValueError(f"{key}: must be a finite number in {unit}, got {value!r}")
+            raise ValueError(
+                f"{key}: must be a finite number in {unit}, got {value!r}; give a number"
+            )
+        fix = meta["doc"] or "check the value and its unit"
         if meta["positive"] and not value > 0:
             raise ValueError(
                 f"{key}: must be > 0 {unit} (physical), got {value!r}; give a positive value"
             )
         if meta["nonnegative"] and value < 0:
-            raise ValueError(f"{key}: must be >= 0 {unit} (physical), got {value!r}")
+            raise ValueError(f"{key}: must be >= 0 {unit} (physical), got {value!r}; {fix}")
         if meta["nonzero"] and value == 0:
-            raise ValueError(f"{key}: must not be zero, got {value!r}")
+            raise ValueError(f"{key}: must not be zero, got {value!r}; {fix}")
         if meta["minimum"] is not None and value < meta["minimum"]:
-            raise ValueError(f"{key}: must be >= {meta['minimum']} {unit}, got {value!r}")
+            raise ValueError(f"{key}: must be >= {meta['minimum']} {unit}, got {value!r}; {fix}")
         if meta["maximum"] is not None and value > meta["maximum"]:
-            raise ValueError(f"{key}: must be <= {meta['maximum']} {unit}, got {value!r}")
+            raise ValueError(f"{key}: must be <= {meta['maximum']} {unit}, got {value!r}; {fix}")
 
 
 def pack(params: Any) -> np.ndarray:

@@ -11,12 +11,12 @@ import difflib
 import math
 from collections.abc import Iterable
 from pathlib import Path
-from typing import Any
+from typing import Any, NoReturn
 
 import yaml
 
 from fuzzyservo.errors import ConfigError
-from fuzzyservo.units import to_si
+from fuzzyservo.units import Unit, parse_unit, to_si
 
 QUANTITY_KEYS = ("value", "unit", "source", "note")
 
@@ -29,7 +29,19 @@ def read_yaml(path: str | Path) -> dict[str, Any]:
             f"file not found (looked in {p.resolve().parent}); check the path", file=str(path)
         )
     try:
-        data = yaml.safe_load(p.read_text(encoding="utf-8"))
+        text = p.read_text(encoding="utf-8")
+    except UnicodeDecodeError as exc:
+        raise ConfigError(
+            f"not UTF-8 text (byte {exc.object[exc.start]:#04x} at offset {exc.start}); "
+            "save the file as UTF-8 YAML",
+            file=str(path),
+        ) from None
+    except OSError as exc:
+        raise ConfigError(
+            f"cannot read the file ({exc.strerror or exc}); check its permissions", file=str(path)
+        ) from None
+    try:
+        data = yaml.safe_load(text)
     except yaml.YAMLError as exc:
         mark = getattr(exc, "problem_mark", None)
         where = f"line {mark.line + 1}, column {mark.column + 1}: " if mark else ""
@@ -38,8 +50,26 @@ def read_yaml(path: str | Path) -> dict[str, Any]:
             f"{where}not valid YAML ({problem}); fix the syntax", file=str(path)
         ) from None
     if not isinstance(data, dict):
-        raise ConfigError("the file must hold a YAML mapping (key: value lines)", file=str(path))
+        raise ConfigError(
+            f"the top level must be a mapping (key: value lines), got {_describe(data)}; "
+            "start the file with 'name: ...' and the other top-level keys",
+            file=str(path),
+        )
     return data
+
+
+def _describe(value: Any) -> str:
+    """A value as a person wrote it in YAML: ``null`` for None, type and repr otherwise."""
+    if value is None:
+        return "nothing (null)"
+    return f"{type(value).__name__} {value!r}"
+
+
+def _unit_fix(message: str) -> str:
+    """Unit messages from :mod:`fuzzyservo.units` with a fix appended where they have none."""
+    if ";" in message or "write it like" in message:
+        return message
+    return f"{message}; write it like 'm^3/s' or 'l/(min*sqrt(bar))'"
 
 
 class Node:
@@ -49,14 +79,17 @@ class Node:
         self.file = file
         self.key = key
         if not isinstance(data, dict):
-            self.fail(f"must be a mapping (key: value lines), got {type(data).__name__} {data!r}")
+            self.fail(
+                f"must be a mapping (key: value lines indented under it), got {_describe(data)}; "
+                "write its keys on indented lines below it"
+            )
         self.data: dict[str, Any] = data
 
     # -- locating ---------------------------------------------------------------
     def path(self, key: str) -> str:
         return f"{self.key}.{key}" if self.key else key
 
-    def fail(self, message: str, key: str | None = None) -> ConfigError:
+    def fail(self, message: str, key: str | None = None) -> NoReturn:
         raise ConfigError(
             message, file=self.file, key=self.path(key) if key else (self.key or None)
         )
@@ -100,7 +133,11 @@ class Node:
             return default
         value = self.data[key]
         if not isinstance(value, str):
-            self.fail(f"must be text, got {value!r}", key=key)
+            self.fail(
+                f"must be text, got {_describe(value)}; write it as text (in quotes if YAML "
+                "would read it as something else)",
+                key=key,
+            )
         return value
 
     def number(self, key: str, default: float | None = None) -> float:
@@ -117,21 +154,36 @@ class Node:
             return list(default)
         value = self.data[key]
         if not isinstance(value, list):
-            self.fail(f"must be a list of numbers, got {value!r}", key=key)
+            self.fail(
+                f"must be a list of numbers, got {_describe(value)}; write it like [1, 2.5]",
+                key=key,
+            )
         return [self._as_number(v, f"{key}[{i}]") for i, v in enumerate(value)]
 
     def _as_number(self, value: Any, key: str) -> float:
+        fix = "write a plain number such as 70 or 1.4e+9"
         if isinstance(value, str):
             # YAML 1.1 reads 1.4e9 (no sign after e) as text; accept what a person means
             try:
                 value = float(value)
             except ValueError:
-                self.fail(f"must be a number, got {value!r}", key=key)
+                self.fail(
+                    f"must be a number, got text {value!r}; {fix} (a unit goes under 'unit:')",
+                    key=key,
+                )
+        if isinstance(value, dict) and "value" in value:
+            self.fail(
+                f"must be a plain number (this key takes no unit), got {value!r}; {fix}", key=key
+            )
         if isinstance(value, bool) or not isinstance(value, int | float):
-            self.fail(f"must be a number, got {value!r}", key=key)
-        if not math.isfinite(value):
-            self.fail(f"must be finite, got {value!r}", key=key)
-        return float(value)
+            self.fail(f"must be a number, got {_describe(value)}; {fix}", key=key)
+        try:
+            number = float(value)
+        except OverflowError:
+            number = math.inf
+        if not math.isfinite(number):
+            self.fail(f"must be finite, got {value!r}; {fix}", key=key)
+        return number
 
     def quantity(self, key: str, si_unit: str, default: float | None = None) -> float:
         """A physical value: ``{value: 70, unit: bar, source: ...}`` or a bare number in ``si_unit``."""
@@ -144,9 +196,26 @@ class Node:
             q = Node(raw, self.file, self.path(key))
             q.only(QUANTITY_KEYS)
             value = q.number("value")
-            unit = q.str("unit", default=si_unit)
-            try:
-                return to_si(value, unit, si_unit)
-            except ValueError as exc:
-                q.fail(str(exc), key="unit")
+            return q.convert(value, q.str("unit", default=si_unit), si_unit)
         return self._as_number(raw, key)
+
+    # -- units ------------------------------------------------------------------
+    def unit(self, text: str, key: str = "unit") -> Unit:
+        """Parse the unit ``text`` written at ``key``; a bad expression fails there."""
+        try:
+            return parse_unit(text)
+        except ValueError as exc:
+            self.fail(_unit_fix(str(exc)), key=key)
+        except (ArithmeticError, RecursionError):
+            # fractions and float powers overflow or divide by zero on e.g. 'm**(1/0)'
+            self.fail(_unit_fix(f"cannot read unit {text!r}"), key=key)
+
+    def convert(self, value: float, unit: str, si_unit: str, key: str = "unit") -> float:
+        """``value`` given in ``unit`` as a number in ``si_unit``; a wrong unit fails at ``key``."""
+        self.unit(unit, key)
+        try:
+            return to_si(value, unit, si_unit)
+        except ValueError as exc:
+            self.fail(_unit_fix(str(exc)), key=key)
+        except ArithmeticError:
+            self.fail(f"{value!r} {unit} overflows in {si_unit}; give a smaller value", key=key)

@@ -31,9 +31,15 @@ def load_controller(path: str | Path) -> Controller:
     """Read and validate a controller file; raise :class:`ConfigError` naming file and key."""
     file = str(path)
     root = Node(read_yaml(path), file)
+    if not root.has("kind"):
+        root.fail(f"missing key 'kind'; add one of {sorted(_KINDS)}")
     kind = root.str("kind")
     if kind not in _KINDS:
         root.fail(f"unknown controller kind {kind!r}; choose one of {sorted(_KINDS)}", key="kind")
+    for key in root.data:
+        other = [k for k, keys in _KINDS.items() if key in keys and key not in _KINDS[kind]]
+        if other:
+            root.fail(f"is a key of kind {other[0]}, not {kind}; remove it or change kind", key=key)
     root.only((*_COMMON, *_KINDS[kind]))
     name = root.str("name", default=Path(file).stem)
     limits = {}
@@ -41,14 +47,19 @@ def load_controller(path: str | Path) -> Controller:
         lo_hi = root.numbers("output_limits")
         if len(lo_hi) != 2 or not lo_hi[0] < lo_hi[1]:
             root.fail(
-                f"must be [u_min, u_max] with u_min < u_max (V), got {lo_hi}", key="output_limits"
+                f"must be [u_min, u_max] with u_min < u_max (V), got {lo_hi}; "
+                "write it like [-10, 10]",
+                key="output_limits",
             )
         limits = {"u_min": lo_hi[0], "u_max": lo_hi[1]}
+    # read every number first: ConfigErrors from the reads keep their own key
+    if kind == "P":
+        make, gains = P, {"gain": root.number("gain")}
+    elif kind == "PI":
+        make, gains = PI, {"kp": root.number("kp"), "ki": root.number("ki")}
+    else:
+        make, gains = OpenLoop, {"gain": root.number("gain", default=1.0)}
     try:
-        if kind == "P":
-            return P(gain=root.number("gain"), name=name, **limits)
-        if kind == "PI":
-            return PI(kp=root.number("kp"), ki=root.number("ki"), name=name, **limits)
-        return OpenLoop(gain=root.number("gain", default=1.0), name=name, **limits)
+        return make(**gains, name=name, **limits)
     except ValueError as exc:
-        raise ConfigError(str(exc), file=file) from None
+        raise ConfigError(f"{exc}; fix the controller file", file=file) from None

@@ -16,6 +16,7 @@ Layout of a rig file (every number as ``{value, unit, source}``; see ``rigs/``):
 
 from __future__ import annotations
 
+import dataclasses
 from pathlib import Path
 from typing import Any
 
@@ -25,7 +26,7 @@ from fuzzyservo.params import check, fields_by_key
 from fuzzyservo.plants import PLANTS, PlantModel
 from fuzzyservo.rig import Actuator, LinearSensor, Rig, Scenario
 from fuzzyservo.signals import Affine, Constant, Pulse, Signal, Sines, Steps
-from fuzzyservo.units import parse_unit, to_si
+from fuzzyservo.units import parse_unit
 
 _TOP = (
     "name",
@@ -64,7 +65,10 @@ def load_rig(path: str | Path) -> Rig:
     ctrl.only(("sample_time",))
     sample_time = ctrl.quantity("sample_time", "s")
     if not sample_time > 0:
-        ctrl.fail(f"must be > 0 s, got {sample_time}", key="sample_time")
+        ctrl.fail(
+            f"must be > 0 s, got {sample_time} s; give the controller's sampling period",
+            key="sample_time",
+        )
 
     out = root.child("output")
     out.only(("signal", "display_unit"))
@@ -74,10 +78,7 @@ def load_rig(path: str | Path) -> Rig:
     display_units: dict[str, str] = {}
     if out.has("display_unit"):
         unit = out.str("display_unit")
-        try:
-            to_si(1.0, unit, plant.signal_units[output])
-        except ValueError as exc:
-            out.fail(str(exc), key="display_unit")
+        out.convert(1.0, unit, plant.signal_units[output], key="display_unit")
         display_units[output] = unit
 
     scenario_nodes = root.children("scenarios")
@@ -87,11 +88,14 @@ def load_rig(path: str | Path) -> Rig:
         name: _scenario(name, node, plant, params, feedback)
         for name, node in scenario_nodes.items()
     }
+    name = root.str("name", default=Path(file).stem)
+    title = root.str("title", default="")
+    source = root.str("source", default="")
     try:
         return Rig(
-            name=root.str("name", default=Path(file).stem),
-            title=root.str("title", default=""),
-            source=root.str("source", default=""),
+            name=name,
+            title=title,
+            source=source,
             plant=plant,
             params=params,
             initial=initial,
@@ -105,7 +109,8 @@ def load_rig(path: str | Path) -> Rig:
             path=file,
         )
     except ValueError as exc:
-        raise ConfigError(str(exc), file=file) from None
+        # Rig re-checks what was validated above; reaching here is a loader bug, still one line
+        raise ConfigError(f"{exc}; fix the rig file", file=file) from None
 
 
 def _params(plant: PlantModel, node: Node) -> Any:
@@ -151,8 +156,13 @@ def _sensor(node: Node, plant: PlantModel) -> LinearSensor:
     unit = node.str("unit", default="V")
     gain = node.quantity("gain", f"{unit}/({signal_unit})")
     ratio = node.quantity("ratio", "1", default=1.0)
-    if gain == 0 or ratio == 0:
-        node.fail("gain and ratio must not be zero", key="gain" if gain == 0 else "ratio")
+    for key, value in (("gain", gain), ("ratio", ratio)):
+        if value == 0:
+            node.fail(
+                f"must not be zero, got {value}; give the sensor's {key} "
+                f"({'reading per unit of ' + signal if key == 'gain' else 'e.g. a gear ratio, 1 if none'})",
+                key=key,
+            )
     return LinearSensor(
         signal=signal,
         offset=node.quantity("offset", unit, default=0.0),
@@ -173,7 +183,9 @@ def _actuator(node: Node, plant: PlantModel) -> Actuator:
         )
     gain = node.quantity("gain", f"{unit}/V")
     if gain == 0:
-        node.fail("must not be zero", key="gain")
+        node.fail(
+            f"must not be zero, got {gain} {unit}/V; give the {unit} per command volt", key="gain"
+        )
     return Actuator(
         name=node.str("name", default=name), gain=gain, lower=lower, upper=upper, unit=unit
     )
@@ -189,9 +201,13 @@ def _scenario(
     duration = node.quantity("duration", "s")
     warmup = node.quantity("warmup", "s", default=0.0)
     if not duration > 0:
-        node.fail(f"must be > 0 s, got {duration}", key="duration")
+        node.fail(f"must be > 0 s, got {duration} s; give the simulated time", key="duration")
     if not 0 <= warmup < duration:
-        node.fail(f"must lie in [0, duration = {duration} s), got {warmup} s", key="warmup")
+        node.fail(
+            f"must lie in [0, duration = {duration} s), got {warmup} s; "
+            "make the warm-up shorter than the duration",
+            key="warmup",
+        )
     reference = _reference(node.child("reference"), plant, feedback)
     load = Constant(0.0)
     if node.has("load"):
@@ -204,8 +220,6 @@ def _scenario(
         ov.only(by_key)
         for key in ov.data:
             overrides[by_key[key].name] = ov.quantity(key, by_key[key].metadata["unit"])
-        import dataclasses
-
         _build_params(plant, {**dataclasses.asdict(params), **overrides}, ov)
     initial = _initial(plant, node.child("initial", default={}))
     return Scenario(
@@ -223,10 +237,7 @@ def _scenario(
 def _reference(node: Node, plant: PlantModel, feedback: LinearSensor) -> Signal:
     """A reference in the feedback unit, or in the unit of the sensed signal (through the sensor)."""
     unit = node.str("unit", default=feedback.unit)
-    try:
-        dims = parse_unit(unit).dims
-    except ValueError as exc:
-        node.fail(str(exc), key="unit")
+    dims = node.unit(unit).dims
     if dims == parse_unit(feedback.unit).dims:
         return _signal(node, feedback.unit, lambda s: s)
     sensed_unit = plant.signal_units[feedback.signal]
@@ -239,7 +250,6 @@ def _reference(node: Node, plant: PlantModel, feedback: LinearSensor) -> Signal:
         f"{feedback.signal!r} ({sensed_unit}); give the reference in one of them",
         key="unit",
     )
-    raise AssertionError  # unreachable: fail raises
 
 
 _SIGNAL_KEYS = {
@@ -255,35 +265,42 @@ def _signal(node: Node, si_unit: str, wrap) -> Signal:
     if kind not in _SIGNAL_KEYS:
         node.fail(f"unknown signal type {kind!r}; choose one of {sorted(_SIGNAL_KEYS)}", key="type")
     node.only(("type", "unit", *_SIGNAL_KEYS[kind]))
-    unit = node.str("unit", default=si_unit)
+    scale = node.convert(1.0, node.str("unit", default=si_unit), si_unit)
+    # read every number first: ConfigErrors from the reads keep their own key
+    make: type[Signal]
+    if kind == "constant":
+        make = Constant
+        kwargs: dict[str, Any] = {"value": scale * node.number("value")}
+    elif kind == "steps":
+        make = Steps
+        kwargs = {
+            "times_s": tuple(node.numbers("times_s")),
+            "values": tuple(scale * v for v in node.numbers("values")),
+            "initial": scale * node.number("initial", default=0.0),
+        }
+    elif kind == "pulse":
+        make = Pulse
+        kwargs = {
+            "base": scale * node.number("base"),
+            "amplitude": scale * node.number("amplitude"),
+            "period_s": node.number("period_s"),
+            "duty": node.number("duty", default=0.5),
+            "delay_s": node.number("delay_s", default=0.0),
+        }
+    else:
+        make = Sines
+        kwargs = {
+            "amplitudes": tuple(scale * v for v in node.numbers("amplitudes")),
+            "frequencies_hz": tuple(node.numbers("frequencies_hz")),
+            "phases_rad": tuple(node.numbers("phases_rad", default=[])),
+            "offset": scale * node.number("offset", default=0.0),
+        }
     try:
-        scale = to_si(1.0, unit, si_unit)
+        signal = make(**kwargs)
     except ValueError as exc:
-        node.fail(str(exc), key="unit")
-    try:
-        if kind == "constant":
-            signal: Signal = Constant(scale * node.number("value"))
-        elif kind == "steps":
-            signal = Steps(
-                times_s=tuple(node.numbers("times_s")),
-                values=tuple(scale * v for v in node.numbers("values")),
-                initial=scale * node.number("initial", default=0.0),
-            )
-        elif kind == "pulse":
-            signal = Pulse(
-                base=scale * node.number("base"),
-                amplitude=scale * node.number("amplitude"),
-                period_s=node.number("period_s"),
-                duty=node.number("duty", default=0.5),
-                delay_s=node.number("delay_s", default=0.0),
-            )
-        else:
-            signal = Sines(
-                amplitudes=tuple(scale * v for v in node.numbers("amplitudes")),
-                frequencies_hz=tuple(node.numbers("frequencies_hz")),
-                phases_rad=tuple(node.numbers("phases_rad", default=[])),
-                offset=scale * node.number("offset", default=0.0),
-            )
-    except ValueError as exc:
-        node.fail(str(exc))
+        # the signal classes start their messages with the offending key: "period_s must be > 0"
+        key, _, rest = str(exc).partition(" ")
+        if key in kwargs and rest.startswith("must"):
+            node.fail(f"{rest}; correct the value", key=key)
+        node.fail(f"{exc}; correct the {kind} signal")
     return wrap(signal)

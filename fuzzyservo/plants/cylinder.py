@@ -98,12 +98,14 @@ class CylinderParams:
         if self.rod_diameter_m >= self.piston_diameter_m:
             raise ValueError(
                 f"rod_diameter: must be smaller than piston_diameter "
-                f"(rod {self.rod_diameter_m} m >= piston {self.piston_diameter_m} m)"
+                f"(rod {self.rod_diameter_m} m >= piston {self.piston_diameter_m} m); "
+                f"check that the two are not swapped"
             )
         if self.supply_pressure_pa <= self.return_pressure_pa:
             raise ValueError(
                 f"supply_pressure: must exceed return_pressure "
-                f"(got {self.supply_pressure_pa} Pa <= {self.return_pressure_pa} Pa)"
+                f"(got {self.supply_pressure_pa} Pa <= {self.return_pressure_pa} Pa); "
+                f"check both values and their units"
             )
         for key, length in (
             ("initial_chamber_length_3", self.chamber_length_3_m),
@@ -111,7 +113,8 @@ class CylinderParams:
         ):
             if self.dead_length_m >= length:
                 raise ValueError(
-                    f"dead_length: must be shorter than {key} ({self.dead_length_m} m >= {length} m)"
+                    f"dead_length: must be shorter than {key} ({self.dead_length_m} m >= {length} m); "
+                    f"give the few millimetres of port and end-cap length"
                 )
 
     @property

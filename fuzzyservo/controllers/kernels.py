@@ -17,6 +17,7 @@ from fuzzyservo.controllers.classical import (
     p_step,
     pi_step,
 )
+from fuzzyservo.controllers.fuzzy.controller import KIND_FUZZY, fuzzy_step
 
 
 @njit(cache=True)
@@ -26,6 +27,8 @@ def controller_step(kind: int, cp: np.ndarray, cs: np.ndarray, r: float, y: floa
         return p_step(cp, cs, r, y)
     if kind == KIND_PI:
         return pi_step(cp, cs, r, y)
+    if kind == KIND_FUZZY:
+        return fuzzy_step(cp, cs, r, y)
     if kind == KIND_OPEN_LOOP:
         return open_loop_step(cp, cs, r, y)
     return np.nan

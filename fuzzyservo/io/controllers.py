@@ -1,7 +1,7 @@
 """Controller files (YAML) to controller objects.
 
 name: p_k10
-kind: P                 # P | PI | open_loop
+kind: P                 # P | PI | open_loop | fuzzy (see fuzzyservo.io.fuzzy)
 description: ...
 source: seed 002 §5
 gain: 10                # V/V (P, open_loop)
@@ -18,18 +18,25 @@ from fuzzyservo.controllers.base import Controller
 from fuzzyservo.controllers.classical import PI, OpenLoop, P
 from fuzzyservo.errors import ConfigError
 from fuzzyservo.io._yaml import Node, read_yaml
+from fuzzyservo.io.fuzzy import KEYS, fuzzy_from_node
 
 _COMMON = ("name", "kind", "description", "source", "output_limits")
 _KINDS = {
     "P": ("gain",),
     "PI": ("kp", "ki"),
     "open_loop": ("gain",),
+    "fuzzy": KEYS,
 }
 
 
 def load_controller(path: str | Path) -> Controller:
-    """Read and validate a controller file; raise :class:`ConfigError` naming file and key."""
+    """Read and validate a controller file (YAML, or a MATLAB ``.fis``); raise
+    :class:`ConfigError` naming file and key."""
     file = str(path)
+    if Path(file).suffix.lower() == ".fis":
+        from fuzzyservo.io.fis import controller_from_fis
+
+        return controller_from_fis(path)
     root = Node(read_yaml(path), file)
     if not root.has("kind"):
         root.fail(f"missing key 'kind'; add one of {sorted(_KINDS)}")
@@ -52,6 +59,8 @@ def load_controller(path: str | Path) -> Controller:
                 key="output_limits",
             )
         limits = {"u_min": lo_hi[0], "u_max": lo_hi[1]}
+    if kind == "fuzzy":
+        return fuzzy_from_node(root, name, limits, root.str("description", default=""))
     # read every number first: ConfigErrors from the reads keep their own key
     if kind == "P":
         make, gains = P, {"gain": root.number("gain")}

@@ -1,0 +1,118 @@
+"""The fuzzy controller: a :class:`FuzzySystem` in a control law, compiled for the loop.
+
+Forms (``e = r − y`` in the rig's feedback unit, ``ė = (e_k − e_{k−1})/T_s``):
+
+* ``p``:  ``u = G_u · F(G_e·e)`` — seed 002's controllers (one input);
+* ``pd``: ``u = G_u · F(G_e·e, G_ė·ė)`` — error and error rate, 7×7 table;
+* ``pi``: ``u_k = clip(u_{k−1} + T_s · G_u · F(G_e·e [, G_ė·ė]))`` — the fuzzy output
+  integrated (incremental fuzzy PI), with the integrator held inside the output limits
+  so it cannot wind up.
+
+The first sample has ė = 0. The state vector carries e_{k−1}, u_{k−1} and the
+evaluator's scratch space, so the compiled loop allocates nothing.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from fuzzyservo._jit import njit
+from fuzzyservo.controllers.base import Controller
+from fuzzyservo.controllers.fuzzy.evaluate import evaluate, pack_system
+from fuzzyservo.controllers.fuzzy.system import FuzzySystem
+
+KIND_FUZZY = 3
+FORMS = ("p", "pd", "pi")
+
+# cp: [form, G_e, G_ė, G_u, u_min, u_max, T_s, n_inputs, <system block>]
+_CP_HEADER = 8
+# cs: [e_prev, u_prev, started, <scratch>]
+_CS_HEADER = 3
+
+
+@njit(cache=True)
+def fuzzy_step(cp: np.ndarray, cs: np.ndarray, r: float, y: float) -> float:
+    """One sample of the fuzzy control law (module docstring); updates ``cs`` in place."""
+    form = int(cp[0])
+    ts = cp[6]
+    e = r - y
+    de = (e - cs[0]) / ts if cs[2] > 0.0 else 0.0
+    scratch = cs[_CS_HEADER:]
+    f = evaluate(cp, _CP_HEADER, scratch, cp[1] * e, cp[2] * de)
+    if form == 2:
+        u = cs[1] + ts * cp[3] * f
+    else:
+        u = cp[3] * f
+    u = min(max(u, cp[4]), cp[5])
+    cs[0] = e
+    cs[1] = u
+    cs[2] = 1.0
+    return u
+
+
+@dataclass(frozen=True)
+class FuzzyController(Controller):
+    """A Mamdani controller: system, form, scaling gains and output limits [V]."""
+
+    system: FuzzySystem
+    form: str = "p"
+    input_gain: float = 1.0
+    rate_gain: float = 1.0
+    output_gain: float = 1.0
+    u_min: float = -np.inf
+    u_max: float = np.inf
+    name: str = "fuzzy"
+    description: str = field(default="", compare=False)
+
+    kind = KIND_FUZZY
+
+    def __post_init__(self) -> None:
+        super().__post_init__()
+        if not isinstance(self.system, FuzzySystem):
+            raise ValueError("a fuzzy controller needs a FuzzySystem")
+        if self.form not in FORMS:
+            raise ValueError(f"form must be one of {list(FORMS)}, got {self.form!r}")
+        n_in = len(self.system.inputs)
+        if self.form == "pd" and n_in != 2:
+            raise ValueError(
+                f"form 'pd' needs two inputs (error and error rate), the system has {n_in}"
+            )
+        if self.form == "p" and n_in != 1:
+            raise ValueError(f"form 'p' needs one input (the error), the system has {n_in}")
+        for attr in ("input_gain", "rate_gain", "output_gain"):
+            value = getattr(self, attr)
+            if not np.isfinite(value) or value == 0:
+                raise ValueError(f"{attr} must be finite and non-zero, got {value}")
+        self.system.check_coverage()
+
+    def pack(self, sample_time_s: float) -> tuple[np.ndarray, np.ndarray]:
+        block, scratch = pack_system(self.system)
+        head = np.array(
+            [FORMS.index(self.form), self.input_gain, self.rate_gain, self.output_gain,
+             self.u_min, self.u_max, sample_time_s, len(self.system.inputs)]
+        )  # fmt: skip
+        return np.concatenate([head, block]), np.zeros(_CS_HEADER + scratch)
+
+    def curve(self, e: np.ndarray, de: np.ndarray | None = None) -> np.ndarray:
+        """The static map ``G_u·F(G_e·e [, G_ė·ė])`` (before limits) on arrays: control curve or surface."""
+        cp, cs = self.pack(1.0)
+        scratch = cs[_CS_HEADER:]
+        e = np.asarray(e, dtype=float)
+        de = (
+            np.zeros_like(e)
+            if de is None
+            else np.broadcast_to(np.asarray(de, dtype=float), e.shape)
+        )
+        out = np.empty(e.shape)
+        _curve(cp, scratch, e.ravel(), np.ascontiguousarray(de).ravel(), out.reshape(-1))
+        return out
+
+
+@njit(cache=True)
+def _curve(
+    cp: np.ndarray, scratch: np.ndarray, e: np.ndarray, de: np.ndarray, out: np.ndarray
+) -> None:
+    for k in range(e.size):
+        out[k] = cp[3] * evaluate(cp, _CP_HEADER, scratch, cp[1] * e[k], cp[2] * de[k])

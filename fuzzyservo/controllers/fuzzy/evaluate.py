@@ -1,0 +1,419 @@
+"""The compiled evaluator of a :class:`FuzzySystem`, and the tables it runs on.
+
+:func:`pack_system` turns a system into one float64 vector (sampled universes and
+membership tables, rules, methods); :func:`evaluate` computes the crisp output for one
+or two inputs inside compiled code, allocating nothing (scratch space is passed in).
+
+It reproduces ``skfuzzy.control.ControlSystemSimulation.compute`` step by step:
+memberships by linear interpolation on the sampled universes (``np.interp``), rule
+firing with AND/OR and the rule weight, accumulation per output term with max, the
+output universe upsampled at every term's cut level (``_interp_universe_fast`` and
+``np.union1d``), min implication, max aggregation, and the defuzzification formulas
+of ``skfuzzy.defuzzify.defuzz``. Only the part of the universe where the aggregated
+set can be non-zero is visited, which is what makes it fast.
+
+Inputs outside a universe are clipped to it (scikit-fuzzy would give them zero
+membership everywhere and fail): a controller saturates its error, as an analog one
+would. With sum or probor aggregation the firings of rules sharing a consequent term
+are combined with that operator before implication (exact when each term is the
+consequent of one rule, as in the identity rule base).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from fuzzyservo._jit import njit
+from fuzzyservo.controllers.fuzzy.system import (
+    AGGREGATIONS,
+    AND_METHODS,
+    DEFUZZIFICATIONS,
+    IMPLICATIONS,
+    OR_METHODS,
+    FuzzySystem,
+)
+
+# block header (offsets from the block start)
+_H_NIN, _H_NRULES, _H_AND, _H_OR, _H_IMP, _H_AGG, _H_DEFUZZ = 0, 1, 2, 3, 4, 5, 6
+_H_IN0, _H_IN1, _H_OUT, _H_RULES, _H_NOUT = 7, 8, 9, 10, 11
+_HEADER = 12
+_RULE_WIDTH = 5
+
+
+def _interp_np(universe: np.ndarray, table: np.ndarray, x: np.ndarray) -> np.ndarray:
+    return np.array([np.interp(x, universe, row) for row in table])
+
+
+def reference_firing(system: FuzzySystem, points: np.ndarray) -> np.ndarray:
+    """Rule firing strengths (weight included) at input ``points`` (m, n_inputs), numpy.
+
+    Used to check coverage when a controller is built.
+    """
+    mus = []
+    for i, var in enumerate(system.inputs):
+        u, table = var.table()
+        x = np.clip(points[:, i], var.low, var.high)
+        mus.append(_interp_np(u, table, x))
+    out = np.empty((points.shape[0], len(system.rules)))
+    for r, rule in enumerate(system.rules):
+        acc = None
+        for i, idx in enumerate(rule.antecedent):
+            if idx == -1:
+                continue
+            mu = mus[i][idx] if idx >= 0 else 1.0 - mus[i][-idx - 2]
+            if acc is None:
+                acc = mu
+            elif rule.connective == "and":
+                acc = np.minimum(acc, mu) if system.and_method == "min" else acc * mu
+            else:
+                acc = np.maximum(acc, mu) if system.or_method == "max" else acc + mu - acc * mu
+        out[:, r] = acc * rule.weight
+    return out
+
+
+def pack_system(system: FuzzySystem) -> tuple[np.ndarray, int]:
+    """Flatten a system into a float64 vector for :func:`evaluate`; also the scratch size needed."""
+    parts: list[np.ndarray] = []
+    size = _HEADER
+
+    def add(arr) -> int:
+        nonlocal size
+        a = np.asarray(arr, dtype=np.float64).ravel()
+        parts.append(a)
+        start = size
+        size += a.size
+        return start
+
+    offsets = [0, 0]
+    t_max = 0
+    for i, var in enumerate(system.inputs):
+        u, table = var.table()
+        t_max = max(t_max, len(var.terms))
+        offsets[i] = add([var.low, var.high, u.size, len(var.terms)])
+        add(u)
+        add(table)
+    out = system.output
+    u, table = out.table()
+    n_t = len(out.terms)
+    referenced = np.zeros(n_t)
+    for rule in system.rules:
+        referenced[rule.consequent] = 1.0
+    support_lo = np.empty(n_t)
+    support_hi = np.empty(n_t)
+    zero_crossings: list[np.ndarray] = []
+    for t in range(n_t):
+        nz = np.nonzero(table[t] > 0)[0]
+        support_lo[t] = max(nz[0] - 1, 0) if nz.size else 0
+        support_hi[t] = min(nz[-1] + 1, u.size - 1) if nz.size else 0
+        # the points scikit-fuzzy adds for a term cut at level 0
+        idx = np.nonzero(np.diff(table[t] > 0))[0]
+        zero_crossings.append(
+            u[idx]
+            + (0.0 - table[t][idx]) * (u[idx + 1] - u[idx]) / (table[t][idx + 1] - table[t][idx])
+        )
+    off_out = add([out.low, out.high, u.size, n_t])
+    add(u)
+    add(table)
+    add(support_lo)
+    add(support_hi)
+    add(referenced)
+    add([z.size for z in zero_crossings])
+    zc_offsets_at = add(np.zeros(n_t))
+    zc_starts = []
+    for z in zero_crossings:
+        zc_starts.append(add(z) if z.size else size)
+    off_rules = add(
+        [
+            v
+            for rule in system.rules
+            for v in (
+                *(list(rule.antecedent) + [-1] * (2 - len(rule.antecedent))),
+                rule.consequent,
+                rule.weight,
+                0.0 if rule.connective == "and" else 1.0,
+            )
+        ]
+    )
+    block = np.concatenate([np.zeros(_HEADER), *parts])
+    block[zc_offsets_at : zc_offsets_at + n_t] = zc_starts
+    block[_H_NIN] = len(system.inputs)
+    block[_H_NRULES] = len(system.rules)
+    block[_H_AND] = AND_METHODS.index(system.and_method)
+    block[_H_OR] = OR_METHODS.index(system.or_method)
+    block[_H_IMP] = IMPLICATIONS.index(system.implication)
+    block[_H_AGG] = AGGREGATIONS.index(system.aggregation)
+    block[_H_DEFUZZ] = DEFUZZIFICATIONS.index(system.defuzzification)
+    block[_H_IN0] = offsets[0]
+    block[_H_IN1] = offsets[1]
+    block[_H_OUT] = off_out
+    block[_H_RULES] = off_rules
+    block[_H_NOUT] = n_t
+    extra = 4 * n_t + 2 * u.size  # cut-level points: at most 2 per unimodal term, with margin
+    scratch = 2 * t_max + n_t + extra + 2 * (u.size + extra)
+    return block, scratch
+
+
+@njit(cache=True, inline="always")
+def _interp_at(cp: np.ndarray, u0: int, m0: int, n: int, j: int, x: float) -> float:
+    """np.interp on the table row starting at ``m0`` for x in [u[j], u[j+1]]."""
+    xa = cp[u0 + j]
+    if j >= n - 1 or x == xa:
+        return cp[m0 + j]
+    xb = cp[u0 + j + 1]
+    fa = cp[m0 + j]
+    return fa + (x - xa) * (cp[m0 + j + 1] - fa) / (xb - xa)
+
+
+@njit(cache=True, inline="always")
+def _locate(cp: np.ndarray, u0: int, n: int, x: float) -> int:
+    """Index j with u[j] <= x < u[j+1] (binary search; n − 1 at the top end)."""
+    lo = 0
+    hi = n - 1
+    if x >= cp[u0 + hi]:
+        return hi
+    while hi - lo > 1:
+        mid = (lo + hi) >> 1
+        if cp[u0 + mid] <= x:
+            lo = mid
+        else:
+            hi = mid
+    return lo
+
+
+@njit(cache=True)
+def evaluate(cp: np.ndarray, b: int, scratch: np.ndarray, x0: float, x1: float) -> float:
+    """Crisp output of the system packed at ``cp[b:]`` for inputs ``x0`` (and ``x1``).
+
+    Returns NaN when no rule fires (cannot happen for a system that passed the
+    coverage check at build time).
+    """
+    n_in = int(cp[b + _H_NIN])
+    n_rules = int(cp[b + _H_NRULES])
+    and_m = int(cp[b + _H_AND])
+    or_m = int(cp[b + _H_OR])
+    imp_m = int(cp[b + _H_IMP])
+    agg_m = int(cp[b + _H_AGG])
+    defuzz_m = int(cp[b + _H_DEFUZZ])
+    n_t = int(cp[b + _H_NOUT])
+
+    # 1. fuzzification: mu[i*t_stride + k]
+    t_stride = 0
+    for i in range(n_in):
+        o = b + int(cp[b + _H_IN0 + i])
+        t_stride = max(t_stride, int(cp[o + 3]))
+    mu = scratch[: 2 * t_stride]
+    for i in range(n_in):
+        o = b + int(cp[b + _H_IN0 + i])
+        lo = cp[o]
+        hi = cp[o + 1]
+        n = int(cp[o + 2])
+        nt = int(cp[o + 3])
+        x = x0 if i == 0 else x1
+        x = min(max(x, lo), hi)
+        u0 = o + 4
+        j = _locate(cp, u0, n, x)
+        for k in range(nt):
+            mu[i * t_stride + k] = _interp_at(cp, u0, u0 + n + k * n, n, j, x)
+
+    # 2. rule firing, accumulated per output term (-1: term not referenced by any rule)
+    cut = scratch[2 * t_stride : 2 * t_stride + n_t]
+    for t in range(n_t):
+        cut[t] = -1.0
+    ro = b + int(cp[b + _H_RULES])
+    for r in range(n_rules):
+        q = ro + r * _RULE_WIDTH
+        acc = -1.0
+        for i in range(n_in):
+            a = int(cp[q + i])
+            if a == -1:
+                continue
+            m = mu[i * t_stride + a] if a >= 0 else 1.0 - mu[i * t_stride + (-a - 2)]
+            if acc < 0.0:
+                acc = m
+            elif cp[q + 4] == 0.0:
+                acc = min(acc, m) if and_m == 0 else acc * m
+            else:
+                acc = max(acc, m) if or_m == 0 else acc + m - acc * m
+        f = acc * cp[q + 3]
+        t = int(cp[q + 2])
+        if cut[t] < 0.0:
+            cut[t] = f
+        elif agg_m == 0:
+            cut[t] = max(cut[t], f)
+        elif agg_m == 1:
+            cut[t] = cut[t] + f
+        else:
+            cut[t] = cut[t] + f - cut[t] * f
+
+    # 3. output universe: the span where the aggregate may be non-zero
+    oo = b + int(cp[b + _H_OUT])
+    n = int(cp[oo + 2])
+    u0 = oo + 4
+    m0 = u0 + n
+    s_lo = m0 + n_t * n
+    s_hi = s_lo + n_t
+    z_n = s_hi + 2 * n_t
+    z_off = z_n + n_t
+    j_lo = n
+    j_hi = -1
+    for t in range(n_t):
+        if cut[t] > 0.0:
+            j_lo = min(j_lo, int(cp[s_lo + t]))
+            j_hi = max(j_hi, int(cp[s_hi + t]))
+    if j_hi < 0:
+        return np.nan
+    x_lo = cp[u0 + j_lo]
+    x_hi = cp[u0 + j_hi]
+
+    # 4. extra points at the cut levels (min implication), kept inside the span, sorted
+    base = 2 * t_stride + n_t
+    extra = scratch[base : base + 4 * n_t + 2 * n]
+    n_extra = 0
+    if imp_m == 0:
+        for t in range(n_t):
+            c = cut[t]
+            if c < 0.0:
+                continue
+            if c == 0.0:
+                zs = int(cp[z_off + t])
+                for k in range(int(cp[z_n + t])):
+                    z = cp[zs + k]
+                    if x_lo <= z <= x_hi:
+                        extra[n_extra] = z
+                        n_extra += 1
+                continue
+            mrow = m0 + t * n
+            prev = cp[mrow + j_lo] >= c
+            for j in range(j_lo, j_hi):
+                nxt = cp[mrow + j + 1] >= c
+                if nxt != prev:
+                    fa = cp[mrow + j]
+                    z = cp[u0 + j] + (c - fa) * (cp[u0 + j + 1] - cp[u0 + j]) / (
+                        cp[mrow + j + 1] - fa
+                    )
+                    extra[n_extra] = z
+                    n_extra += 1
+                prev = nxt
+    for a in range(1, n_extra):  # insertion sort: a handful of points
+        v = extra[a]
+        k = a - 1
+        while k >= 0 and extra[k] > v:
+            extra[k + 1] = extra[k]
+            k -= 1
+        extra[k + 1] = v
+
+    # 5. merge universe and extra points (union: sorted, exact duplicates once) and aggregate
+    x_base = base + 4 * n_t + 2 * n
+    width = n + 4 * n_t + 2 * n
+    xs = scratch[x_base : x_base + width]
+    ys = scratch[x_base + width : x_base + 2 * width]
+    m = 0
+    j = j_lo
+    e = 0
+    while j <= j_hi or e < n_extra:
+        if e < n_extra and (j > j_hi or extra[e] < cp[u0 + j]):
+            x = extra[e]
+            e += 1
+            jj = j - 1 if j > 0 else 0
+        else:
+            x = cp[u0 + j]
+            jj = j
+            j += 1
+        if m > 0 and x == xs[m - 1]:
+            continue
+        y = 0.0
+        for t in range(n_t):
+            c = cut[t]
+            if c <= 0.0:
+                continue
+            v = _interp_at(cp, u0, m0 + t * n, n, jj, x)
+            v = min(c, v) if imp_m == 0 else c * v
+            if agg_m == 0:
+                y = max(y, v)
+            elif agg_m == 1:
+                y = y + v
+            else:
+                y = y + v - y * v
+        xs[m] = x
+        ys[m] = y
+        m += 1
+    return _defuzzify(xs[:m], ys[:m], defuzz_m)
+
+
+@njit(cache=True)
+def _defuzzify(x: np.ndarray, y: np.ndarray, method: int) -> float:
+    """scikit-fuzzy's ``defuzz`` formulas on a piecewise-linear set (skfuzzy/defuzzify/defuzz.py)."""
+    n = x.size
+    if method >= 2:  # mom, som, lom on the sampled points
+        top = 0.0
+        for i in range(n):
+            top = max(top, y[i])
+        if top <= 0.0:
+            return np.nan
+        s = 0.0
+        cnt = 0
+        first = np.nan
+        last = np.nan
+        for i in range(n):
+            if y[i] == top:
+                if cnt == 0:
+                    first = x[i]
+                last = x[i]
+                s += x[i]
+                cnt += 1
+        if method == 2:
+            return s / cnt
+        return first if method == 3 else last
+    total = 0.0
+    moment = 0.0
+    for i in range(1, n):
+        x1 = x[i - 1]
+        x2 = x[i]
+        y1 = y[i - 1]
+        y2 = y[i]
+        if (y1 == 0.0 and y2 == 0.0) or x1 == x2:
+            continue
+        if y1 == y2:
+            mom = 0.5 * (x1 + x2)
+            area = (x2 - x1) * y1
+        elif y1 == 0.0:
+            mom = 2.0 / 3.0 * (x2 - x1) + x1
+            area = 0.5 * (x2 - x1) * y2
+        elif y2 == 0.0:
+            mom = 1.0 / 3.0 * (x2 - x1) + x1
+            area = 0.5 * (x2 - x1) * y1
+        else:
+            mom = (2.0 / 3.0 * (x2 - x1) * (y2 + 0.5 * y1)) / (y1 + y2) + x1
+            area = 0.5 * (x2 - x1) * (y1 + y2)
+        moment += mom * area
+        total += area
+    if total <= 0.0:
+        return np.nan
+    if method == 0:
+        return moment / max(total, 2.220446049250313e-16)
+    # bisector: the point that halves the area
+    half = total / 2.0
+    acc = 0.0
+    for i in range(1, n):
+        x1 = x[i - 1]
+        x2 = x[i]
+        y1 = y[i - 1]
+        y2 = y[i]
+        area = 0.0
+        if not ((y1 == 0.0 and y2 == 0.0) or x1 == x2):
+            area = (x2 - x1) * y1 if y1 == y2 else 0.5 * (x2 - x1) * (y1 + y2)
+        if acc + area >= half and area > 0.0:
+            sub = half - acc
+            w = x2 - x1
+            if y1 == y2:
+                return sub / y1 + x1
+            if y1 == 0.0:
+                return x1 + math.sqrt(2.0 * sub * w / y2)
+            if y2 == 0.0:
+                return x2 - math.sqrt(w * w - 2.0 * sub * w / y1)
+            slope = (y2 - y1) / w
+            return x1 - (y1 - math.sqrt(y1 * y1 + 2.0 * slope * sub)) / slope
+        acc += area
+    return x[n - 1]

@@ -76,6 +76,14 @@ CASES = (
         "seed 002 rig, P K=10, 1 V pulses, 20 s simulated at 100 Hz",
     ),
     BenchCase(
+        "dinca_pulses_flc2",
+        "rigs/dinca_cylinder.yaml",
+        "studies/controllers/flc2_reshaped.yaml",
+        "pulses",
+        20.0,
+        "seed 002 rig, FLC2 (reshaped inputs, translated outputs), 20 s simulated at 100 Hz",
+    ),
+    BenchCase(
         "ehs160_steps_p",
         "rigs/ehs160_motor.yaml",
         "studies/controllers/p_kb0105.yaml",
@@ -111,6 +119,79 @@ def _median_time(fn: Callable[[], object], runs: int) -> tuple[float, object]:
         last = fn()
         times.append(time.perf_counter() - t0)
     return statistics.median(times), last
+
+
+FUZZY_EVAL = "fuzzy_eval"
+
+
+def run_fuzzy_eval(
+    controller_file: str = "studies/controllers/flc2_reshaped.yaml",
+    *,
+    points: int = 10_000,
+    timed_calls: int = 300,
+    runs: int = 7,
+    root: Path | None = None,
+) -> BenchResult:
+    """Compiled evaluator against ``skfuzzy`` ``ControlSystemSimulation.compute``.
+
+    Times one evaluation of each (median over ``runs`` batches; scikit-fuzzy on
+    ``timed_calls`` inputs), and reports the largest deviation over ``points`` random
+    inputs drawn from 1.5× the input ranges (so some lie outside and are clipped), as a
+    fraction of the output span.
+    """
+    from fuzzyservo.controllers.fuzzy.skfuzzy_adapter import SkfuzzyReference
+    from fuzzyservo.io.controllers import load_controller
+
+    root = root or project_root()
+    controller = load_controller(root / controller_file)
+    system = controller.system
+    x = random_inputs(system, points)
+    e = x[:, 0]
+    de = x[:, 1] if x.shape[1] > 1 else None
+    controller.curve(e[:10], None if de is None else de[:10])  # compile
+    fast_times = []
+    for _ in range(runs):
+        t0 = time.perf_counter()
+        fast = controller.curve(e, de)
+        fast_times.append((time.perf_counter() - t0) / points)
+    reference_runs = max(1, runs // 2)
+    with SkfuzzyReference(system) as ref:
+        ref_times = []
+        for _ in range(reference_runs):
+            t0 = time.perf_counter()
+            for row in x[:timed_calls]:
+                ref.compute(*row)
+            ref_times.append((time.perf_counter() - t0) / timed_calls)
+        slow = ref.compute_many(x)
+    span = system.output.high - system.output.low
+    median_s = statistics.median(fast_times)
+    reference_s = statistics.median(ref_times)
+    return BenchResult(
+        name=FUZZY_EVAL,
+        description=f"one evaluation of {controller.name} against skfuzzy compute(), {points} random inputs",
+        simulated_s=0.0,
+        median_s=median_s,
+        reference_s=reference_s,
+        ratio=reference_s / median_s,
+        runs=runs,
+        reference_runs=reference_runs,
+        integration_steps=0,
+        error={
+            "max_deviation_of_span": float(
+                np.max(np.abs(fast / controller.output_gain - slow)) / span
+            )
+        },
+    )
+
+
+def random_inputs(system, points: int, seed: int = 2024) -> np.ndarray:
+    """Uniform random inputs over 1.5× each input range (a sixth of them outside it)."""
+    rng = np.random.default_rng(seed)
+    cols = []
+    for var in system.inputs:
+        mid, half = 0.5 * (var.low + var.high), 0.5 * (var.high - var.low)
+        cols.append(rng.uniform(mid - 1.5 * half, mid + 1.5 * half, points))
+    return np.column_stack(cols)
 
 
 def run_case(

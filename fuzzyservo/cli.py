@@ -32,7 +32,7 @@ def resolve(name: str, folder: str, what: str) -> Path:
     given = Path(name)
     if given.is_file():
         return given
-    if given.suffix or "/" in name:
+    if given.suffix in (".yaml", ".yml", ".fis") or "/" in name:
         raise ConfigError(f"{what} file not found; check the path", file=name)
     for base in _search_dirs():
         candidate = base / folder / f"{name}.yaml"
@@ -200,32 +200,127 @@ def cmd_compare(args: argparse.Namespace) -> int:
     return _report_runs(rig, scenario, results, Path(args.out) if args.out else None, args.json)
 
 
+def _load_fuzzy(name: str):
+    from fuzzyservo.controllers.fuzzy import FuzzyController
+    from fuzzyservo.io.controllers import load_controller
+
+    path = resolve(name, "studies/controllers", "controller")
+    controller = load_controller(path)
+    if not isinstance(controller, FuzzyController):
+        raise ConfigError(
+            f"is a {type(controller).__name__} controller, not a fuzzy one; give a 'kind: fuzzy' file or a .fis",
+            file=str(path),
+        )
+    return controller
+
+
+def describe_fuzzy(controller) -> str:
+    """Terms and rules in words (what MATLAB's showrule and the MF editor show)."""
+    system = controller.system
+    lines = [
+        f"{controller.name}: Mamdani, form {controller.form}, {len(system.rules)} rules; "
+        f"and {system.and_method}, or {system.or_method}, implication {system.implication}, "
+        f"aggregation {system.aggregation}, defuzzification {system.defuzzification}; "
+        f"gains input {controller.input_gain:g}, rate {controller.rate_gain:g}, output {controller.output_gain:g}"
+    ]
+    for role, var in [*(("input", v) for v in system.inputs), ("output", system.output)]:
+        lines.append(f"  {role} {var.name} [{var.low:g}, {var.high:g}]")
+        for t in var.terms:
+            lines.append(f"    {t.name:<4} {t.shape:<8} [{' '.join(f'{p:.4g}' for p in t.params)}]")
+    names = [v.name for v in system.inputs]
+    for n, rule in enumerate(system.rules, start=1):
+        parts = []
+        for var, name, idx in zip(system.inputs, names, rule.antecedent, strict=True):
+            if idx == -1:
+                continue
+            term = var.terms[idx if idx >= 0 else -idx - 2].name
+            parts.append(f"{name} is {'not ' if idx < -1 else ''}{term}")
+        joined = f" {rule.connective} ".join(parts)
+        weight = f" ({rule.weight:g})" if rule.weight != 1 else ""
+        lines.append(
+            f"  {n}. if {joined} then {system.output.name} is {system.output.terms[rule.consequent].name}{weight}"
+        )
+    return "\n".join(lines)
+
+
+def cmd_show(args: argparse.Namespace) -> int:
+    from fuzzyservo import plots
+
+    controller = _load_fuzzy(args.controller)
+    print(describe_fuzzy(controller))
+    out = Path(args.out)
+    figures = {
+        "overview": plots.fuzzy_overview_figure(controller),
+        "membership": plots.membership_figure(controller),
+        "curve": plots.control_curve_figure(controller),
+    }
+    for kind, fig in figures.items():
+        plots.save(fig, out / f"{controller.name}_{kind}.png")
+    print(
+        f"membership functions and control {'curve' if len(controller.system.inputs) == 1 else 'surface'} written to {out}/"
+    )
+    return 0
+
+
+def cmd_export(args: argparse.Namespace) -> int:
+    from fuzzyservo.io.fis import write_fis
+
+    controller = _load_fuzzy(args.controller)
+    gains = (controller.input_gain, controller.rate_gain, controller.output_gain)
+    if any(g != 1.0 for g in gains) or controller.form == "pi":
+        print(
+            f"note: a .fis holds the inference system only; form {controller.form!r} and gains "
+            f"(input, rate, output) = {gains} stay in the YAML file",
+            file=sys.stderr,
+        )
+    write_fis(controller.system, args.fis)
+    print(f"{controller.name} written to {args.fis}")
+    return 0
+
+
 def cmd_bench(args: argparse.Namespace) -> int:
     from fuzzyservo import bench
 
-    cases = [c for c in bench.CASES if not args.case or c.name in args.case]
-    if args.case and len(cases) != len(set(args.case)):
-        known = ", ".join(c.name for c in bench.CASES)
-        raise ConfigError(f"unknown bench case in {args.case}; known: {known}")
+    known = [bench.FUZZY_EVAL, *(c.name for c in bench.CASES)]
+    wanted = args.case or known
+    unknown = [c for c in wanted if c not in known]
+    if unknown:
+        raise ConfigError(f"unknown bench case {unknown[0]!r}; known: {', '.join(known)}")
     results = []
-    progress = _progress(len(cases), "bench")
-    for case in cases:
-        progress.set_description(case.name)
-        results.append(bench.run_case(case, runs=args.runs, reference_runs=args.reference_runs))
+    progress = _progress(len(wanted), "bench")
+    for name in wanted:
+        progress.set_description(name)
+        if name == bench.FUZZY_EVAL:
+            results.append(bench.run_fuzzy_eval(runs=args.runs))
+        else:
+            case = next(c for c in bench.CASES if c.name == name)
+            results.append(bench.run_case(case, runs=args.runs, reference_runs=args.reference_runs))
         progress.update(1)
     progress.close()
-    print(
-        f"{'case':<20} {'median':>10} {'reference':>10} {'ratio':>7}  error vs rtol 1e-9 reference"
-    )
+    print(f"{'case':<20} {'median':>10} {'reference':>10} {'ratio':>7}  error")
     for r in results:
         err = ", ".join(f"{k} {v:.3g}" for k, v in r.error.items())
         print(
-            f"{r.name:<20} {r.median_s * 1e3:>8.2f}ms {r.reference_s:>9.3f}s {r.ratio:>6.0f}×  {err}"
+            f"{r.name:<20} {_duration(r.median_s):>10} {_duration(r.reference_s):>10} {r.ratio:>6.0f}×  {err}"
         )
+    print(
+        "reference: scipy solve_ivp (LSODA, rtol 1e-6) per control interval, or skfuzzy compute();"
+    )
+    print(
+        "error: largest deviation from solve_ivp at rtol 1e-9, or from compute() (fraction of output span)"
+    )
     if args.json:
         _write_json(args.json, _clean({"cases": [r.to_dict() for r in results]}))
         print(f"JSON written to {args.json}")
     return 0
+
+
+def _duration(seconds: float) -> str:
+    if seconds < 1e-3:
+        return f"{seconds * 1e6:.2f}µs"
+    if seconds < 1.0:
+        return f"{seconds * 1e3:.2f}ms"
+    return f"{seconds:.3f}s"
 
 
 def _progress(total: int, desc: str):
@@ -270,6 +365,22 @@ def build_parser() -> argparse.ArgumentParser:
     common(p)
     p.set_defaults(func=cmd_compare)
 
+    p = sub.add_parser(
+        "show", help="a fuzzy controller: terms, rules, membership functions and control curve"
+    )
+    p.add_argument(
+        "controller", help="fuzzy controller file (YAML or .fis) or name under studies/controllers/"
+    )
+    p.add_argument("--out", default="out", help="folder for the PNG figures (default: out)")
+    p.set_defaults(func=cmd_show)
+
+    p = sub.add_parser("export", help="write a fuzzy controller as a MATLAB .fis file")
+    p.add_argument(
+        "controller", help="fuzzy controller file (YAML or .fis) or name under studies/controllers/"
+    )
+    p.add_argument("--fis", required=True, metavar="FILE", help="the .fis file to write")
+    p.set_defaults(func=cmd_export)
+
     p = sub.add_parser("bench", help="speed of the compiled loop against the scipy reference path")
     p.add_argument("--json", metavar="FILE", help="write the figures as JSON")
     p.add_argument("--case", action="append", help="run only this case (repeatable)")
@@ -293,6 +404,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     except KeyboardInterrupt:
         print("fuzzyservo: interrupted", file=sys.stderr)
         return 130
+    except BrokenPipeError:  # output piped into head & co.
+        sys.stderr.close()
+        return 0
 
 
 if __name__ == "__main__":  # pragma: no cover

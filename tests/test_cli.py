@@ -72,3 +72,28 @@ def test_module_entry_point():
         [sys.executable, "-m", "fuzzyservo", "--help"], capture_output=True, text=True
     )
     assert done.returncode == 0 and "compare" in done.stdout
+
+
+def test_show_writes_figures_and_describes_rules(tmp_path, capsys):
+    assert main(["show", "flc2_reshaped", "--out", str(tmp_path)]) == 0
+    printed = capsys.readouterr().out
+    assert "4. if e is Z then u is Z" in printed and "trapmf" in printed
+    for kind in ("overview", "membership", "curve"):
+        assert (tmp_path / f"flc2_reshaped_{kind}.png").stat().st_size > 10_000
+
+
+def test_export_then_compare_the_fis(tmp_path, capsys):
+    fis = tmp_path / "flc1.fis"
+    assert main(["export", "flc1_translated", "--fis", str(fis)]) == 0
+    assert fis.read_text().startswith("[System]")
+    code = main(["compare", "dinca_cylinder", "flc1_translated", str(fis), "--scenario", "steps",
+                 "--out", str(tmp_path), "--json", str(tmp_path / "r.json")])  # fmt: skip
+    assert code == 0
+    runs = json.loads((tmp_path / "r.json").read_text())["runs"]
+    assert runs[0]["metrics"] == runs[1]["metrics"]  # same controller, through the .fis
+
+
+def test_show_rejects_a_classical_controller(capsys):
+    assert main(["show", "p_k10"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "not a fuzzy one" in err[0]

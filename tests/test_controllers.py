@@ -6,13 +6,38 @@ import numpy as np
 import pytest
 
 from fuzzyservo.controllers.classical import PI, OpenLoop, P
+from fuzzyservo.controllers.fuzzy import (
+    FuzzyController,
+    FuzzySystem,
+    SevenTermDesign,
+    identity_rules,
+)
+from fuzzyservo.controllers.fuzzy.design import macvicar_whelan, table_rules
 from fuzzyservo.metrics import result_metrics
 from fuzzyservo.simulation import simulate
+
+
+def _fuzzy(form: str) -> FuzzyController:
+    e = SevenTermDesign("e", -2, 2, reshape=1.5, points=51).variable()
+    u = SevenTermDesign("u", -3, 3, translate=0.26, points=51).variable()
+    if form == "p":
+        return FuzzyController(
+            FuzzySystem("f", (e,), u, identity_rules()), form=form, name="fuzzy_p"
+        )
+    de = SevenTermDesign("de", -10, 10, points=51).variable()
+    system = FuzzySystem("f", (e, de), u, table_rules(macvicar_whelan()))
+    return FuzzyController(
+        system, form=form, output_gain=1.0 if form == "pd" else 3.0, name=f"fuzzy_{form}"
+    )
+
 
 ALL_CONTROLLERS = [
     P(gain=10.0, u_min=-10, u_max=10, name="p"),
     PI(kp=5.0, ki=20.0, u_min=-3, u_max=3, name="pi"),
     OpenLoop(gain=0.01, u_min=-1, u_max=1, name="ol"),
+    _fuzzy("p"),
+    _fuzzy("pd"),
+    _fuzzy("pi"),
 ]
 
 

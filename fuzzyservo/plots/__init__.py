@@ -6,6 +6,18 @@ pyplot, no global backend or state), so they render headless; :func:`save` write
 
 from fuzzyservo.plots._bars import metrics_bar_figure
 from fuzzyservo.plots._display import save
+from fuzzyservo.plots._fuzzy import (
+    control_curve_figure,
+    fuzzy_overview_figure,
+    membership_figure,
+)
 from fuzzyservo.plots._response import response_figure
 
-__all__ = ["metrics_bar_figure", "response_figure", "save"]
+__all__ = [
+    "control_curve_figure",
+    "fuzzy_overview_figure",
+    "membership_figure",
+    "metrics_bar_figure",
+    "response_figure",
+    "save",
+]

@@ -6,8 +6,10 @@ positive increments (left shoulder, six gaps, right shoulder) scaled to fill the
 range, so any positive vector an optimiser proposes is a valid, fully covering set.
 Two operations act on those positions:
 
-* ``translate`` δ: every breakpoint moves by δ (the range stays) — seed 002 §6 moves
-  the output terms so that zero error commands the current that holds the piston;
+* ``translate`` δ: every breakpoint and the range move by δ, so the control curve
+  moves by exactly δ — seed 002 §6 moves the output terms so that zero error commands
+  the current that holds the piston. (Moving the terms but not the range would cut
+  the outer terms, and a large δ could push a term out of the range altogether.)
 * ``reshape`` γ: a monotone warp ``z → sign(z)·|z|^γ`` of positions relative to the
   range centre; γ > 1 pulls the inner terms toward zero (steeper control curve near
   zero error), γ < 1 pushes them out — seed 002 §7's modified input terms.
@@ -75,7 +77,8 @@ class SevenTermDesign:
         terms = [Term("NB", "trapmf", (lo, lo, c[0], c[1]))]
         terms += [Term(SEVEN_TERMS[k], "trimf", (c[k - 1], c[k], c[k + 1])) for k in range(1, 6)]
         terms.append(Term("PB", "trapmf", (c[5], c[6], hi, hi)))
-        return Variable(self.name, self.low, self.high, tuple(terms), self.points)
+        d = self.translate
+        return Variable(self.name, self.low + d, self.high + d, tuple(terms), self.points)
 
 
 def warp(x: np.ndarray, low: float, high: float, gamma: float) -> np.ndarray:

@@ -157,13 +157,14 @@ def pack_system(system: FuzzySystem) -> tuple[np.ndarray, int]:
 
 @njit(cache=True, inline="always")
 def _interp_at(cp: np.ndarray, u0: int, m0: int, n: int, j: int, x: float) -> float:
-    """np.interp on the table row starting at ``m0`` for x in [u[j], u[j+1]]."""
+    """np.interp on the table row starting at ``m0`` for x in [u[j], u[j+1]], with numpy's
+    rounding (``slope·(x − x_j) + f_j``): som/lom compare memberships for equality."""
     xa = cp[u0 + j]
     if j >= n - 1 or x == xa:
         return cp[m0 + j]
-    xb = cp[u0 + j + 1]
     fa = cp[m0 + j]
-    return fa + (x - xa) * (cp[m0 + j + 1] - fa) / (xb - xa)
+    slope = (cp[m0 + j + 1] - fa) / (cp[u0 + j + 1] - xa)
+    return slope * (x - xa) + fa
 
 
 @njit(cache=True, inline="always")
@@ -277,7 +278,7 @@ def evaluate(cp: np.ndarray, b: int, scratch: np.ndarray, x0: float, x1: float) 
             if c < 0.0:
                 continue
             if c == 0.0:
-                zs = int(cp[z_off + t])
+                zs = b + int(cp[z_off + t])
                 for k in range(int(cp[z_n + t])):
                     z = cp[zs + k]
                     if x_lo <= z <= x_hi:

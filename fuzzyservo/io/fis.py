@@ -1,0 +1,611 @@
+"""MATLAB ``.fis`` files (Fuzzy Logic Toolbox text format) ⇄ :class:`FuzzySystem`.
+
+The format is the one ``readfis``/``writefis`` use (Fuzzy Logic Toolbox User's Guide,
+"The FIS Structure — Saving FIS Files on Disk"; unchanged in R2018b+ files apart from
+a ``Version=2.0`` line)::
+
+    [System]
+    Name='tipper'
+    Type='mamdani'
+    Version=2.0
+    NumInputs=2
+    NumOutputs=1
+    NumRules=3
+    AndMethod='min'
+    OrMethod='max'
+    ImpMethod='min'
+    AggMethod='max'
+    DefuzzMethod='centroid'
+
+    [Input1]
+    Name='service'
+    Range=[0 10]
+    NumMFs=3
+    MF1='poor':'gaussmf',[1.5 0]
+    ...
+
+    [Output1]
+    ...
+
+    [Rules]
+    1 1, 1 (1) : 2
+
+A rule line is: one MF number per input (1-based, ``0`` no condition, ``-k`` NOT MF
+k), a comma, the output MF number, the weight in parentheses, a colon and the
+connective (``1`` AND, ``2`` OR).
+
+Supported: Mamdani systems with one or two inputs and one output; MF types trimf,
+trapmf, gaussmf ``[sigma c]``, gbellmf ``[a b c]``; the methods of
+:mod:`fuzzyservo.controllers.fuzzy.system`. Anything else is a :class:`ConfigError`
+naming the file, the line and section, the problem and the fix. The format has no
+universe resolution: systems read get ``points`` samples per variable (201 unless
+given), and :func:`fis_text` does not store it.
+"""
+
+from __future__ import annotations
+
+import math
+import re
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import NoReturn
+
+from fuzzyservo.controllers.fuzzy.controller import FuzzyController
+from fuzzyservo.controllers.fuzzy.system import (
+    AGGREGATIONS,
+    AND_METHODS,
+    DEFUZZIFICATIONS,
+    IMPLICATIONS,
+    OR_METHODS,
+    SHAPES,
+    FuzzySystem,
+    Rule,
+    Term,
+    Variable,
+)
+from fuzzyservo.errors import ConfigError
+
+__all__ = ["controller_from_fis", "fis_text", "parse_fis", "read_fis", "write_fis"]
+
+#: the ``Version`` written by :func:`fis_text` (MATLAB R2018b and later)
+VERSION = "2.0"
+_SHAPE_LIST = ", ".join(SHAPES)
+_METHODS = {
+    "AndMethod": ("and_method", AND_METHODS),
+    "OrMethod": ("or_method", OR_METHODS),
+    "ImpMethod": ("implication", IMPLICATIONS),
+    "AggMethod": ("aggregation", AGGREGATIONS),
+    "DefuzzMethod": ("defuzzification", DEFUZZIFICATIONS),
+}
+_SYSTEM_KEYS = ("Name", "Type", "Version", "NumInputs", "NumOutputs", "NumRules", *_METHODS)
+_VARIABLE_KEYS = ("Name", "Range", "NumMFs", "MF<n>")
+_SECTION = re.compile(r"^\[\s*(?P<name>[^\]]*?)\s*\]$")
+_NUMBERED = re.compile(r"^(?P<kind>Input|Output)(?P<n>\d+)$")
+_MF_KEY = re.compile(r"^MF(?P<n>\d+)$")
+_MF = re.compile(r"^'(?P<name>[^']*)'\s*:\s*'(?P<shape>[^']*)'\s*,\s*\[(?P<params>[^\[\]]*)\]$")
+_INDICES = r"[-+]?\d+(?:[\s,]+[-+]?\d+)*"
+_RULE = re.compile(
+    rf"^(?P<ante>{_INDICES})\s*,\s*(?P<cons>{_INDICES})\s*"
+    r"\(\s*(?P<weight>[^()]*?)\s*\)\s*:\s*(?P<conn>[-+]?\d+)$"
+)
+_RULE_HINT = "write it like '1 2, 3 (1) : 1' (input MF numbers, output MF, (weight) : 1 AND / 2 OR)"
+
+
+# --------------------------------------------------------------------------- parsing
+@dataclass
+class _Line:
+    value: str
+    number: int
+
+
+@dataclass
+class _Section:
+    name: str
+    number: int
+    entries: dict[str, _Line] = field(default_factory=dict)
+    lines: list[_Line] = field(default_factory=list)  # [Rules]
+
+
+class _Reader:
+    """Locates every problem: ``file: [Section].Key (line n): problem; fix``."""
+
+    def __init__(self, file: str):
+        self.file = file
+
+    def fail(self, message: str, where: str | None = None, line: int | None = None) -> NoReturn:
+        if where and line:
+            key = f"{where} (line {line})"
+        else:
+            key = where or (f"line {line}" if line else None)
+        raise ConfigError(message, file=self.file, key=key)
+
+    def sections(self, text: str) -> dict[str, _Section]:
+        sections: dict[str, _Section] = {}
+        current: _Section | None = None
+        for number, raw in enumerate(text.splitlines(), start=1):
+            line = raw.strip()
+            if not line or line[0] in "%#":
+                continue
+            head = _SECTION.match(line)
+            if head:
+                name = head["name"]
+                self._check_section_name(name, number)
+                if name in sections:
+                    self.fail(
+                        f"section [{name}] appears twice (first at line "
+                        f"{sections[name].number}); merge or delete one",
+                        line=number,
+                    )
+                current = sections[name] = _Section(name, number)
+                continue
+            if current is None:
+                self.fail(
+                    f"text before the first section: {line!r}; start the file with [System]",
+                    line=number,
+                )
+            if current.name == "Rules":
+                current.lines.append(_Line(line, number))
+                continue
+            key, eq, value = line.partition("=")
+            key, value = key.strip(), value.strip()
+            if not eq or not key:
+                self.fail(
+                    f"cannot read {line!r}; write Key=value (e.g. Range=[-1 1])",
+                    f"[{current.name}]",
+                    number,
+                )
+            if key in current.entries:
+                self.fail(
+                    f"{key} is given twice (first at line {current.entries[key].number}); "
+                    "delete one",
+                    f"[{current.name}].{key}",
+                    number,
+                )
+            current.entries[key] = _Line(value, number)
+        return sections
+
+    def _check_section_name(self, name: str, number: int) -> None:
+        if name in ("System", "Rules"):
+            return
+        m = _NUMBERED.match(name)
+        if not m:
+            self.fail(
+                f"unknown section [{name}]; a .fis file has [System], [Input1], [Input2], "
+                "[Output1] and [Rules]",
+                line=number,
+            )
+        n = int(m["n"])
+        if m["kind"] == "Input" and n > 2:
+            self.fail(
+                f"[{name}]: only systems with one or two inputs (error, error rate) are "
+                "supported; reduce the system to two inputs",
+                line=number,
+            )
+        if m["kind"] == "Output" and n > 1:
+            self.fail(
+                f"[{name}]: only systems with one output (the command) are supported; "
+                "split the system into one system per output",
+                line=number,
+            )
+        if n < 1:
+            self.fail(f"sections are numbered from 1, got [{name}]; renumber it", line=number)
+
+    # -- values -----------------------------------------------------------------
+    def text(self, section: _Section, key: str) -> str:
+        entry = section.entries[key]
+        v = entry.value
+        if len(v) < 2 or v[0] != "'" or v[-1] != "'" or "'" in v[1:-1]:
+            self.fail(
+                f"expected text in single quotes, got {v!r}; write it like {key}='name'",
+                f"[{section.name}].{key}",
+                entry.number,
+            )
+        return v[1:-1]
+
+    def integer(self, section: _Section, key: str) -> int:
+        entry = section.entries[key]
+        try:
+            value = float(entry.value)
+        except ValueError:
+            value = math.nan
+        if not (math.isfinite(value) and value == int(value) and value >= 0):
+            self.fail(
+                f"expected a whole number, got {entry.value!r}; write it like {key}=2",
+                f"[{section.name}].{key}",
+                entry.number,
+            )
+        return int(value)
+
+    def numbers(self, text: str, where: str, line: int, example: str) -> tuple[float, ...]:
+        parts = [p for p in re.split(r"[\s,]+", text.strip()) if p]
+        values = []
+        for p in parts:
+            try:
+                x = float(p)
+            except ValueError:
+                self.fail(f"{p!r} is not a number; {example}", where, line)
+            if not math.isfinite(x):
+                self.fail(f"numbers must be finite, got {p!r}; {example}", where, line)
+            values.append(x)
+        return tuple(values)
+
+    def vector(self, section: _Section, key: str, example: str) -> tuple[float, ...]:
+        entry = section.entries[key]
+        where = f"[{section.name}].{key}"
+        v = entry.value
+        if not (v.startswith("[") and v.endswith("]")):
+            self.fail(f"expected numbers in brackets, got {v!r}; {example}", where, entry.number)
+        return self.numbers(v[1:-1], where, entry.number, example)
+
+    def method(self, system: _Section, key: str) -> str:
+        _, allowed = _METHODS[key]
+        if key not in system.entries:
+            return allowed[0]  # MATLAB's defaults (mamfis): min, max, min, max, centroid
+        value = self.text(system, key).strip()
+        if value.lower() not in allowed:
+            self.fail(
+                f"unsupported {key} {value!r} (supported: {', '.join(allowed)}); "
+                f"choose one of them",
+                f"[System].{key}",
+                system.entries[key].number,
+            )
+        return value.lower()
+
+
+def _with_fix(exc: ValueError, fix: str) -> str:
+    """A model's validation message, with ``fix`` appended when it names none."""
+    message = str(exc)
+    return message if ";" in message else f"{message}; {fix}"
+
+
+def _count(reader: _Reader, section: _Section, key: str, found: int, what: str) -> None:
+    if key in section.entries and reader.integer(section, key) != found:
+        reader.fail(
+            f"says {reader.integer(section, key)} but the file has {found} {what}; "
+            f"set {key}={found} or add the missing {what}",
+            f"[{section.name}].{key}",
+            section.entries[key].number,
+        )
+
+
+def _variable(reader: _Reader, section: _Section, default_name: str, points: int) -> Variable:
+    where = f"[{section.name}]"
+    for key, entry in section.entries.items():
+        if key not in ("Name", "Range", "NumMFs") and not _MF_KEY.match(key):
+            reader.fail(
+                f"unknown key {key!r} (known: {', '.join(_VARIABLE_KEYS)}); remove it",
+                f"{where}.{key}",
+                entry.number,
+            )
+    name = reader.text(section, "Name") if "Name" in section.entries else default_name
+    if "Range" not in section.entries:
+        reader.fail("missing Range; add Range=[low high]", where, section.number)
+    example = "write it like Range=[-2 2]"
+    lo_hi = reader.vector(section, "Range", example)
+    line = section.entries["Range"].number
+    if len(lo_hi) != 2:
+        reader.fail(
+            f"needs two numbers [low high], got {list(lo_hi)}; {example}", f"{where}.Range", line
+        )
+    if not lo_hi[0] < lo_hi[1]:
+        reader.fail(
+            f"low must be below high, got [{lo_hi[0]:g} {lo_hi[1]:g}]; swap or widen the range",
+            f"{where}.Range",
+            line,
+        )
+    numbered = sorted((int(m["n"]), key) for key in section.entries if (m := _MF_KEY.match(key)))
+    if not numbered:
+        reader.fail(
+            "has no membership functions; add MF1='name':'trimf',[a b c] lines",
+            where,
+            section.number,
+        )
+    for expected, (n, key) in enumerate(numbered, start=1):
+        if n != expected:
+            reader.fail(
+                f"membership functions must be numbered MF1, MF2, … without gaps, found {key} "
+                f"where MF{expected} was expected; renumber them",
+                f"{where}.{key}",
+                section.entries[key].number,
+            )
+    _count(reader, section, "NumMFs", len(numbered), "membership functions")
+    terms = [_term(reader, section, key) for _, key in numbered]
+    try:
+        return Variable(name, lo_hi[0], lo_hi[1], tuple(terms), points)
+    except ValueError as exc:
+        reader.fail(_with_fix(exc, "fix the section"), where, section.number)
+
+
+def _term(reader: _Reader, section: _Section, key: str) -> Term:
+    entry = section.entries[key]
+    where = f"[{section.name}].{key}"
+    m = _MF.match(entry.value)
+    if not m:
+        reader.fail(
+            f"cannot read membership function {entry.value!r}; write it like "
+            f"{key}='NB':'trimf',[-1 -0.5 0]",
+            where,
+            entry.number,
+        )
+    shape = m["shape"].strip()
+    if shape not in SHAPES:
+        reader.fail(
+            f"unsupported membership function {shape!r} (supported: {_SHAPE_LIST}); "
+            "replace it with one of them",
+            where,
+            entry.number,
+        )
+    params = reader.numbers(
+        m["params"], where, entry.number, f"write it like {key}='NB':'trimf',[-1 -0.5 0]"
+    )
+    if len(params) != SHAPES[shape]:
+        reader.fail(
+            f"{shape} takes {SHAPES[shape]} parameters, got {len(params)} {list(params)}; "
+            f"give {SHAPES[shape]}",
+            where,
+            entry.number,
+        )
+    try:
+        return Term(m["name"], shape, params)
+    except ValueError as exc:
+        reader.fail(_with_fix(exc, "fix the parameters"), where, entry.number)
+
+
+def _rule(reader: _Reader, line: _Line, inputs: list[Variable], output: Variable) -> Rule:
+    where = "[Rules]"
+    m = _RULE.match(line.value)
+    if not m:
+        reader.fail(f"cannot read rule {line.value!r}; {_RULE_HINT}", where, line.number)
+    ante = [int(v) for v in re.split(r"[\s,]+", m["ante"].strip())]
+    cons = [int(v) for v in re.split(r"[\s,]+", m["cons"].strip())]
+    if len(ante) != len(inputs):
+        reader.fail(
+            f"rule {line.value!r} gives {len(ante)} input MF number(s) for {len(inputs)} "
+            f"input(s); {_RULE_HINT}",
+            where,
+            line.number,
+        )
+    if len(cons) != 1:
+        reader.fail(
+            f"rule {line.value!r} gives {len(cons)} output MF numbers for one output; "
+            "give one output MF number",
+            where,
+            line.number,
+        )
+    antecedent = []
+    for var, v in zip(inputs, ante, strict=True):
+        if abs(v) > len(var.terms):
+            reader.fail(
+                f"rule {line.value!r} refers to MF{abs(v)} of input {var.name!r}, which has "
+                f"{len(var.terms)}; use 1..{len(var.terms)} (0 for no condition)",
+                where,
+                line.number,
+            )
+        # MATLAB: k > 0 MF k, 0 none, -k NOT MF k; ours: k-1, -1, -(k-1)-2
+        antecedent.append(v - 1 if v > 0 else (-1 if v == 0 else v - 1))
+    if all(v == 0 for v in ante):
+        reader.fail(
+            f"rule {line.value!r} has no condition on any input; give an input MF number or "
+            "delete the rule",
+            where,
+            line.number,
+        )
+    c = cons[0]
+    if not 1 <= c <= len(output.terms):
+        problem = (
+            "a negated output MF is unsupported"
+            if c < 0
+            else "output MF 0 (no consequent) is unsupported"
+            if c == 0
+            else f"refers to MF{c} of output {output.name!r}, which has {len(output.terms)}"
+        )
+        reader.fail(
+            f"rule {line.value!r}: {problem}; use an output MF number 1..{len(output.terms)}",
+            where,
+            line.number,
+        )
+    weight_text = m["weight"]
+    try:
+        weight = float(weight_text)
+    except ValueError:
+        weight = math.nan
+    if not 0.0 <= weight <= 1.0:
+        reader.fail(
+            f"rule {line.value!r}: weight must be a number in [0, 1], got {weight_text!r}; "
+            "write it like (1) or (0.5)",
+            where,
+            line.number,
+        )
+    conn = int(m["conn"])
+    if conn not in (1, 2):
+        reader.fail(
+            f"rule {line.value!r}: connective must be 1 (AND) or 2 (OR), got {conn}; fix it",
+            where,
+            line.number,
+        )
+    return Rule(tuple(antecedent), c - 1, weight, "and" if conn == 1 else "or")
+
+
+def parse_fis(text: str, file: str = "<fis text>", points: int = 201) -> FuzzySystem:
+    """The :class:`FuzzySystem` in ``.fis`` text (module docstring); errors name ``file``.
+
+    Universes get ``points`` evenly spaced samples (the format does not store them).
+    """
+    reader = _Reader(file)
+    sections = reader.sections(text)
+    if "System" not in sections:
+        reader.fail(
+            "no [System] section; is this a MATLAB .fis file? Add [System] with Type='mamdani'",
+            "[System]",
+        )
+    system = sections["System"]
+    for key, entry in system.entries.items():
+        if key not in _SYSTEM_KEYS:
+            reader.fail(
+                f"unknown key {key!r} (known: {', '.join(_SYSTEM_KEYS)}); remove it",
+                f"[System].{key}",
+                entry.number,
+            )
+    if "Type" not in system.entries:
+        reader.fail("missing Type; add Type='mamdani'", "[System]", system.number)
+    fis_type = reader.text(system, "Type").strip()
+    if fis_type.lower() != "mamdani":
+        reader.fail(
+            f"unsupported FIS type {fis_type!r} (supported: mamdani); convert the system to "
+            "a Mamdani system (type-1, fuzzy output terms)",
+            "[System].Type",
+            system.entries["Type"].number,
+        )
+    if "Version" in system.entries:
+        reader.numbers(
+            system.entries["Version"].value,
+            "[System].Version",
+            system.entries["Version"].number,
+            "write it like Version=2.0",
+        )
+    for key, limit, what in (("NumInputs", 2, "inputs"), ("NumOutputs", 1, "outputs")):
+        if key in system.entries and reader.integer(system, key) > limit:
+            reader.fail(
+                f"{reader.integer(system, key)} {what} are unsupported (at most {limit}: a "
+                f"controller maps error [and error rate] to one command); reduce the {what}",
+                f"[System].{key}",
+                system.entries[key].number,
+            )
+    inputs_found = [n for n in ("Input1", "Input2") if n in sections]
+    if "Input2" in sections and "Input1" not in sections:
+        reader.fail("[Input2] without [Input1]; rename it [Input1]", line=sections["Input2"].number)
+    if not inputs_found:
+        reader.fail("no [Input1] section; add the input variable", "[System]", system.number)
+    if "Output1" not in sections:
+        reader.fail("no [Output1] section; add the output variable", "[System]", system.number)
+    if "Rules" not in sections:
+        reader.fail("no [Rules] section; add the rule base", "[System]", system.number)
+    _count(reader, system, "NumInputs", len(inputs_found), "input sections")
+    _count(reader, system, "NumOutputs", 1, "output sections")
+    methods = {attr: reader.method(system, key) for key, (attr, _) in _METHODS.items()}
+    default_names = ("e", "de")
+    inputs = [
+        _variable(reader, sections[n], default_names[k], points) for k, n in enumerate(inputs_found)
+    ]
+    output = _variable(reader, sections["Output1"], "u", points)
+    rule_lines = sections["Rules"].lines
+    if not rule_lines:
+        reader.fail("the rule base is empty; add rule lines", "[Rules]", sections["Rules"].number)
+    _count(reader, system, "NumRules", len(rule_lines), "rule lines")
+    rules = tuple(_rule(reader, line, inputs, output) for line in rule_lines)
+    name = reader.text(system, "Name") if "Name" in system.entries else Path(file).stem
+    try:
+        return FuzzySystem(name=name, inputs=tuple(inputs), output=output, rules=rules, **methods)
+    except ValueError as exc:
+        reader.fail(_with_fix(exc, "fix the file"), "[System]", system.number)
+
+
+def read_fis(path: str | Path, points: int = 201) -> FuzzySystem:
+    """Read a MATLAB ``.fis`` file (UTF-8, else latin-1) into a :class:`FuzzySystem`.
+
+    Raises :class:`ConfigError` naming the file, the section and line, and the fix.
+    """
+    p = Path(path)
+    if not p.is_file():
+        raise ConfigError(
+            f"file not found (looked in {p.resolve().parent}); check the path", file=str(path)
+        )
+    try:
+        data = p.read_bytes()
+    except OSError as exc:
+        raise ConfigError(
+            f"cannot read the file ({exc.strerror or exc}); check its permissions", file=str(path)
+        ) from None
+    try:
+        text = data.decode("utf-8-sig")
+    except UnicodeDecodeError:
+        text = data.decode("latin-1")  # older MATLAB wrote the platform encoding (often cp1252)
+    return parse_fis(text, str(path), points)
+
+
+def controller_from_fis(path: str | Path) -> FuzzyController:
+    """A controller from a ``.fis`` file: one input → form ``p``, two → ``pd``.
+
+    Named after the file stem; all gains 1; no output limits (the simulator applies the
+    rig actuator's command range).
+    """
+    system = read_fis(path)
+    form = "p" if len(system.inputs) == 1 else "pd"
+    try:
+        return FuzzyController(
+            system=system,
+            form=form,
+            name=Path(path).stem,
+            description=f"MATLAB FIS {system.name!r} read from {Path(path).name}",
+        )
+    except ValueError as exc:
+        raise ConfigError(_with_fix(exc, "fix the rules"), file=str(path), key="[Rules]") from None
+
+
+# --------------------------------------------------------------------------- writing
+def _num(x: float) -> str:
+    """Shortest text that reads back as the same float (``repr``), ``1.0`` written ``1``."""
+    text = repr(float(x))
+    return text[:-2] if text.endswith(".0") else text
+
+
+def _quoted(name: str, what: str) -> str:
+    if "'" in name or "\n" in name or "\r" in name:
+        raise ValueError(
+            f"{what} {name!r} cannot be written to a .fis file (names are quoted with ' and "
+            "on one line); rename it"
+        )
+    return f"'{name}'"
+
+
+def _variable_text(section: str, var: Variable) -> list[str]:
+    lines = [
+        f"[{section}]",
+        f"Name={_quoted(var.name, 'variable name')}",
+        f"Range=[{_num(var.low)} {_num(var.high)}]",
+        f"NumMFs={len(var.terms)}",
+    ]
+    for k, t in enumerate(var.terms, start=1):
+        params = " ".join(_num(p) for p in t.params)
+        lines.append(f"MF{k}={_quoted(t.name, 'term name')}:'{t.shape}',[{params}]")
+    return [*lines, ""]
+
+
+def _matlab_index(idx: int) -> int:
+    """Our antecedent index (k, -1 none, -(k+2) NOT k) as MATLAB's (k+1, 0, -(k+1))."""
+    return idx + 1 if idx >= 0 else (0 if idx == -1 else idx + 1)
+
+
+def fis_text(system: FuzzySystem) -> str:
+    """``system`` as MATLAB ``.fis`` text (R2018b+ layout, ``Version=2.0``).
+
+    Numbers are written with ``repr`` precision, so :func:`parse_fis` gives back an
+    equal system (universe resolution aside: the format does not store it).
+    """
+    lines = [
+        "[System]",
+        f"Name={_quoted(system.name, 'system name')}",
+        "Type='mamdani'",
+        f"Version={VERSION}",
+        f"NumInputs={len(system.inputs)}",
+        "NumOutputs=1",
+        f"NumRules={len(system.rules)}",
+    ]
+    lines += [f"{key}='{getattr(system, attr)}'" for key, (attr, _) in _METHODS.items()]
+    lines.append("")
+    for k, var in enumerate(system.inputs, start=1):
+        lines += _variable_text(f"Input{k}", var)
+    lines += _variable_text("Output1", system.output)
+    lines.append("[Rules]")
+    for rule in system.rules:
+        ante = " ".join(str(_matlab_index(i)) for i in rule.antecedent)
+        conn = 1 if rule.connective == "and" else 2
+        lines.append(f"{ante}, {rule.consequent + 1} ({_num(rule.weight)}) : {conn}")
+    return "\n".join(lines) + "\n"
+
+
+def write_fis(system: FuzzySystem, path: str | Path) -> Path:
+    """Write ``system`` as a MATLAB ``.fis`` file (UTF-8); returns the path."""
+    p = Path(path)
+    p.write_text(fis_text(system), encoding="utf-8")
+    return p

@@ -15,6 +15,7 @@ from pathlib import Path
 from fuzzyservo.errors import ConfigError, FuzzyservoError
 
 DEFAULT_RIG = "dinca_cylinder"
+DEFAULT_STUDY = "dinca_flc"
 DEFAULT_CONTROLLER = "p_k10"
 EXIT_USAGE = 2
 EXIT_FAILED_RUN = 1
@@ -276,6 +277,47 @@ def cmd_export(args: argparse.Namespace) -> int:
     write_fis(controller.system, args.fis)
     print(f"{controller.name} written to {args.fis}")
     return 0
+
+
+def cmd_tune(args: argparse.Namespace) -> int:
+    from fuzzyservo.io.studies import load_study
+    from fuzzyservo.tuning.report import write_outputs
+    from fuzzyservo.tuning.runner import run_study
+
+    spec = load_study(resolve(args.study, "studies", "study"))
+    if args.trials is not None and args.trials < 1:
+        raise ConfigError(f"--trials must be >= 1, got {args.trials}")
+    if args.workers < 1:
+        raise ConfigError(f"--workers must be >= 1, got {args.workers}")
+    out = Path(args.out) if args.out else Path("out") / spec.name
+    total = args.trials or spec.trials
+    print(
+        f"study {spec.name}: {spec.objective.describe()}; {total} trials, {args.workers} worker(s)"
+    )
+    try:
+        outcome = run_study(spec, out, trials=total, storage=args.storage, workers=args.workers)
+    except KeyboardInterrupt:
+        print(
+            "fuzzyservo: interrupted; completed trials are kept: run the same command to resume",
+            file=sys.stderr,
+        )
+        return 130
+    print(f"storage: {outcome.storage_url}")
+    paths = write_outputs(outcome, out)
+    b, base = outcome.best, outcome.baseline
+    print(metrics_table(["baseline", "best"], [base.metrics, b.metrics], {}))
+    print(f"objective: best {_fmt_values(b.values)} against baseline {_fmt_values(base.values)}")
+    print(f"report: {paths['report']}")
+    if args.json:
+        import shutil
+
+        shutil.copyfile(paths["summary"], args.json)
+        print(f"JSON written to {args.json}")
+    return 0
+
+
+def _fmt_values(values) -> str:
+    return ", ".join(_fmt(v) for v in values)
 
 
 def cmd_bench(args: argparse.Namespace) -> int:

@@ -37,7 +37,12 @@ def load_controller(path: str | Path) -> Controller:
         from fuzzyservo.io.fis import controller_from_fis
 
         return controller_from_fis(path)
-    root = Node(read_yaml(path), file)
+    return controller_from_data(read_yaml(path), file)
+
+
+def controller_from_data(data: dict, file: str) -> Controller:
+    """Build a controller from the mapping a controller file holds (``file`` names it in errors)."""
+    root = Node(data, file)
     if not root.has("kind"):
         root.fail(f"missing key 'kind'; add one of {sorted(_KINDS)}")
     kind = root.str("kind")

@@ -1,0 +1,235 @@
+"""Study files (YAML) to :class:`~fuzzyservo.tuning.spec.StudySpec`.
+
+name: dinca_flc
+description: ...
+rig: dinca_cylinder                 # a file (relative to this one) or a name under rigs/
+scenarios: [pulses, steps]
+controller: controllers/flc1_translated.yaml   # the template
+baseline: controllers/p_k10.yaml               # default: p_k10
+parameters:
+  input.reshape: {low: 0.5, high: 4, log: true}
+  gains.output: {low: 0.5, high: 3}
+  output.translate: {low: 0, high: 0.5}
+objective:
+  weights: {settling_time_s: 1, sse_abs: 1000, saturation_time_s: 1}   # or metric: itae
+  normalize: none                  # or baseline
+  # pareto: [settling_time_s, saturation_time_s, sse_abs]
+aggregate: worst                   # over scenarios: worst | mean
+constraints: ["overshoot_pct <= 5"]
+sampler: tpe                       # tpe | cmaes | nsga2 | random
+seed: 1
+trials: 300
+timeout_s: 600
+storage: null                      # default: SQLite in the output folder
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+from fuzzyservo.errors import ConfigError
+from fuzzyservo.io._yaml import Node, read_yaml
+from fuzzyservo.metrics import METRIC_NAMES
+from fuzzyservo.tuning.spec import AGGREGATES, SAMPLERS, Constraint, Objective, ParamSpec, StudySpec
+
+_TOP = (
+    "name", "description", "source", "rig", "scenarios", "controller", "baseline", "parameters",
+    "objective", "aggregate", "constraints", "sampler", "seed", "trials", "timeout_s", "storage", "penalty",
+)  # fmt: skip
+DEFAULT_BASELINE = "p_k10"
+
+
+def locate(name: str, relative_to: Path, folder: str, what: str) -> Path:
+    """A path relative to the study file, or a bare name under the checkout's ``folder``."""
+    given = Path(name)
+    for candidate in (relative_to.parent / given, given):
+        if candidate.is_file():
+            return candidate
+    if not given.suffix:
+        from fuzzyservo.bench import project_root
+
+        for base in (Path.cwd(), project_root()):
+            candidate = base / folder / f"{name}.yaml"
+            if candidate.is_file():
+                return candidate
+    raise FileNotFoundError(f"no {what} {name!r} (looked beside the study and under {folder}/)")
+
+
+def load_study(path: str | Path) -> StudySpec:
+    """Read and validate a study file; every problem is one :class:`ConfigError` line."""
+    file = str(path)
+    root = Node(read_yaml(path), file)
+    root.only(_TOP)
+    here = Path(file)
+    files = {}
+    for key, folder, default in (
+        ("rig", "rigs", None),
+        ("controller", "studies/controllers", None),
+        ("baseline", "studies/controllers", DEFAULT_BASELINE),
+    ):
+        name = root.str(key, default=default)
+        try:
+            files[key] = str(locate(name, here, folder, key))
+        except FileNotFoundError as exc:
+            root.fail(f"{exc}; check the name", key=key)
+    scenarios = root.data.get("scenarios")
+    if isinstance(scenarios, str):
+        scenarios = [scenarios]
+    if (
+        not isinstance(scenarios, list)
+        or not scenarios
+        or not all(isinstance(s, str) for s in scenarios)
+    ):
+        root.fail(
+            "must be a list of scenario names of the rig, e.g. [pulses, steps]", key="scenarios"
+        )
+
+    params = []
+    pnode = root.child("parameters")
+    if not pnode.data:
+        root.fail("no parameters to search; add at least one under 'parameters:'", key="parameters")
+    for path_key, spec in pnode.data.items():
+        node = Node(spec, file, pnode.path(str(path_key)))
+        node.only(("low", "high", "log", "int"))
+        log = node.data.get("log", False)
+        integer = node.data.get("int", False)
+        if not isinstance(log, bool) or not isinstance(integer, bool):
+            node.fail("'log' and 'int' must be true or false")
+        try:
+            params.append(
+                ParamSpec(str(path_key), node.number("low"), node.number("high"), log, integer)
+            )
+        except ValueError as exc:
+            node.fail(str(exc).split(": ", 1)[-1])
+
+    objective = _objective(root.child("objective"))
+    constraints = []
+    raw_constraints = root.data.get("constraints", [])
+    if not isinstance(raw_constraints, list):
+        root.fail("must be a list like ['overshoot_pct <= 5']", key="constraints")
+    for n, text in enumerate(raw_constraints):
+        try:
+            c = Constraint.parse(str(text))
+        except ValueError as exc:
+            root.fail(str(exc), key=f"constraints[{n}]")
+        if c.metric not in METRIC_NAMES:
+            root.fail(
+                f"unknown metric {c.metric!r}; choose one of {', '.join(METRIC_NAMES)}",
+                key=f"constraints[{n}]",
+            )
+        constraints.append(c)
+    sampler = root.str("sampler", default="tpe")
+    if sampler not in SAMPLERS:
+        root.fail(f"unknown sampler {sampler!r}; choose one of {list(SAMPLERS)}", key="sampler")
+    aggregate = root.str("aggregate", default="worst")
+    if aggregate not in AGGREGATES:
+        root.fail(
+            f"unknown aggregate {aggregate!r}; choose one of {list(AGGREGATES)}", key="aggregate"
+        )
+    seed = root.data.get("seed", 0)
+    if seed is not None and (isinstance(seed, bool) or not isinstance(seed, int)):
+        root.fail(f"must be an integer or null, got {seed!r}", key="seed")
+    trials = root.number("trials", default=100)
+    if trials < 1 or trials != int(trials):
+        root.fail(f"must be a whole number >= 1, got {trials}", key="trials")
+    timeout = root.data.get("timeout_s")
+    if timeout is not None:
+        timeout = root.number("timeout_s")
+        if timeout <= 0:
+            root.fail(f"must be > 0 s or null, got {timeout}", key="timeout_s")
+    storage = root.data.get("storage")
+    if storage is not None and not isinstance(storage, str):
+        root.fail("must be a storage URL (e.g. postgresql://user@host/db) or null", key="storage")
+    try:
+        spec = StudySpec(
+            name=root.str("name", default=here.stem),
+            description=root.str("description", default=""),
+            rig_file=files["rig"],
+            scenarios=tuple(scenarios),
+            controller_file=files["controller"],
+            baseline_file=files["baseline"],
+            parameters=tuple(params),
+            objective=objective,
+            constraints=tuple(constraints),
+            aggregate=aggregate,
+            sampler=sampler,
+            seed=seed,
+            trials=int(trials),
+            timeout_s=timeout,
+            storage=storage,
+            penalty=root.number("penalty", default=1.0e6),
+            path=file,
+        )
+    except ValueError as exc:
+        raise ConfigError(str(exc), file=file) from None
+    check_against_files(spec)
+    return spec
+
+
+def _objective(node: Node) -> Objective:
+    node.only(("metric", "weights", "pareto", "normalize"))
+    given = [k for k in ("metric", "weights", "pareto") if node.has(k)]
+    if len(given) != 1:
+        node.fail(
+            "give exactly one of 'metric' (one), 'weights' (a weighted sum) or 'pareto' (a front)"
+        )
+    normalize = node.str("normalize", default="none")
+    if normalize not in ("none", "baseline"):
+        node.fail(f"must be 'none' or 'baseline', got {normalize!r}", key="normalize")
+    if node.has("metric"):
+        weights = {node.str("metric"): 1.0}
+        pareto: tuple[str, ...] = ()
+    elif node.has("weights"):
+        w = node.child("weights")
+        weights = {str(k): w.number(str(k)) for k in w.data}
+        if not weights:
+            node.fail("is empty; give metric: weight pairs", key="weights")
+        pareto = ()
+    else:
+        raw = node.data["pareto"]
+        if not isinstance(raw, list) or len(raw) < 2:
+            node.fail("must list two or more metrics", key="pareto")
+        pareto = tuple(str(m) for m in raw)
+        weights = {}
+    for m in (*weights, *pareto):
+        if m not in METRIC_NAMES:
+            node.fail(f"unknown metric {m!r}; choose one of {', '.join(METRIC_NAMES)}")
+    return Objective(weights=weights, pareto=pareto, normalize=normalize)
+
+
+def check_against_files(spec: StudySpec) -> None:
+    """Scenarios exist in the rig; every parameter path exists in the template and its bounds
+    build a valid controller (so a typo fails now, not at trial 1)."""
+    from fuzzyservo.io.controllers import controller_from_data
+    from fuzzyservo.io.rigs import load_rig
+    from fuzzyservo.tuning.objective import set_path
+
+    rig = load_rig(spec.rig_file)
+    for n, name in enumerate(spec.scenarios):
+        if name not in rig.scenarios:
+            raise ConfigError(
+                f"unknown scenario {name!r}; {Path(spec.rig_file).name} has {', '.join(rig.scenarios)}",
+                file=spec.path, key=f"scenarios[{n}]",
+            )  # fmt: skip
+    template = template_data(spec)
+    import copy
+
+    for param in spec.parameters:
+        for value in (param.low, param.high):
+            data = copy.deepcopy(template)
+            try:
+                set_path(data, param.path, value)
+                controller_from_data(data, spec.controller_file)
+            except (ValueError, ConfigError) as exc:
+                detail = exc.detail if isinstance(exc, ConfigError) else str(exc)
+                where = f" ({exc.key})" if isinstance(exc, ConfigError) and exc.key else ""
+                raise ConfigError(
+                    f"with {param.path} = {value:g} the template is invalid{where}: {detail}",
+                    file=spec.path, key=f"parameters.{param.path}",
+                ) from None  # fmt: skip
+
+
+def template_data(spec: StudySpec) -> dict[str, Any]:
+    """The controller template's mapping (the file's YAML)."""
+    return read_yaml(spec.controller_file)

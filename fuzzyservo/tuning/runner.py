@@ -1,0 +1,381 @@
+"""Running a study on Optuna: samplers, storage, resume, local workers, progress.
+
+The only module that imports optuna. Trials are stored as they finish, so a study
+stopped at any moment (Ctrl-C, a killed process) resumes with the same command and
+loses no completed trial. The count towards ``trials`` is the number of COMPLETE
+trials; a simulation that diverges or hits an end stop is a COMPLETE trial with the
+study's penalty as its value and its reason in ``user_attrs``. Trials left RUNNING by
+a killed process are failed by the storage heartbeat and do not count.
+"""
+
+from __future__ import annotations
+
+import math
+import multiprocessing as mp
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from fuzzyservo.tuning.objective import Evaluation, Evaluator
+from fuzzyservo.tuning.spec import StudySpec
+
+HEARTBEAT_S = 5
+GRACE_S = 15
+
+
+@dataclass
+class Outcome:
+    """What a finished (or stopped) study produced."""
+
+    spec: StudySpec
+    storage_url: str
+    trials_complete: int
+    best_params: dict[str, float]
+    best: Evaluation
+    baseline: Evaluation
+    pareto: list[dict[str, Any]] = field(default_factory=list)
+    history: list[dict[str, Any]] = field(default_factory=list)
+    importances: dict[str, float] = field(default_factory=dict)
+    wall_s: float = 0.0
+    sim_time_s: float = 0.0
+    worker_time_s: float = 0.0
+
+
+def storage_url(spec: StudySpec, out_dir: Path, override: str | None = None) -> str:
+    """``--storage`` wins, then the study file's ``storage``, then SQLite in the output folder."""
+    if override:
+        return override
+    if spec.storage:
+        return spec.storage
+    return f"sqlite:///{(out_dir / f'{spec.name}.db').resolve()}"
+
+
+def _storage(url: str):
+    import optuna
+
+    if url.startswith("sqlite"):
+        # several local workers share the file: wait for the lock rather than fail
+        kwargs = {"connect_args": {"timeout": 60}}
+    else:
+        kwargs = {"pool_pre_ping": True}
+    return optuna.storages.RDBStorage(
+        url, engine_kwargs=kwargs, heartbeat_interval=HEARTBEAT_S, grace_period=GRACE_S
+    )
+
+
+def _constraints(trial) -> list[float]:
+    return list(trial.user_attrs.get("constraints", [math.inf]))
+
+
+def _record_constraints(trial, spec: StudySpec, violations: list[float]) -> None:
+    """Store violations where the samplers look (``set_constraint``, optuna >= 5) and in user_attrs."""
+    trial.set_user_attr("constraints", violations)
+    if hasattr(trial, "set_constraint"):
+        for c, v in zip(spec.constraints, violations, strict=True):
+            trial.set_constraint(str(c), v)
+
+
+def make_sampler(spec: StudySpec, worker: int = 0):
+    import optuna
+
+    seed = None if spec.seed is None else spec.seed + worker
+    # optuna >= 5 reads the constraints stored by Trial.set_constraint; older ones need constraints_func
+    legacy = {}
+    if spec.constraints and not hasattr(optuna.trial.Trial, "set_constraint"):
+        legacy = {"constraints_func": _constraints}
+    if spec.sampler == "tpe":
+        return optuna.samplers.TPESampler(seed=seed, multivariate=True, **legacy)
+    if spec.sampler == "nsga2":
+        return optuna.samplers.NSGAIISampler(seed=seed, **legacy)
+    if spec.sampler == "cmaes":
+        return optuna.samplers.CmaEsSampler(seed=seed, warn_independent_sampling=False)
+    return optuna.samplers.RandomSampler(seed=seed)
+
+
+def open_study(spec: StudySpec, url: str, worker: int = 0):
+    import warnings
+
+    import optuna
+
+    optuna.logging.set_verbosity(optuna.logging.WARNING)
+    # the storage heartbeat is what fails trials of a killed process; it is marked experimental
+    warnings.filterwarnings("ignore", category=optuna.exceptions.ExperimentalWarning)
+    directions = ["minimize"] * spec.objective.n_values
+    return optuna.create_study(
+        study_name=spec.name,
+        storage=_storage(url),
+        sampler=make_sampler(spec, worker),
+        directions=directions,
+        load_if_exists=True,
+    )
+
+
+def build_evaluator(spec: StudySpec) -> Evaluator:
+    from fuzzyservo.io.controllers import load_controller
+    from fuzzyservo.io.rigs import load_rig
+    from fuzzyservo.io.studies import template_data
+
+    return Evaluator(
+        spec, load_rig(spec.rig_file), template_data(spec), load_controller(spec.baseline_file)
+    )
+
+
+def _objective(spec: StudySpec, evaluator: Evaluator):
+    def objective(trial) -> float | tuple[float, ...]:
+        params = {}
+        for p in spec.parameters:
+            if p.integer:
+                params[p.path] = trial.suggest_int(p.path, int(p.low), int(p.high), log=p.log)
+            else:
+                params[p.path] = trial.suggest_float(p.path, p.low, p.high, log=p.log)
+        try:
+            controller = evaluator.controller(params, name=f"trial{trial.number}")
+        except ValueError as exc:  # a combination the template rejects: penalised, reason kept
+            trial.set_user_attr("status", "invalid")
+            trial.set_user_attr("message", str(exc))
+            _record_constraints(trial, spec, [1e300] * len(spec.constraints))
+            values = tuple(spec.penalty for _ in range(spec.objective.n_values))
+            return values if len(values) > 1 else values[0]
+        ev = evaluator.evaluate(controller)
+        trial.set_user_attr("status", ev.status)
+        if ev.message:
+            trial.set_user_attr("message", ev.message)
+        trial.set_user_attr(
+            "metrics", {k: (v if math.isfinite(v) else None) for k, v in ev.metrics.items()}
+        )
+        _record_constraints(trial, spec, [v if math.isfinite(v) else 1e300 for v in ev.violations])
+        trial.set_user_attr("sim_time_s", ev.sim_time_s)
+        return ev.values if len(ev.values) > 1 else ev.values[0]
+
+    return objective
+
+
+def count_complete(study) -> int:
+    from optuna.trial import TrialState
+
+    return len(study.get_trials(deepcopy=False, states=(TrialState.COMPLETE,)))
+
+
+def _worker(spec: StudySpec, url: str, total: int, worker: int, timeout_s: float | None) -> None:
+    """A local worker process: optimise until the study holds ``total`` complete trials."""
+    import optuna
+    from optuna.study import MaxTrialsCallback
+    from optuna.trial import TrialState
+
+    study = open_study(spec, url, worker)
+    evaluator = build_evaluator(spec)
+    if count_complete(study) >= total:
+        return
+    study.optimize(
+        _objective(spec, evaluator),
+        timeout=timeout_s,
+        callbacks=[MaxTrialsCallback(total, states=(TrialState.COMPLETE,))],
+        gc_after_trial=False,
+        catch=(),
+    )
+    del optuna
+
+
+def run_study(
+    spec: StudySpec,
+    out_dir: Path,
+    *,
+    trials: int | None = None,
+    storage: str | None = None,
+    workers: int = 1,
+    progress: bool = True,
+) -> Outcome:
+    """Run (or resume) the study until it holds ``trials`` complete trials; return the outcome."""
+    out_dir.mkdir(parents=True, exist_ok=True)
+    url = storage_url(spec, out_dir, storage)
+    total = trials or spec.trials
+    study = open_study(spec, url)  # creates it (and its tables) before any worker starts
+    done_before = count_complete(study)
+    t0 = time.perf_counter()
+    bar = _bar(total, done_before, spec.name, progress)
+    try:
+        if workers <= 1:
+            _run_inline(spec, url, total, bar)
+        else:
+            _run_processes(spec, url, total, workers, bar)
+    finally:
+        bar.close()
+    wall = time.perf_counter() - t0
+    return collect(spec, url, wall_s=wall)
+
+
+def _run_inline(spec: StudySpec, url: str, total: int, bar) -> None:
+    from optuna.study import MaxTrialsCallback
+    from optuna.trial import TrialState
+
+    study = open_study(spec, url)
+    if count_complete(study) >= total:
+        return
+    evaluator = build_evaluator(spec)
+
+    def update(study, trial) -> None:
+        if trial.state == TrialState.COMPLETE:
+            bar.update(1)
+            _postfix(bar, study)
+
+    study.optimize(
+        _objective(spec, evaluator),
+        timeout=spec.timeout_s,
+        callbacks=[MaxTrialsCallback(total, states=(TrialState.COMPLETE,)), update],
+        gc_after_trial=False,
+    )
+
+
+def _run_processes(spec: StudySpec, url: str, total: int, workers: int, bar) -> None:
+    ctx = mp.get_context("spawn")
+    procs = [
+        ctx.Process(target=_worker, args=(spec, url, total, w, spec.timeout_s))
+        for w in range(workers)
+    ]
+    for p in procs:
+        p.start()
+    study = open_study(spec, url)
+    try:
+        while any(p.is_alive() for p in procs):
+            time.sleep(0.5)
+            _refresh(bar, study)
+        _refresh(bar, study)
+    except KeyboardInterrupt:
+        for p in procs:
+            p.terminate()
+        raise
+    finally:
+        for p in procs:
+            p.join(timeout=10)
+    failed = [p.exitcode for p in procs if p.exitcode not in (0, None)]
+    if failed:
+        raise RuntimeError(
+            f"{len(failed)} worker process(es) failed (exit codes {failed}); see their output above"
+        )
+
+
+def _refresh(bar, study) -> None:
+    n = count_complete(study)
+    if n > bar.n:
+        bar.update(n - bar.n)
+    _postfix(bar, study)
+
+
+def _postfix(bar, study) -> None:
+    best = _best_value(study)
+    if best is not None:
+        bar.set_postfix_str(f"best {best:.4g}")
+
+
+def _best_value(study) -> float | None:
+    try:
+        if len(study.directions) == 1:
+            return study.best_value
+    except ValueError:
+        return None
+    return None
+
+
+class _NoBar:
+    n = 0
+
+    def update(self, k: int = 1) -> None:
+        self.n += k
+
+    def set_postfix_str(self, text: str) -> None:
+        pass
+
+    def close(self) -> None:
+        pass
+
+
+def _bar(total: int, initial: int, name: str, enabled: bool):
+    import sys
+
+    if not enabled:
+        bar = _NoBar()
+        bar.n = initial
+        return bar
+    from tqdm import tqdm
+
+    return tqdm(
+        total=total, initial=initial, desc=name, unit="trial", file=sys.stderr, dynamic_ncols=True
+    )
+
+
+def collect(spec: StudySpec, url: str, *, wall_s: float = 0.0) -> Outcome:
+    """Read the study back: best (feasible) trial or Pareto front, history, importances."""
+    import optuna
+    from optuna.trial import TrialState
+
+    study = open_study(spec, url)
+    trials = study.get_trials(deepcopy=False, states=(TrialState.COMPLETE,))
+    if not trials:
+        raise RuntimeError(f"study {spec.name!r} has no complete trial yet in {url}")
+
+    def feasible(t) -> bool:
+        return t.user_attrs.get("status") == "ok" and all(v <= 0 for v in _constraints(t))
+
+    pool = (
+        [t for t in trials if feasible(t)]
+        or [t for t in trials if t.user_attrs.get("status") == "ok"]
+        or trials
+    )
+    evaluator = build_evaluator(spec)
+    pareto = []
+    if spec.objective.pareto:
+        front = [t for t in study.best_trials if t in pool] or study.best_trials
+        pareto = [
+            {"number": t.number, "values": list(t.values), "params": dict(t.params)} for t in front
+        ]
+        # the reported "best": the member of the front closest to the origin, each
+        # objective measured in units of the baseline's value
+        scale = [
+            abs(v) if math.isfinite(v) and v != 0 else 1.0
+            for v in evaluator.baseline_evaluation.values
+        ]
+        best_trial = min(
+            front, key=lambda t: math.hypot(*(v / s for v, s in zip(t.values, scale, strict=True)))
+        )
+    else:
+        best_trial = min(pool, key=lambda t: t.value)
+    best_params = dict(best_trial.params)
+    best = evaluator.evaluate(
+        evaluator.controller(best_params, name=f"{spec.name}_best"), keep_results=True
+    )
+    history = [
+        {"number": t.number, "values": list(t.values), "status": t.user_attrs.get("status", "?"),
+         "feasible": feasible(t)}
+        for t in trials
+    ]  # fmt: skip
+    importances: dict[str, float] = {}
+    if len(trials) >= 10 and len(spec.parameters) > 1:
+        try:
+            importances = dict(
+                optuna.importance.get_param_importances(
+                    study, target=(lambda t: t.values[0]) if spec.objective.pareto else None
+                )
+            )
+        except (RuntimeError, ValueError, ZeroDivisionError):
+            importances = {}
+    sim = sum(t.user_attrs.get("sim_time_s", 0.0) for t in trials)
+    worker_time = sum(
+        (t.datetime_complete - t.datetime_start).total_seconds()
+        for t in trials
+        if t.datetime_complete and t.datetime_start
+    )
+    return Outcome(
+        spec=spec,
+        storage_url=url,
+        trials_complete=len(trials),
+        best_params=best_params,
+        best=best,
+        baseline=evaluator.baseline_evaluation,
+        pareto=pareto,
+        history=history,
+        importances=importances,
+        wall_s=wall_s,
+        sim_time_s=sim,
+        worker_time_s=worker_time,
+    )

@@ -281,7 +281,6 @@ def cmd_export(args: argparse.Namespace) -> int:
 
 def cmd_tune(args: argparse.Namespace) -> int:
     from fuzzyservo.io.studies import load_study
-    from fuzzyservo.tuning.report import write_outputs
     from fuzzyservo.tuning.runner import run_study
 
     spec = load_study(resolve(args.study, "studies", "study"))
@@ -303,6 +302,8 @@ def cmd_tune(args: argparse.Namespace) -> int:
         )
         return 130
     print(f"storage: {outcome.storage_url}")
+    from fuzzyservo.tuning.report import write_outputs
+
     paths = write_outputs(outcome, out)
     b, base = outcome.best, outcome.baseline
     print(metrics_table(["baseline", "best"], [base.metrics, b.metrics], {}))
@@ -406,6 +407,27 @@ def build_parser() -> argparse.ArgumentParser:
     )
     common(p)
     p.set_defaults(func=cmd_compare)
+
+    p = sub.add_parser(
+        "tune", help="run (or resume) a tuning study and report against the baseline"
+    )
+    p.add_argument(
+        "study",
+        nargs="?",
+        default=DEFAULT_STUDY,
+        help=f"study file or name under studies/ (default: {DEFAULT_STUDY})",
+    )
+    p.add_argument(
+        "--trials", type=int, help="complete trials the study should hold (default: the study's)"
+    )
+    p.add_argument(
+        "--storage",
+        help="Optuna storage URL, e.g. postgresql://user@host/db (default: SQLite in --out)",
+    )
+    p.add_argument("--workers", type=int, default=1, help="local worker processes (default: 1)")
+    p.add_argument("--out", help="output folder (default: out/<study name>)")
+    p.add_argument("--json", metavar="FILE", help="also write summary.json here")
+    p.set_defaults(func=cmd_tune)
 
     p = sub.add_parser(
         "show", help="a fuzzy controller: terms, rules, membership functions and control curve"

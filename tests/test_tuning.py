@@ -1,0 +1,158 @@
+"""Tuning studies: study files, parameter paths, the trial objective, and the results they must show."""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import pytest
+import yaml
+
+from fuzzyservo.errors import ConfigError
+from fuzzyservo.io.studies import load_study
+from fuzzyservo.metrics import result_metrics
+from fuzzyservo.simulation import simulate
+from fuzzyservo.tuning.objective import set_path, split_path
+from fuzzyservo.tuning.runner import build_evaluator, run_study
+from tests.conftest import ROOT
+
+STUDIES = ROOT / "studies"
+
+
+@pytest.mark.parametrize("name", ["dinca_flc", "dinca_pareto", "ehs160_flc", "dinca_pi"])
+def test_shipped_studies_load(name):
+    spec = load_study(STUDIES / f"{name}.yaml")
+    assert spec.parameters and spec.trials >= 100
+
+
+def _bad_study(tmp_path: Path, **changes) -> Path:
+    data = yaml.safe_load((STUDIES / "dinca_flc.yaml").read_text())
+    for key, value in changes.items():
+        if value is None:
+            data.pop(key, None)
+        else:
+            data[key] = value
+    data["rig"] = str(ROOT / "rigs" / "dinca_cylinder.yaml")
+    data["controller"] = str(STUDIES / "controllers" / "flc2_reshaped.yaml")
+    data["baseline"] = str(STUDIES / "controllers" / "p_k10.yaml")
+    path = tmp_path / "study.yaml"
+    path.write_text(yaml.safe_dump(data))
+    return path
+
+
+@pytest.mark.parametrize(
+    ("changes", "key", "text"),
+    [
+        ({"trails": 10}, "trails", "did you mean 'trials'"),
+        (
+            {"parameters": {"input.reshap": {"low": 1, "high": 2}}},
+            "parameters.input.reshap",
+            "reshape",
+        ),
+        (
+            {"parameters": {"input.reshape": {"low": 2, "high": 1}}},
+            "parameters.input.reshape",
+            "low < high",
+        ),
+        (
+            {"parameters": {"input.increments[9]": {"low": 1, "high": 2}}},
+            "parameters.input.increments[9]",
+            "no element",
+        ),
+        (
+            {"parameters": {"kp": {"low": 1, "high": 2}}},
+            "parameters.kp",
+            "key of kind PI, not fuzzy",
+        ),
+        ({"objective": {"metric": "speed"}}, "objective", "unknown metric 'speed'"),
+        ({"objective": {"metric": "iae", "weights": {"iae": 1}}}, "objective", "exactly one"),
+        ({"constraints": ["overshoot <= 5"]}, "constraints[0]", "unknown metric 'overshoot'"),
+        ({"constraints": ["overshoot_pct < 5"]}, "constraints[0]", "cannot read constraint"),
+        ({"scenarios": ["pulses", "nope"]}, "scenarios[1]", "unknown scenario 'nope'"),
+        ({"sampler": "bayes"}, "sampler", "unknown sampler"),
+        ({"trials": 0}, "trials", ">= 1"),
+    ],
+)
+def test_bad_study_files_name_file_key_and_fix(tmp_path, changes, key, text):
+    path = _bad_study(tmp_path, **changes)
+    with pytest.raises(ConfigError) as info:
+        load_study(path)
+    message = str(info.value)
+    assert str(path) in message and key in message and text in message
+    assert "\n" not in message
+
+
+def test_cli_rejects_a_bad_study_with_exit_2(tmp_path, capsys):
+    from fuzzyservo.cli import main
+
+    path = _bad_study(tmp_path, sampler="bayes")
+    assert main(["tune", str(path), "--out", str(tmp_path / "o")]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith("fuzzyservo: error:")
+
+
+def test_parameter_paths():
+    assert split_path("input.increments[3]") == ["input", "increments", 3]
+    data = {"input": {"range": [-2, 2], "increments": [1, 1, 1]}, "gains": {}}
+    set_path(data, "input.increments[1]", 0.5)
+    set_path(data, "input.reshape", 2.0)  # a missing last key is added
+    set_path(data, "gains.output", 3.0)
+    assert data["input"]["increments"] == [1, 0.5, 1] and data["input"]["reshape"] == 2.0
+    with pytest.raises(ValueError, match="no list"):
+        set_path(data, "output.increments[2]", 1.0)
+    with pytest.raises(ValueError, match="cannot read"):
+        split_path("input..reshape")
+
+
+def test_evaluator_scores_the_template_and_penalises_a_failed_run(dinca):
+    spec = load_study(STUDIES / "dinca_flc.yaml")
+    ev = build_evaluator(spec)
+    base = ev.baseline_evaluation
+    # the baseline: worst case of the scenarios' aggregated metrics (worst over steps)
+    per = [result_metrics(simulate(dinca, ev.baseline, s)).aggregate for s in spec.scenarios]
+    assert base.metrics["settling_time_s"] == max(p["settling_time_s"] for p in per)
+    expected = sum(w * base.metrics[m] for m, w in spec.objective.weights.items())
+    assert base.values == pytest.approx((expected,))
+    # a controller that drives into the end stop gets the penalty and the reason
+    wild = ev.controller({"output.translate": 3.0}, name="wild")
+    bad = ev.evaluate(wild)
+    assert bad.status != "ok" and bad.values == (spec.penalty,) and bad.message
+
+
+def test_dinca_flc_beats_the_p_baseline(tmp_path):
+    """Issue 4: the tuned fuzzy controller beats P K=10 on the objective, on steady-state
+    error and on saturation time, and is no slower than seed 002's FLC2 to settle."""
+    from fuzzyservo.io.controllers import load_controller
+
+    spec = load_study(STUDIES / "dinca_flc.yaml")
+    outcome = run_study(spec, tmp_path, trials=60, progress=False)
+    best, base = outcome.best, outcome.baseline
+    assert best.status == "ok" and best.feasible
+    assert best.values[0] < base.values[0]
+    assert best.metrics["sse_abs"] < base.metrics["sse_abs"]
+    assert best.metrics["saturation_time_s"] < base.metrics["saturation_time_s"]
+    flc2 = build_evaluator(spec).evaluate(
+        load_controller(STUDIES / "controllers" / "flc2_reshaped.yaml")
+    )
+    assert best.metrics["settling_time_s"] <= flc2.metrics["settling_time_s"]
+
+
+def test_ehs160_flc_beats_kb0105(tmp_path):
+    """Issue 4: the tuned fuzzy PI beats P Kb = 0.105 on settling time and steady-state error."""
+    spec = load_study(STUDIES / "ehs160_flc.yaml")
+    outcome = run_study(spec, tmp_path, trials=40, progress=False)
+    best, base = outcome.best, outcome.baseline
+    assert best.status == "ok"
+    assert best.metrics["settling_time_s"] < base.metrics["settling_time_s"]
+    assert best.metrics["sse_abs"] < 0.01 * base.metrics["sse_abs"]
+
+
+def test_resumed_study_keeps_its_trials_and_adds_the_rest(tmp_path):
+    spec = load_study(STUDIES / "dinca_pi.yaml")
+    first = run_study(spec, tmp_path, trials=8, progress=False)
+    second = run_study(spec, tmp_path, trials=14, progress=False)
+    assert first.trials_complete == 8 and second.trials_complete == 14
+    before = {h["number"]: h["values"] for h in first.history}
+    after = {h["number"]: h["values"] for h in second.history}
+    assert all(after[n] == v for n, v in before.items())
+    assert not math.isnan(second.best.values[0])

@@ -9,6 +9,7 @@ here asserts a time.
 
 from __future__ import annotations
 
+import math
 import statistics
 import time
 from collections.abc import Callable
@@ -45,9 +46,11 @@ class BenchResult:
     integration_steps: int
     error: dict[str, float] = field(default_factory=dict)
     description: str = ""
+    extra: dict[str, float] = field(default_factory=dict)
 
     def to_dict(self) -> dict:
         return {
+            **self.extra,
             "name": self.name,
             "description": self.description,
             "simulated_s": self.simulated_s,
@@ -122,6 +125,51 @@ def _median_time(fn: Callable[[], object], runs: int) -> tuple[float, object]:
 
 
 FUZZY_EVAL = "fuzzy_eval"
+STUDY = "study_dinca_flc"
+
+
+def run_study_case(*, trials: int = 300, workers: int = 2, root: Path | None = None) -> BenchResult:
+    """``trials`` trials of ``studies/dinca_flc.yaml`` from scratch on ``workers`` processes.
+
+    Reports the wall time and how the workers' time splits between simulation (the
+    trial's simulations and metrics) and everything else (sampler, storage, process
+    start-up); the ratio is the simulated-time throughput against the wall.
+    """
+    import tempfile
+
+    from fuzzyservo.io.studies import load_study
+    from fuzzyservo.tuning.runner import run_study
+
+    root = root or project_root()
+    spec = load_study(root / "studies" / "dinca_flc.yaml")
+    with tempfile.TemporaryDirectory() as tmp:
+        t0 = time.perf_counter()
+        outcome = run_study(spec, Path(tmp), trials=trials, workers=workers, progress=False)
+        wall = time.perf_counter() - t0
+    sampler = max(outcome.worker_time_s - outcome.sim_time_s, 0.0)
+    return BenchResult(
+        name=STUDY,
+        description=f"{trials} trials of studies/dinca_flc.yaml on {workers} worker processes, SQLite storage",
+        simulated_s=0.0,
+        median_s=wall,
+        reference_s=math.nan,
+        ratio=math.nan,
+        runs=1,
+        reference_runs=0,
+        integration_steps=0,
+        error={
+            "best_objective": outcome.best.values[0],
+            "baseline_objective": outcome.baseline.values[0],
+        },
+        extra={
+            "wall_s": wall,
+            "trials": outcome.trials_complete,
+            "workers": workers,
+            "simulation_s": outcome.sim_time_s,
+            "sampler_and_storage_s": sampler,
+            "trials_per_s": outcome.trials_complete / wall,
+        },
+    )
 
 
 def run_fuzzy_eval(

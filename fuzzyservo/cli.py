@@ -6,13 +6,13 @@ No numerics here. Every user error becomes one line on stderr and exit status 2.
 from __future__ import annotations
 
 import argparse
-import json
 import math
 import sys
 from collections.abc import Sequence
 from pathlib import Path
 
 from fuzzyservo.errors import ConfigError, FuzzyservoError
+from fuzzyservo.io.jsonfile import write_json
 
 DEFAULT_RIG = "dinca_cylinder"
 DEFAULT_STUDY = "dinca_flc"
@@ -99,25 +99,6 @@ def _unit_notes(result) -> dict[str, str]:
             "peak_command": " [V]"}  # fmt: skip
 
 
-def _write_json(path: str, payload: dict) -> None:
-    Path(path).parent.mkdir(parents=True, exist_ok=True)
-    Path(path).write_text(json.dumps(payload, indent=2, allow_nan=False) + "\n", encoding="utf-8")
-
-
-def _clean(obj):
-    """NaN and inf to None, numpy scalars to float: JSON that any reader accepts."""
-    if isinstance(obj, dict):
-        return {k: _clean(v) for k, v in obj.items()}
-    if isinstance(obj, list | tuple):
-        return [_clean(v) for v in obj]
-    if isinstance(obj, float | int) and not isinstance(obj, bool):
-        f = float(obj)
-        return f if math.isfinite(f) else None
-    if hasattr(obj, "item"):
-        return _clean(obj.item())
-    return obj
-
-
 def _write_csv(path: Path, result) -> None:
     import numpy as np
 
@@ -172,7 +153,7 @@ def _report_runs(rig, scenario: str, results, out: Path | None, json_path: str |
                 for r, m in zip(results, metrics, strict=True)
             ],
         }
-        _write_json(json_path, _clean(payload))
+        write_json(json_path, payload)
         print(f"JSON written to {json_path}")
     return EXIT_FAILED_RUN if failed else 0
 
@@ -324,7 +305,7 @@ def _fmt_values(values) -> str:
 def cmd_bench(args: argparse.Namespace) -> int:
     from fuzzyservo import bench
 
-    known = [bench.FUZZY_EVAL, *(c.name for c in bench.CASES)]
+    known = [bench.FUZZY_EVAL, *(c.name for c in bench.CASES), bench.STUDY]
     wanted = args.case or known
     unknown = [c for c in wanted if c not in known]
     if unknown:
@@ -335,6 +316,8 @@ def cmd_bench(args: argparse.Namespace) -> int:
         progress.set_description(name)
         if name == bench.FUZZY_EVAL:
             results.append(bench.run_fuzzy_eval(runs=args.runs))
+        elif name == bench.STUDY:
+            results.append(bench.run_study_case(trials=args.study_trials, workers=args.workers))
         else:
             case = next(c for c in bench.CASES if c.name == name)
             results.append(bench.run_case(case, runs=args.runs, reference_runs=args.reference_runs))
@@ -353,7 +336,7 @@ def cmd_bench(args: argparse.Namespace) -> int:
         "error: largest deviation from solve_ivp at rtol 1e-9, or from compute() (fraction of output span)"
     )
     if args.json:
-        _write_json(args.json, _clean({"cases": [r.to_dict() for r in results]}))
+        write_json(args.json, {"cases": [r.to_dict() for r in results]})
         print(f"JSON written to {args.json}")
     return 0
 
@@ -450,6 +433,12 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--case", action="append", help="run only this case (repeatable)")
     p.add_argument("--runs", type=int, default=7, help="timed runs per case (median reported)")
     p.add_argument("--reference-runs", type=int, default=3, help="timed runs of the reference path")
+    p.add_argument(
+        "--study-trials", type=int, default=300, help="trials of the study case (default: 300)"
+    )
+    p.add_argument(
+        "--workers", type=int, default=2, help="worker processes of the study case (default: 2)"
+    )
     p.set_defaults(func=cmd_bench)
     return parser
 

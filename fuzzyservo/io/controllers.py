@@ -77,3 +77,48 @@ def controller_from_data(data: dict, file: str) -> Controller:
         return make(**gains, name=name, **limits)
     except ValueError as exc:
         raise ConfigError(f"{exc}; fix the controller file", file=file) from None
+
+
+def write_controller_file(data: dict, path: str | Path) -> Path:
+    """Write a controller mapping as a controller file (UTF-8 YAML, keys in their order).
+
+    Numbers are written as plain YAML numbers (numpy scalars become Python ones, whose
+    ``repr`` round-trips, so the file rebuilds the same controller bit for bit); a
+    non-finite number is a ``ValueError`` naming its key, since no controller file takes one.
+    """
+    import yaml
+
+    p = Path(path)
+    p.parent.mkdir(parents=True, exist_ok=True)
+    text = yaml.safe_dump(
+        _plain(data, ""), sort_keys=False, allow_unicode=True, default_flow_style=None, width=88
+    )
+    p.write_text(text, encoding="utf-8")
+    return p
+
+
+def _plain(value, key: str):
+    """``value`` with Python numbers, lists and dicts only (what ``yaml.safe_dump`` writes)."""
+    import math
+    import numbers
+
+    if isinstance(value, dict):
+        return {str(k): _plain(v, f"{key}.{k}" if key else str(k)) for k, v in value.items()}
+    if isinstance(value, list | tuple):
+        return [_plain(v, f"{key}[{i}]") for i, v in enumerate(value)]
+    if isinstance(value, bool) or value is None or isinstance(value, str):
+        return value
+    if isinstance(value, numbers.Integral):
+        return int(value)
+    if isinstance(value, numbers.Real):
+        number = float(value)
+        if not math.isfinite(number):
+            raise ValueError(
+                f"{key or 'value'}: a controller file takes finite numbers only, got {number!r}; "
+                "replace it before writing"
+            )
+        return number
+    raise ValueError(
+        f"{key or 'value'}: cannot write {type(value).__name__} {value!r} to a controller "
+        "file; give numbers, text, lists or mappings"
+    )

@@ -12,12 +12,16 @@ from fuzzyservo.plots._fuzzy import (
     membership_figure,
 )
 from fuzzyservo.plots._response import response_figure
+from fuzzyservo.plots._tuning import history_figure, importance_figure, pareto_figure
 
 __all__ = [
     "control_curve_figure",
     "fuzzy_overview_figure",
+    "history_figure",
+    "importance_figure",
     "membership_figure",
     "metrics_bar_figure",
+    "pareto_figure",
     "response_figure",
     "save",
 ]

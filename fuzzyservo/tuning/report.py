@@ -1,0 +1,422 @@
+"""What a finished study leaves in its output folder: the best controller, a summary, figures, a report.
+
+:func:`write_outputs` turns an :class:`~fuzzyservo.tuning.runner.Outcome` into
+
+- ``best_controller.yaml``: the template with the best parameters, a controller file
+  ``fuzzyservo simulate``/``compare`` take as it is (and ``best_controller.fis`` for a
+  fuzzy controller, for MATLAB's Fuzzy Logic Designer);
+- ``summary.json``: the numbers (NaN and infinities as ``null``);
+- PNG figures: responses of baseline and best per scenario, trial history,
+  importances, Pareto front, control curve and membership functions before/after;
+- ``report.md``: all of it on one page, figures linked relatively.
+
+The best controller file is read back and simulated again before the report claims it
+reproduces the study's objective. matplotlib is imported only inside :func:`write_outputs`.
+"""
+
+from __future__ import annotations
+
+import math
+import re
+from pathlib import Path
+from typing import Any
+
+from fuzzyservo.io.jsonfile import write_json
+from fuzzyservo.metrics import METRIC_DOCS, METRIC_NAMES
+from fuzzyservo.tuning.objective import Evaluation, split_path
+from fuzzyservo.tuning.runner import Outcome, build_evaluator
+
+CONTROLLER_FILE = "best_controller.yaml"
+FIS_FILE = "best_controller.fis"
+SUMMARY_FILE = "summary.json"
+REPORT_FILE = "report.md"
+# metric values below this are rounding noise (e.g. a 1e-14 % overshoot of a creeping response)
+_NOISE = 1e-9
+
+
+def write_outputs(outcome: Outcome, out_dir: Path) -> dict[str, Path]:
+    """Write the best controller, ``summary.json``, the figures and ``report.md`` into ``out_dir``.
+
+    Returns the written files by role: ``controller``, ``fis`` (fuzzy controllers),
+    ``summary``, ``report``, ``history``, ``importances`` (when computed), ``pareto``
+    (Pareto studies), ``curve``, ``membership_before``, ``membership_after`` (fuzzy) and
+    ``response_<scenario>`` per scenario.
+    """
+    from fuzzyservo.controllers.fuzzy.controller import FuzzyController
+    from fuzzyservo.io.controllers import load_controller, write_controller_file
+
+    out_dir = Path(out_dir)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    spec = outcome.spec
+    paths: dict[str, Path] = {}
+    evaluator = build_evaluator(spec)
+    trial = best_trial_number(outcome)
+
+    data = evaluator.data(outcome.best_params)
+    data["name"] = f"{spec.name}_best"
+    data["description"] = (
+        f"Best {'trial' if trial is None else f'trial #{trial}'} of tuning study {spec.name} "
+        f"({spec.path or 'no study file'}, {outcome.trials_complete} complete trials) on "
+        f"scenarios {', '.join(spec.scenarios)}; objective {spec.objective.describe()} = "
+        f"{_values_text(outcome.best.values)} (baseline {_values_text(outcome.baseline.values)}). "
+        f"Template: {spec.controller_file}."
+    )
+    paths["controller"] = write_controller_file(data, out_dir / CONTROLLER_FILE)
+
+    # the file, not the in-memory mapping, is what users run: score the file
+    best_controller = load_controller(paths["controller"])
+    check = evaluator.evaluate(best_controller)
+    fuzzy = isinstance(best_controller, FuzzyController)
+    if fuzzy:
+        from fuzzyservo.io.fis import write_fis
+
+        paths["fis"] = write_fis(best_controller.system, out_dir / FIS_FILE)
+
+    paths.update(_figures(outcome, out_dir, best_controller, fuzzy))
+    summary = summary_data(outcome, evaluator.baseline.name, trial)
+    paths["summary"] = write_json(out_dir / SUMMARY_FILE, summary)
+    paths["report"] = out_dir / REPORT_FILE
+    text = _report(outcome, evaluator, trial, check, paths, out_dir)
+    paths["report"].write_text(text, encoding="utf-8")
+    return paths
+
+
+def best_trial_number(outcome: Outcome) -> int | None:
+    """The number of the trial the outcome reports as best (as :func:`runner.collect` picks it)."""
+    if outcome.pareto:
+        for p in outcome.pareto:
+            if p["params"] == outcome.best_params:
+                return int(p["number"])
+        return None
+    history = outcome.history
+    pool = (
+        [h for h in history if h["feasible"]]
+        or [h for h in history if h["status"] == "ok"]
+        or history
+    )
+    if not pool:
+        return None
+    return int(min(pool, key=lambda h: h["values"][0])["number"])
+
+
+def summary_data(outcome: Outcome, baseline_name: str, trial: int | None) -> dict[str, Any]:
+    """The ``summary.json`` mapping (before NaN/inf become null)."""
+    spec = outcome.spec
+    best, base = outcome.best, outcome.baseline
+    return {
+        "study": spec.name,
+        "trials": outcome.trials_complete,
+        "objective": spec.objective.describe(),
+        "best": {
+            "trial": trial,
+            "params": dict(outcome.best_params),
+            "objective": _objective_value(best),
+            "metrics": dict(best.metrics),
+            "scenarios": {s: dict(m) for s, m in best.scenario_metrics.items()},
+            "status": best.status,
+            "message": best.message,
+            "feasible": best.feasible,
+            "violations": list(best.violations),
+        },
+        "baseline": {
+            "controller": baseline_name,
+            "objective": _objective_value(base),
+            "metrics": dict(base.metrics),
+            "scenarios": {s: dict(m) for s, m in base.scenario_metrics.items()},
+            "status": base.status,
+            "feasible": base.feasible,
+        },
+        "constraints": [str(c) for c in spec.constraints],
+        "sampler": spec.sampler,
+        "pareto": [
+            {"number": p["number"], "values": list(p["values"]), "params": dict(p["params"])}
+            for p in outcome.pareto
+        ],
+        "importances": dict(outcome.importances),
+        "storage": outcome.storage_url,
+        "wall_s": outcome.wall_s,
+        "sim_time_s": outcome.sim_time_s,
+        # what the trials spent outside the simulations: sampling, storage, building controllers
+        "sampler_time_s": max(0.0, outcome.worker_time_s - outcome.sim_time_s),
+    }
+
+
+def _objective_value(ev: Evaluation) -> float | list[float]:
+    return ev.values[0] if len(ev.values) == 1 else list(ev.values)
+
+
+# -- figures ---------------------------------------------------------------------------
+
+
+def _figures(outcome: Outcome, out_dir: Path, best_controller, fuzzy: bool) -> dict[str, Path]:
+    from fuzzyservo import plots
+
+    spec = outcome.spec
+    paths: dict[str, Path] = {}
+    for scenario in spec.scenarios:
+        runs = [
+            r
+            for r in (outcome.baseline.results.get(scenario), outcome.best.results.get(scenario))
+            if r is not None
+        ]
+        if runs:
+            key = f"response_{_file_part(scenario)}"
+            paths[key] = plots.save(plots.response_figure(runs), out_dir / f"{key}.png")
+    if fuzzy:
+        from fuzzyservo.controllers.fuzzy.controller import FuzzyController
+        from fuzzyservo.io.controllers import load_controller
+
+        template = load_controller(spec.controller_file)
+        one_input = len(best_controller.system.inputs) == 1
+        compare = (
+            [template]
+            if isinstance(template, FuzzyController)
+            and one_input
+            and len(template.system.inputs) == 1
+            and template.form == best_controller.form
+            else []
+        )
+        fig = plots.control_curve_figure(best_controller, compare=compare)
+        paths["curve"] = plots.save(fig, out_dir / "curve.png")
+        if isinstance(template, FuzzyController):
+            fig = plots.membership_figure(template)
+            paths["membership_before"] = plots.save(fig, out_dir / "membership_before.png")
+        fig = plots.membership_figure(best_controller)
+        paths["membership_after"] = plots.save(fig, out_dir / "membership_after.png")
+    names = list(spec.objective.pareto) or ["objective"]
+    if outcome.history:
+        fig = plots.history_figure(
+            outcome.history, names, title=f"{spec.name}: {spec.objective.describe()}"
+        )
+        paths["history"] = plots.save(fig, out_dir / "history.png")
+    if outcome.importances:
+        target = f" (of {names[0]})" if spec.objective.pareto else ""
+        fig = plots.importance_figure(
+            outcome.importances, title=f"{spec.name}: parameter importances{target}"
+        )
+        paths["importances"] = plots.save(fig, out_dir / "importances.png")
+    if spec.objective.pareto and outcome.pareto:
+        measured = [
+            h["values"]
+            for h in outcome.history
+            if h["status"] == "ok" and all(math.isfinite(v) for v in h["values"])
+        ]
+        fig = plots.pareto_figure(
+            measured,
+            [p["values"] for p in outcome.pareto],
+            names,
+            baseline=outcome.baseline.values if outcome.baseline.status == "ok" else None,
+            best=outcome.best.values,
+            title=f"{spec.name}: objectives of every trial, Pareto front in red",
+        )
+        paths["pareto"] = plots.save(fig, out_dir / "pareto.png")
+    return paths
+
+
+def _file_part(name: str) -> str:
+    return re.sub(r"[^\w.-]", "_", name)
+
+
+# -- report.md -------------------------------------------------------------------------
+
+
+def _report(
+    outcome: Outcome,
+    evaluator,
+    trial: int | None,
+    check: Evaluation,
+    paths: dict[str, Path],
+    out_dir: Path,
+) -> str:
+    spec = outcome.spec
+    best, base = outcome.best, outcome.baseline
+
+    def link(key: str) -> str:
+        return paths[key].relative_to(out_dir).as_posix()
+
+    def image(key: str, alt: str) -> list[str]:
+        return [f"![{alt}]({link(key)})", ""] if key in paths else []
+
+    lines = [f"# Tuning study `{spec.name}`", ""]
+    if spec.description:
+        lines += [spec.description.strip(), ""]
+    sampler = spec.sampler + (f" (seed {spec.seed})" if spec.seed is not None else "")
+    sampler_s = max(0.0, outcome.worker_time_s - outcome.sim_time_s)
+    lines += [
+        "| | |",
+        "|---|---|",
+        f"| study file | `{spec.path or '-'}` |",
+        f"| rig | `{spec.rig_file}` |",
+        f"| scenarios | {', '.join(spec.scenarios)} ({spec.aggregate} over scenarios) |",
+        f"| template | `{spec.controller_file}` |",
+        f"| baseline | {evaluator.baseline.name} (`{spec.baseline_file}`) |",
+        f"| objective | {spec.objective.describe()} (minimised) |",
+        f"| constraints | {', '.join(f'`{c}`' for c in spec.constraints) or 'none'} |",
+        f"| sampler | {sampler} |",
+        f"| trials | {outcome.trials_complete} complete |",
+        f"| wall time (this run) | {_duration(outcome.wall_s)} |",
+        f"| time in trials | simulation {_duration(outcome.sim_time_s)}, sampler, storage "
+        f"and controller building {_duration(sampler_s)} (summed over the stored trials) |",
+        f"| storage | `{outcome.storage_url}` |",
+        "",
+        "## Result",
+        "",
+    ]
+    which = "the reported best" if trial is None else f"trial #{trial}"
+    lines += [
+        f"Best: {which}, objective {_values_text(best.values)} against the baseline's "
+        f"{_values_text(base.values)}; status {best.status}"
+        + (f" ({best.message})" if best.message else "")
+        + f", {'feasible' if best.feasible else 'infeasible'}.",
+        "",
+    ]
+    for c, v in zip(spec.constraints, best.violations, strict=True):
+        met = "met" if v <= 0 else "broken"
+        lines.append(
+            f"- `{c}`: best {_num(best.metrics.get(c.metric))} ({met}), "
+            f"baseline {_num(base.metrics.get(c.metric))}"
+        )
+    if spec.constraints:
+        lines.append("")
+    if _same(check.values, best.values):
+        lines.append(
+            f"Re-simulating [{CONTROLLER_FILE}]({link('controller')}) reproduces the objective "
+            f"{_values_text(best.values)}."
+        )
+    else:
+        lines.append(
+            f"**Warning:** re-simulating [{CONTROLLER_FILE}]({link('controller')}) gives "
+            f"{_values_text(check.values)}, not the study's {_values_text(best.values)}."
+        )
+    files = [f"[{SUMMARY_FILE}]({link('summary')})"]
+    if "fis" in paths:
+        files.append(f"[{FIS_FILE}]({link('fis')}) (MATLAB Fuzzy Logic Designer)")
+    lines += ["", "Also written: " + ", ".join(files) + ".", ""]
+
+    lines += ["## Best parameters", "", "| parameter | template | best | searched range |"]
+    lines.append("|---|---:|---:|---|")
+    for p in spec.parameters:
+        scale = ", log" if p.log else (", integer" if p.integer else "")
+        lines.append(
+            f"| `{p.path}` | {_num(_template_value(evaluator.template, p.path), 'not set')} | "
+            f"{_num(outcome.best_params.get(p.path))} | [{p.low:g}, {p.high:g}]{scale} |"
+        )
+    lines.append("")
+
+    lines += ["## Metrics", ""]
+    lines += [f"### Aggregated ({spec.aggregate} over scenarios)", ""]
+    lines += _metrics_table(base.metrics, best.metrics, evaluator.baseline.name)
+    for scenario in spec.scenarios:
+        lines += [f"### Scenario `{scenario}`", ""]
+        lines += _metrics_table(
+            base.scenario_metrics.get(scenario, {}),
+            best.scenario_metrics.get(scenario, {}),
+            evaluator.baseline.name,
+        )
+        lines += image(f"response_{_file_part(scenario)}", f"response on {scenario}")
+
+    if spec.objective.pareto and outcome.pareto:
+        names = spec.objective.pareto
+        lines += ["## Pareto front", ""]
+        lines += [
+            f"{len(outcome.pareto)} non-dominated trials; the reported best is the one closest "
+            "to the origin with each objective in units of the baseline's value.",
+            "",
+        ]
+        lines.append("| trial | " + " | ".join(names) + " | |")
+        lines.append("|---:|" + "---:|" * len(names) + "---|")
+        for p in sorted(outcome.pareto, key=lambda p: p["values"][0]):
+            mark = "reported best" if p["number"] == trial else ""
+            lines.append(
+                f"| {p['number']} | " + " | ".join(_num(v) for v in p["values"]) + f" | {mark} |"
+            )
+        lines.append("")
+        lines += image("pareto", "Pareto front")
+
+    lines += ["## Search", ""]
+    lines += image("history", "trial history")
+    if outcome.importances:
+        lines += [
+            "Parameter importances (Optuna's `get_param_importances`, normalised to sum to 1):",
+            "",
+            "| parameter | importance |",
+        ]
+        lines.append("|---|---:|")
+        for name, value in sorted(outcome.importances.items(), key=lambda kv: -kv[1]):
+            lines.append(f"| `{name}` | {value:.3f} |")
+        lines.append("")
+        lines += image("importances", "parameter importances")
+
+    if "curve" in paths:
+        lines += ["## Controller", ""]
+        lines += image("curve", "control curve, template and best")
+        lines += image("membership_before", "membership functions of the template")
+        lines += image("membership_after", "membership functions of the best controller")
+
+    lines += [
+        "## Viewing the study in optuna-dashboard",
+        "",
+        "```",
+        "pip install optuna-dashboard",
+        f"optuna-dashboard {outcome.storage_url}",
+        "```",
+        "",
+        "## Metric definitions",
+        "",
+    ]
+    lines += [f"- `{m}`: {METRIC_DOCS[m]}" for m in METRIC_NAMES]
+    return "\n".join(lines) + "\n"
+
+
+def _metrics_table(base: dict[str, float], best: dict[str, float], base_name: str) -> list[str]:
+    lines = [f"| metric | baseline ({base_name}) | best | change |", "|---|---:|---:|---:|"]
+    for m in METRIC_NAMES:
+        b, n = base.get(m, math.nan), best.get(m, math.nan)
+        lines.append(f"| `{m}` | {_num(b)} | {_num(n)} | {_change(b, n)} |")
+    return [*lines, ""]
+
+
+def _change(base: float, best: float) -> str:
+    if not (math.isfinite(base) and math.isfinite(best)):
+        return "n/a"
+    if abs(base) < _NOISE and abs(best) < _NOISE:
+        return "0 %"
+    if base == 0 or abs(best) > 1e6 * abs(base):
+        # e.g. an overshoot of 1e-13 % (rounding noise) against a real one: no ratio to show
+        return "n/a"
+    return f"{100.0 * (best - base) / abs(base):+.1f} %"
+
+
+def _template_value(template: dict[str, Any], path: str) -> float | None:
+    node: Any = template
+    for part in split_path(path):
+        try:
+            node = node[part]
+        except (KeyError, IndexError, TypeError):
+            return None
+    return node if isinstance(node, int | float) and not isinstance(node, bool) else None
+
+
+def _same(a: tuple[float, ...], b: tuple[float, ...]) -> bool:
+    return len(a) == len(b) and all(
+        x == y or (math.isnan(x) and math.isnan(y)) for x, y in zip(a, b, strict=True)
+    )
+
+
+def _num(value: float | None, missing: str = "n/a") -> str:
+    if value is None or not math.isfinite(value):
+        return missing
+    if value == 0:
+        return "0"
+    return f"{value:.4g}" if 1e-3 <= abs(value) < 1e5 else f"{value:.3e}"
+
+
+def _values_text(values: tuple[float, ...] | list[float]) -> str:
+    text = ", ".join(_num(v) for v in values)
+    return text if len(values) == 1 else f"({text})"
+
+
+def _duration(seconds: float) -> str:
+    if seconds >= 120:
+        return f"{seconds / 60:.1f} min"
+    return f"{seconds:.3g} s"

@@ -300,7 +300,13 @@ def _bar(total: int, initial: int, name: str, enabled: bool):
     from tqdm import tqdm
 
     return tqdm(
-        total=total, initial=initial, desc=name, unit="trial", file=sys.stderr, dynamic_ncols=True
+        total=total,
+        initial=initial,
+        desc=name,
+        unit="trial",
+        file=sys.stderr,
+        dynamic_ncols=True,
+        mininterval=0.5,
     )
 
 

@@ -326,6 +326,14 @@ def cmd_bench(args: argparse.Namespace) -> int:
     print(f"{'case':<20} {'median':>10} {'reference':>10} {'ratio':>7}  error")
     for r in results:
         err = ", ".join(f"{k} {v:.3g}" for k, v in r.error.items())
+        if r.name == bench.STUDY:
+            x = r.extra
+            print(
+                f"{r.name:<20} {_duration(x['wall_s']):>10} {'':>10} {'':>7}  {x['trials']} trials on "
+                f"{x['workers']} workers, {x['trials_per_s']:.1f} trials/s; in the trials: simulation "
+                f"{x['simulation_s']:.1f} s, sampler/storage/building {x['sampler_and_storage_s']:.1f} s; {err}"
+            )
+            continue
         print(
             f"{r.name:<20} {_duration(r.median_s):>10} {_duration(r.reference_s):>10} {r.ratio:>6.0f}×  {err}"
         )

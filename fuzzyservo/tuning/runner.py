@@ -357,12 +357,17 @@ def collect(spec: StudySpec, url: str, *, wall_s: float = 0.0) -> Outcome:
     ]  # fmt: skip
     importances: dict[str, float] = {}
     if len(trials) >= 10 and len(spec.parameters) > 1:
+        import warnings
+
         try:
-            importances = dict(
-                optuna.importance.get_param_importances(
-                    study, target=(lambda t: t.values[0]) if spec.objective.pareto else None
+            with warnings.catch_warnings():
+                # PED-ANOVA reminds that it ranks for low targets: ours are all minimised
+                warnings.simplefilter("ignore", UserWarning)
+                importances = dict(
+                    optuna.importance.get_param_importances(
+                        study, target=(lambda t: t.values[0]) if spec.objective.pareto else None
+                    )
                 )
-            )
         except (RuntimeError, ValueError, ZeroDivisionError):
             importances = {}
     sim = sum(t.user_attrs.get("sim_time_s", 0.0) for t in trials)

@@ -35,3 +35,13 @@ def p_kb0105():
 @pytest.fixture(scope="session")
 def open_loop():
     return load_controller(ROOT / "studies" / "controllers" / "open_loop.yaml")
+
+
+@pytest.fixture(scope="session")
+def flc1():
+    return load_controller(ROOT / "studies" / "controllers" / "flc1_translated.yaml")
+
+
+@pytest.fixture(scope="session")
+def flc2():
+    return load_controller(ROOT / "studies" / "controllers" / "flc2_reshaped.yaml")

@@ -10,21 +10,9 @@ import pytest
 
 from fuzzyservo.controllers.fuzzy import FuzzyController, FuzzySystem, SevenTermDesign
 from fuzzyservo.controllers.fuzzy.design import macvicar_whelan, table_rules
-from fuzzyservo.io.controllers import load_controller
 from fuzzyservo.plots import control_curve_figure, fuzzy_overview_figure, membership_figure, save
-from tests.conftest import ROOT
 
 TERMS = ["NB", "NM", "NS", "Z", "PS", "PM", "PB"]
-
-
-@pytest.fixture(scope="module")
-def flc1():
-    return load_controller(ROOT / "studies" / "controllers" / "flc1_translated.yaml")
-
-
-@pytest.fixture(scope="module")
-def flc2():
-    return load_controller(ROOT / "studies" / "controllers" / "flc2_reshaped.yaml")
 
 
 @pytest.fixture(scope="module")

@@ -72,33 +72,25 @@ def test_seed000_p_controller_step(ehs160, p_kb0105):
     assert m["rise_time_s"] < open_tr
 
 
-def _load(name: str):
-    from fuzzyservo.io.controllers import load_controller
-    from tests.conftest import ROOT
-
-    return load_controller(ROOT / "studies" / "controllers" / f"{name}.yaml")
-
-
-def test_seed002_flc1_cancels_the_bias_error_without_saturating(dinca, p_k10):
+def test_seed002_flc1_cancels_the_bias_error_without_saturating(dinca, p_k10, flc1):
     """Seed 002 §6, Fig. 8: the translated output terms cancel the stationary error, and the
     command current "does not reach the saturation in any situation"."""
-    flc1 = simulate(dinca, _load("flc1_translated"), "pulses")
+    run = simulate(dinca, flc1, "pulses")
     p = result_metrics(simulate(dinca, p_k10, "pulses"))
-    m = result_metrics(flc1)
-    assert flc1.status == "ok"
+    m = result_metrics(run)
+    assert run.status == "ok"
     for step in m.steps:  # both pulse levels, twice
         assert step.sse_abs <= 0.1e-3
     assert min(s.sse_abs for s in p.steps) > 1.2e-3
     assert m.aggregate["saturation_time_s"] == 0.0
-    assert abs(flc1.actuator).max() < 0.9 * dinca.actuator.upper
+    assert abs(run.actuator).max() < 0.9 * dinca.actuator.upper
 
 
-def test_seed002_flc2_is_faster_than_flc1(dinca, p_k10):
+def test_seed002_flc2_is_faster_than_flc1(dinca, p_k10, flc1, flc2):
     """Seed 002 §7, Fig. 10: reshaped input terms cut the response time "about 20 %" with the
     stationary error still cancelled and saturation far below P K=10."""
-    m1 = result_metrics(simulate(dinca, _load("flc1_translated"), "pulses")).aggregate
-    flc2 = simulate(dinca, _load("flc2_reshaped"), "pulses")
-    m2 = result_metrics(flc2)
+    m1 = result_metrics(simulate(dinca, flc1, "pulses")).aggregate
+    m2 = result_metrics(simulate(dinca, flc2, "pulses"))
     p = result_metrics(simulate(dinca, p_k10, "pulses")).aggregate
     assert m2.aggregate["rise_time_s"] <= 0.8 * m1["rise_time_s"]
     assert m2.aggregate["settling_time_s"] <= 0.8 * m1["settling_time_s"]

@@ -51,6 +51,14 @@ def storage_url(spec: StudySpec, out_dir: Path, override: str | None = None) -> 
     return f"sqlite:///{(out_dir / f'{spec.name}.db').resolve()}"
 
 
+def _driver_url(url: str) -> str:
+    """``postgresql://`` names the psycopg2 driver we ship (SQLAlchemy 2.1 would pick psycopg 3)."""
+    for prefix in ("postgresql://", "postgres://"):
+        if url.startswith(prefix):
+            return "postgresql+psycopg2://" + url[len(prefix) :]
+    return url
+
+
 def _storage(url: str):
     import optuna
 
@@ -60,7 +68,7 @@ def _storage(url: str):
     else:
         kwargs = {"pool_pre_ping": True}
     return optuna.storages.RDBStorage(
-        url, engine_kwargs=kwargs, heartbeat_interval=HEARTBEAT_S, grace_period=GRACE_S
+        _driver_url(url), engine_kwargs=kwargs, heartbeat_interval=HEARTBEAT_S, grace_period=GRACE_S
     )
 
 
@@ -76,10 +84,9 @@ def _record_constraints(trial, spec: StudySpec, violations: list[float]) -> None
             trial.set_constraint(str(c), v)
 
 
-def make_sampler(spec: StudySpec, worker: int = 0):
+def make_sampler(spec: StudySpec, seed: int | None):
     import optuna
 
-    seed = None if spec.seed is None else spec.seed + worker
     # optuna >= 5 reads the constraints stored by Trial.set_constraint; older ones need constraints_func
     legacy = {}
     if spec.constraints and not hasattr(optuna.trial.Trial, "set_constraint"):
@@ -93,22 +100,51 @@ def make_sampler(spec: StudySpec, worker: int = 0):
     return optuna.samplers.RandomSampler(seed=seed)
 
 
-def open_study(spec: StudySpec, url: str, worker: int = 0):
+def open_study(spec: StudySpec, url: str, worker: int = 0, *, shared: bool = False):
+    """Create or load the study; ``worker`` and ``shared`` choose the sampler's seed (:func:`seed_for`)."""
+    import random
     import warnings
 
     import optuna
+    from sqlalchemy.exc import IntegrityError, OperationalError, ProgrammingError
 
     optuna.logging.set_verbosity(optuna.logging.WARNING)
     # the storage heartbeat is what fails trials of a killed process; it is marked experimental
     warnings.filterwarnings("ignore", category=optuna.exceptions.ExperimentalWarning)
     directions = ["minimize"] * spec.objective.n_values
-    return optuna.create_study(
-        study_name=spec.name,
-        storage=_storage(url),
-        sampler=make_sampler(spec, worker),
-        directions=directions,
-        load_if_exists=True,
-    )
+    for attempt in range(5):
+        try:
+            storage = _storage(url)
+            study = optuna.create_study(
+                study_name=spec.name, storage=storage, directions=directions, load_if_exists=True
+            )
+            break
+        except (
+            IntegrityError,
+            ProgrammingError,
+            OperationalError,
+            optuna.exceptions.DuplicatedStudyError,
+        ):
+            # two processes creating the tables or the study at once on an empty database
+            if attempt == 4:
+                raise
+            time.sleep(0.2 + random.random())
+    study.sampler = make_sampler(spec, seed_for(spec, study, worker, shared))
+    return study
+
+
+def seed_for(spec: StudySpec, study, worker: int, shared: bool) -> int | None:
+    """The sampler seed: the study's seed for a fresh single run (so it is reproducible),
+    moved on by the trials already stored (a resumed run does not repeat its first
+    proposals), by the local worker index, and by the process id when other processes
+    may share the storage (two machines must not propose the same trials)."""
+    import os
+
+    if spec.seed is None:
+        return None
+    done = len(study.get_trials(deepcopy=False))
+    salt = os.getpid() if shared else 0
+    return (spec.seed + 1009 * worker + 7919 * done + salt) % (2**32)
 
 
 def build_evaluator(spec: StudySpec) -> Evaluator:
@@ -157,24 +193,46 @@ def count_complete(study) -> int:
     return len(study.get_trials(deepcopy=False, states=(TrialState.COMPLETE,)))
 
 
-def _worker(spec: StudySpec, url: str, total: int, worker: int, timeout_s: float | None) -> None:
-    """A local worker process: optimise until the study holds ``total`` complete trials."""
-    import optuna
+def _optimize(spec: StudySpec, study, total: int, extra_callbacks: list) -> None:
+    """``study.optimize`` until ``total`` complete trials; Ctrl-C finishes the running trial
+    and stops (a second Ctrl-C stops at once), then raises KeyboardInterrupt."""
+    import signal
+
     from optuna.study import MaxTrialsCallback
     from optuna.trial import TrialState
 
-    study = open_study(spec, url, worker)
-    evaluator = build_evaluator(spec)
     if count_complete(study) >= total:
         return
-    study.optimize(
-        _objective(spec, evaluator),
-        timeout=timeout_s,
-        callbacks=[MaxTrialsCallback(total, states=(TrialState.COMPLETE,))],
-        gc_after_trial=False,
-        catch=(),
-    )
-    del optuna
+    evaluator = build_evaluator(spec)
+    interrupted = False
+
+    def on_sigint(signum, frame) -> None:
+        nonlocal interrupted
+        if interrupted:
+            raise KeyboardInterrupt
+        interrupted = True
+        study.stop()
+
+    previous = signal.signal(signal.SIGINT, on_sigint)
+    try:
+        study.optimize(
+            _objective(spec, evaluator),
+            timeout=spec.timeout_s,
+            callbacks=[MaxTrialsCallback(total, states=(TrialState.COMPLETE,)), *extra_callbacks],
+            gc_after_trial=False,
+        )
+    finally:
+        signal.signal(signal.SIGINT, previous)
+    if interrupted:
+        raise KeyboardInterrupt
+
+
+def _worker(spec: StudySpec, url: str, total: int, worker: int, shared: bool) -> None:
+    """A local worker process: optimise until the study holds ``total`` complete trials."""
+    try:
+        _optimize(spec, open_study(spec, url, worker, shared=shared), total, [])
+    except KeyboardInterrupt:
+        pass
 
 
 def run_study(
@@ -189,6 +247,8 @@ def run_study(
     """Run (or resume) the study until it holds ``trials`` complete trials; return the outcome."""
     out_dir.mkdir(parents=True, exist_ok=True)
     url = storage_url(spec, out_dir, storage)
+    # a storage named by the user may be shared with other processes or machines
+    shared = bool(storage or spec.storage)
     total = trials or spec.trials
     study = open_study(spec, url)  # creates it (and its tables) before any worker starts
     done_before = count_complete(study)
@@ -196,42 +256,35 @@ def run_study(
     bar = _bar(total, done_before, spec.name, progress)
     try:
         if workers <= 1:
-            _run_inline(spec, url, total, bar)
+            _run_inline(spec, url, total, bar, shared)
         else:
-            _run_processes(spec, url, total, workers, bar)
+            _run_processes(spec, url, total, workers, bar, shared)
     finally:
         bar.close()
     wall = time.perf_counter() - t0
     return collect(spec, url, wall_s=wall)
 
 
-def _run_inline(spec: StudySpec, url: str, total: int, bar) -> None:
-    from optuna.study import MaxTrialsCallback
+def _run_inline(spec: StudySpec, url: str, total: int, bar, shared: bool) -> None:
     from optuna.trial import TrialState
 
-    study = open_study(spec, url)
-    if count_complete(study) >= total:
-        return
-    evaluator = build_evaluator(spec)
+    study = open_study(spec, url, shared=shared)
 
     def update(study, trial) -> None:
         if trial.state == TrialState.COMPLETE:
             bar.update(1)
             _postfix(bar, study)
 
-    study.optimize(
-        _objective(spec, evaluator),
-        timeout=spec.timeout_s,
-        callbacks=[MaxTrialsCallback(total, states=(TrialState.COMPLETE,)), update],
-        gc_after_trial=False,
-    )
+    _optimize(spec, study, total, [update])
 
 
-def _run_processes(spec: StudySpec, url: str, total: int, workers: int, bar) -> None:
+def _run_processes(spec: StudySpec, url: str, total: int, workers: int, bar, shared: bool) -> None:
+    import os
+    import signal
+
     ctx = mp.get_context("spawn")
     procs = [
-        ctx.Process(target=_worker, args=(spec, url, total, w, spec.timeout_s))
-        for w in range(workers)
+        ctx.Process(target=_worker, args=(spec, url, total, w, shared)) for w in range(workers)
     ]
     for p in procs:
         p.start()
@@ -242,8 +295,15 @@ def _run_processes(spec: StudySpec, url: str, total: int, workers: int, bar) -> 
             _refresh(bar, study)
         _refresh(bar, study)
     except KeyboardInterrupt:
+        # the workers finish their running trial and stop (Ctrl-C in a terminal reaches
+        # them too; a signal from elsewhere reaches only us, so pass it on)
         for p in procs:
-            p.terminate()
+            if p.is_alive() and p.pid:
+                os.kill(p.pid, signal.SIGINT)
+        for p in procs:
+            p.join(timeout=60)
+            if p.is_alive():
+                p.terminate()
         raise
     finally:
         for p in procs:

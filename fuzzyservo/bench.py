@@ -94,6 +94,30 @@ CASES = (
         5.0,
         "seed 000 rig, P Kb=0.105, velocity steps, 5 s simulated at 1 kHz",
     ),
+    BenchCase(
+        "hydroprax_steps_pi",
+        "rigs/hydroprax_pdcv.yaml",
+        "studies/controllers/pi_hydroprax.yaml",
+        "steps",
+        10.5,
+        "seed 003 rig, PI Kp=450 Ki=0.011, 0-0.1 m steps, 10.5 s simulated at 1 kHz",
+    ),
+    BenchCase(
+        "ahc_cylinder_steps_p",
+        "rigs/ahc_cylinder.yaml",
+        "studies/controllers/p_ahc_cylinder.yaml",
+        "steps_10mpa",
+        3.5,
+        "seed 001 wave simulator, P K=40, 100 mm steps at 10 MPa, 3.5 s simulated at 1 kHz",
+    ),
+    BenchCase(
+        "ahc_motor_heave_p",
+        "rigs/ahc_motor.yaml",
+        "studies/controllers/p_ahc_motor.yaml",
+        "heave",
+        40.0,
+        "seed 001 compensator, P K=2, heave compensation, 40 s simulated at 1 kHz",
+    ),
 )
 
 
@@ -107,7 +131,7 @@ def accuracy(fast: SimResult, tight: SimResult) -> dict[str, float]:
         err["position_mm"] = dev * 1e3
     else:
         err[f"{out}_{unit.replace('/', '_')}"] = dev
-    pressures = [k for k in ("p1", "p2", "p3", "p4", "p_load") if k in fast.signals]
+    pressures = [k for k in ("p1", "p2", "p3", "p4", "p_load", "p_a", "p_b") if k in fast.signals]
     if pressures:
         err["pressure_bar"] = max(
             float(np.nanmax(np.abs(fast.signals[k] - tight.signals[k]))) / 1e5 for k in pressures

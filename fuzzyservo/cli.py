@@ -114,7 +114,7 @@ def _write_csv(path: Path, result) -> None:
 
 
 def _report_runs(rig, scenario: str, results, out: Path | None, json_path: str | None) -> int:
-    from fuzzyservo.metrics import result_metrics
+    from fuzzyservo.metrics import heave_metrics, result_metrics
 
     metrics = [result_metrics(r) for r in results]
     print(
@@ -125,6 +125,15 @@ def _report_runs(rig, scenario: str, results, out: Path | None, json_path: str |
             [r.controller for r in results], [m.aggregate for m in metrics], _unit_notes(results[0])
         )
     )
+    heave = [heave_metrics(r) for r in results]
+    if any(heave):
+        print(
+            "compensation_pct [%]  "
+            + "  ".join(
+                f"{r.controller}: {_fmt(h.get('compensation_pct'))}"
+                for r, h in zip(results, heave, strict=True)
+            )
+        )
     failed = 0
     for r in results:
         if r.status != "ok":
@@ -149,8 +158,9 @@ def _report_runs(rig, scenario: str, results, out: Path | None, json_path: str |
                     "status": r.status,
                     "message": r.message,
                     **m.to_dict(),
+                    **h,
                 }
-                for r, m in zip(results, metrics, strict=True)
+                for r, m, h in zip(results, metrics, heave, strict=True)
             ],
         }
         write_json(json_path, payload)
@@ -302,6 +312,41 @@ def _fmt_values(values) -> str:
     return ", ".join(_fmt(v) for v in values)
 
 
+def cmd_fit_valve(args: argparse.Namespace) -> int:
+    """Train the seed-003 valve network on a valve-data CSV and write it as JSON."""
+    from fuzzyservo.components.nn_fit import fit_valve_network
+    from fuzzyservo.errors import DataError
+    from fuzzyservo.io.valve_data import read_valve_csv, write_valve_network
+
+    data = read_valve_csv(args.data)
+    if args.restarts < 1:
+        raise ConfigError(f"--restarts must be >= 1, got {args.restarts}")
+    try:
+        fit = fit_valve_network(data, seed=args.seed, restarts=args.restarts)
+    except ValueError as exc:
+        raise DataError(f"{args.data}: {exc}") from None
+    out = Path(args.out) if args.out else Path(args.data).with_suffix(".json")
+    write_valve_network(
+        out,
+        fit.weights,
+        fit.train_rms,
+        fit.validation_rms,
+        {
+            "data": str(args.data),
+            "method": "Levenberg-Marquardt (scipy least_squares, method=lm), best of restarts",
+            "seed": fit.seed,
+            "restarts": fit.restarts,
+            "samples_train": fit.n_train,
+            "samples_validation": fit.n_validation,
+        },
+    )
+    for label, values in (("training", fit.train_rms), ("validation", fit.validation_rms)):
+        q_a, q_b = (v * 60e3 for v in values)
+        print(f"{label:<10} RMS  Q_A {q_a:.4g} l/min  Q_B {q_b:.4g} l/min")
+    print(f"wrote {out}")
+    return 0
+
+
 def cmd_bench(args: argparse.Namespace) -> int:
     from fuzzyservo import bench
 
@@ -448,6 +493,17 @@ def build_parser() -> argparse.ArgumentParser:
         "--workers", type=int, default=2, help="worker processes of the study case (default: 2)"
     )
     p.set_defaults(func=cmd_bench)
+
+    p = sub.add_parser("fit-valve", help="train the seed-003 valve network on a valve-data CSV")
+    p.add_argument(
+        "data", help="CSV with columns p_s_bar, u_c_V, p_a_bar, p_b_bar, q_a_l_min, q_b_l_min"
+    )
+    p.add_argument("--out", metavar="FILE", help="network JSON to write (default: DATA with .json)")
+    p.add_argument(
+        "--seed", type=int, default=0, help="seed of the split and restarts (default: 0)"
+    )
+    p.add_argument("--restarts", type=int, default=6, help="random restarts (default: 6)")
+    p.set_defaults(func=cmd_fit_valve)
     return parser
 
 

@@ -47,6 +47,24 @@ def quantity(
     return dataclasses.field(default=default, metadata=meta)
 
 
+def vector(key: str, length: int, *, fmt: str, doc: str = "") -> Any:
+    """Declare a dataclass field holding a fixed-length tuple of floats (e.g. network weights).
+
+    :func:`pack` appends it after the quantities (``length`` zeros when the tuple is
+    empty). ``fmt`` names the file format the rig reader loads it from (the file is
+    named under ``key`` in the rig file).
+    """
+    meta = {"vector_key": key, "length": length, "format": fmt, "doc": doc}
+    return dataclasses.field(default=(), metadata=meta)
+
+
+def vectors_by_key(cls: type) -> dict[str, dataclasses.Field]:
+    """Map file keys to the dataclass fields declared with :func:`vector`."""
+    return {
+        f.metadata["vector_key"]: f for f in dataclasses.fields(cls) if "vector_key" in f.metadata
+    }
+
+
 def fields_by_key(cls: type) -> dict[str, dataclasses.Field]:
     """Map file keys to the dataclass fields declared with :func:`quantity`."""
     return {f.metadata["key"]: f for f in dataclasses.fields(cls) if "key" in f.metadata}
@@ -56,6 +74,9 @@ def check(params: Any) -> None:
     """Validate every quantity of a parameter set; raise ``ValueError`` on the first bad one."""
     for f in dataclasses.fields(params):
         meta = f.metadata
+        if "vector_key" in meta:
+            _check_vector(getattr(params, f.name), meta)
+            continue
         if "key" not in meta:
             continue
         value = getattr(params, f.name)
@@ -83,15 +104,45 @@ def check(params: Any) -> None:
             raise ValueError(f"{key}: must be <= {meta['maximum']} {unit}, got {value!r}; {fix}")
 
 
-def pack(params: Any) -> np.ndarray:
-    """Pack the quantities of a parameter set, in field order, into a float64 vector.
+def _check_vector(value: Any, meta: dict) -> None:
+    key, length = meta["vector_key"], meta["length"]
+    if not isinstance(value, tuple) or len(value) not in (0, length):
+        got = len(value) if isinstance(value, tuple) else type(value).__name__
+        raise ValueError(
+            f"{key}: must be a tuple of {length} floats (or empty), got {got}; "
+            f"{meta['doc'] or 'check the file it was read from'}"
+        )
+    if not all(isinstance(v, float) and math.isfinite(v) for v in value):
+        raise ValueError(f"{key}: every entry must be a finite float; check the file")
 
-    Compiled kernels index this vector with the ``P_*`` constants their module defines.
+
+def pack(params: Any) -> np.ndarray:
+    """Pack a parameter set into a float64 vector: the quantities in field order, then
+    every :func:`vector` field (its ``length`` entries, zeros when empty).
+
+    Compiled kernels index this vector with the ``P_*`` constants their module defines;
+    a vector field starts at :func:`vector_offset`.
     """
-    return np.array(
-        [float(getattr(params, f.name)) for f in dataclasses.fields(params) if "key" in f.metadata],
-        dtype=np.float64,
-    )
+    values = [
+        float(getattr(params, f.name)) for f in dataclasses.fields(params) if "key" in f.metadata
+    ]
+    for f in dataclasses.fields(params):
+        if "vector_key" in f.metadata:
+            entries = getattr(params, f.name)
+            values.extend(entries if entries else [0.0] * f.metadata["length"])
+    return np.array(values, dtype=np.float64)
+
+
+def vector_offset(cls: type, name: str) -> int:
+    """Position in :func:`pack`'s vector where the :func:`vector` field ``name`` starts."""
+    offset = sum(1 for f in dataclasses.fields(cls) if "key" in f.metadata)
+    for f in dataclasses.fields(cls):
+        if "vector_key" not in f.metadata:
+            continue
+        if f.name == name:
+            return offset
+        offset += f.metadata["length"]
+    raise ValueError(f"{name}: not a vector field of {cls.__name__}")
 
 
 def index_of(cls: type, name: str) -> int:

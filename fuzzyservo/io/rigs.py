@@ -20,9 +20,9 @@ import dataclasses
 from pathlib import Path
 from typing import Any
 
-from fuzzyservo.errors import ConfigError
+from fuzzyservo.errors import ConfigError, DataError
 from fuzzyservo.io._yaml import Node, read_yaml
-from fuzzyservo.params import check, fields_by_key
+from fuzzyservo.params import check, fields_by_key, vectors_by_key
 from fuzzyservo.plants import PLANTS, PlantModel
 from fuzzyservo.rig import Actuator, LinearSensor, Rig, Scenario
 from fuzzyservo.signals import Affine, Constant, Pulse, Signal, Sines, Steps
@@ -115,13 +115,37 @@ def load_rig(path: str | Path) -> Rig:
 
 def _params(plant: PlantModel, node: Node) -> Any:
     by_key = fields_by_key(plant.params_cls)
-    node.only(by_key)
-    values = {}
+    vectors = vectors_by_key(plant.params_cls)
+    node.only((*by_key, *vectors))
+    values: dict[str, Any] = {}
     for key, f in by_key.items():
         values[f.name] = node.quantity(
             key, f.metadata["unit"], default=f.metadata.get("default_value")
         )
+    for key, f in vectors.items():
+        if node.has(key):
+            values[f.name] = _vector(node.child(key), f.metadata["format"])
     return _build_params(plant, values, node)
+
+
+def _read_valve_network(path: Path) -> tuple[float, ...]:
+    from fuzzyservo.io.valve_data import read_valve_network
+
+    return read_valve_network(path).weights
+
+
+# vector parameters (params.vector) are read from a file named in the rig file
+_VECTOR_READERS = {"valve_network": _read_valve_network}
+
+
+def _vector(node: Node, fmt: str) -> tuple[float, ...]:
+    """``{file, source, note}``: the file, relative to the rig file, read by its format."""
+    node.only(("file", "source", "note"))
+    path = Path(node.file).parent / node.str("file")
+    try:
+        return _VECTOR_READERS[fmt](path)
+    except DataError as exc:
+        node.fail(f"{exc}; fix the file or name another", key="file")
 
 
 def _build_params(plant: PlantModel, values: dict[str, float], node: Node) -> Any:
@@ -130,7 +154,7 @@ def _build_params(plant: PlantModel, values: dict[str, float], node: Node) -> An
         check(params)
     except ValueError as exc:
         key, _, rest = str(exc).partition(": ")
-        if key in fields_by_key(plant.params_cls):
+        if key in fields_by_key(plant.params_cls) or key in vectors_by_key(plant.params_cls):
             node.fail(rest, key=key)
         node.fail(str(exc))
     return params

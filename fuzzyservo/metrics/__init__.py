@@ -5,8 +5,10 @@ time, overshoot, steady-state error, saturation time, IAE/ISE/ITAE, peak command
 MATLAB ``stepinfo`` conventions; :func:`result_metrics` applies it to a
 :class:`~fuzzyservo.simulation.result.SimResult`. :data:`METRIC_NAMES` lists the
 aggregate metrics in report order, :data:`METRIC_DOCS` gives each one's formula and unit.
+:func:`compensation_pct` scores a heave-compensation run (:func:`heave_metrics` on a result).
 """
 
+from fuzzyservo.metrics._heave import compensation_pct, heave_metrics
 from fuzzyservo.metrics._step import result_metrics, step_metrics
 from fuzzyservo.metrics._types import METRIC_DOCS, METRIC_NAMES, Metrics, StepMetrics
 
@@ -15,6 +17,8 @@ __all__ = [
     "METRIC_NAMES",
     "Metrics",
     "StepMetrics",
+    "compensation_pct",
+    "heave_metrics",
     "result_metrics",
     "step_metrics",
 ]

@@ -12,8 +12,14 @@ from typing import Any
 
 import numpy as np
 
-from fuzzyservo.plants import cylinder, motor
-from fuzzyservo.plants.kernels import KIND_CYLINDER, KIND_MOTOR
+from fuzzyservo.plants import ahc_cylinder, ahc_motor, cylinder, hydroprax, motor
+from fuzzyservo.plants.kernels import (
+    KIND_AHC_CYLINDER,
+    KIND_AHC_MOTOR,
+    KIND_CYLINDER,
+    KIND_HYDROPRAX,
+    KIND_MOTOR,
+)
 
 
 @dataclass(frozen=True)
@@ -70,6 +76,24 @@ PLANTS: dict[str, PlantModel] = {
             KIND_MOTOR,
             motor,
             "servo-valve + axial-piston motor, velocity loop (seed 000)",
+        ),
+        PlantModel.from_module(
+            "hydroprax_pdcv",
+            KIND_HYDROPRAX,
+            hydroprax,
+            "proportional valve + single-rod cylinder, spring load, pump with relief (seed 003)",
+        ),
+        PlantModel.from_module(
+            "ahc_cylinder",
+            KIND_AHC_CYLINDER,
+            ahc_cylinder,
+            "servo-valve + double-acting cylinder, AHC wave simulator (seed 001)",
+        ),
+        PlantModel.from_module(
+            "ahc_motor",
+            KIND_AHC_MOTOR,
+            ahc_motor,
+            "servo-valve + hydraulic motor with cable drum and load, AHC compensator (seed 001)",
         ),
     )
 }

@@ -11,10 +11,13 @@ import math
 import numpy as np
 
 from fuzzyservo._jit import njit
-from fuzzyservo.plants import cylinder, motor
+from fuzzyservo.plants import ahc_cylinder, ahc_motor, cylinder, hydroprax, motor
 
 KIND_CYLINDER = 0
 KIND_MOTOR = 1
+KIND_HYDROPRAX = 2
+KIND_AHC_CYLINDER = 3
+KIND_AHC_MOTOR = 4
 
 
 @njit(cache=True)
@@ -26,6 +29,12 @@ def plant_rhs(
         cylinder.rhs(x, u, load, p, dx)
     elif kind == KIND_MOTOR:
         motor.rhs(x, u, load, p, dx)
+    elif kind == KIND_HYDROPRAX:
+        hydroprax.rhs(x, u, load, p, dx)
+    elif kind == KIND_AHC_CYLINDER:
+        ahc_cylinder.rhs(x, u, load, p, dx)
+    elif kind == KIND_AHC_MOTOR:
+        ahc_motor.rhs(x, u, load, p, dx)
     else:
         dx[:] = np.nan
 
@@ -39,6 +48,12 @@ def plant_signals(
         cylinder.signals(x, u, load, p, out)
     elif kind == KIND_MOTOR:
         motor.signals(x, u, load, p, out)
+    elif kind == KIND_HYDROPRAX:
+        hydroprax.signals(x, u, load, p, out)
+    elif kind == KIND_AHC_CYLINDER:
+        ahc_cylinder.signals(x, u, load, p, out)
+    elif kind == KIND_AHC_MOTOR:
+        ahc_motor.signals(x, u, load, p, out)
     else:
         out[:] = np.nan
 
@@ -73,4 +88,10 @@ def plant_in_end_stop(kind: int, x: np.ndarray, p: np.ndarray) -> bool:
         return cylinder.in_end_stop(x, p)
     if kind == KIND_MOTOR:
         return motor.in_end_stop(x, p)
+    if kind == KIND_HYDROPRAX:
+        return hydroprax.in_end_stop(x, p)
+    if kind == KIND_AHC_CYLINDER:
+        return ahc_cylinder.in_end_stop(x, p)
+    if kind == KIND_AHC_MOTOR:
+        return ahc_motor.in_end_stop(x, p)
     return False

@@ -1,0 +1,107 @@
+"""Proportional-valve flow maps: the measured characteristic, the 4-way metering edges and
+a feed-forward neural network (seed 003). Pure compiled maps, no integration.
+
+Network layout (seed 003 §2-5, Fig. 7): inputs (P_S, U_C, P_A, P_B), one hidden layer of
+:data:`NN_HIDDEN` tanh units, linear outputs (Q_A, Q_B). Its parameters travel as one
+flat float vector of :data:`NN_SIZE` entries, in this order:
+
+    input offset (4), input scale (4), W1 (5×4, row-major), b1 (5),
+    W2 (2×5, row-major), b2 (2), output offset (2), output scale (2)
+
+    z = (x − offset_in) / scale_in;  h = tanh(W1·z + b1);  y = offset_out + scale_out·(W2·h + b2)
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from fuzzyservo._jit import njit
+from fuzzyservo.components.orifice import signed_sqrt_flow
+
+NN_INPUTS = 4
+NN_HIDDEN = 5
+NN_OUTPUTS = 2
+NN_SIZE = (
+    2 * NN_INPUTS
+    + NN_HIDDEN * NN_INPUTS
+    + NN_HIDDEN
+    + NN_OUTPUTS * NN_HIDDEN
+    + NN_OUTPUTS
+    + 2 * NN_OUTPUTS
+)
+# offsets of the blocks inside the flat vector
+NN_IN_OFFSET = 0
+NN_IN_SCALE = NN_INPUTS
+NN_W1 = 2 * NN_INPUTS
+NN_B1 = NN_W1 + NN_HIDDEN * NN_INPUTS
+NN_W2 = NN_B1 + NN_HIDDEN
+NN_B2 = NN_W2 + NN_OUTPUTS * NN_HIDDEN
+NN_OUT_OFFSET = NN_B2 + NN_OUTPUTS
+NN_OUT_SCALE = NN_OUT_OFFSET + NN_OUTPUTS
+
+
+@njit(cache=True, inline="always")
+def polynomial_flow(
+    u: float, u_max: float, c0: float, c1: float, c2: float, c3: float, c4: float
+) -> float:
+    """Measured flow characteristic Q(U) = c4·U⁴ + c3·U³ + c2·U² + c1·U + c0 [m³/s]
+    (seed 003 eq. 7), with ``u`` [V] clipped to ±``u_max`` where it was measured."""
+    uc = min(max(u, -u_max), u_max)
+    return (((c4 * uc + c3) * uc + c2) * uc + c1) * uc + c0
+
+
+@njit(cache=True, inline="always")
+def four_way_flows(
+    k: float, ps: float, pa: float, pb: float, pt: float, p_lam: float
+) -> tuple[float, float, float, float]:
+    """Metering-edge flows of a critically lapped 4-way valve [m³/s].
+
+    ``k`` [m³/(s·√Pa)] is the signed opening: k > 0 opens P→A and B→T, k < 0 opens
+    P→B and A→T; each edge is the regularised orifice law of
+    :func:`~fuzzyservo.components.orifice.signed_sqrt_flow`. Returns
+    (q_PA, q_BT, q_PB, q_AT), each positive in the direction of its name.
+    """
+    kp = max(k, 0.0)
+    kn = max(-k, 0.0)
+    return (
+        signed_sqrt_flow(kp, ps - pa, p_lam),
+        signed_sqrt_flow(kp, pb - pt, p_lam),
+        signed_sqrt_flow(kn, ps - pb, p_lam),
+        signed_sqrt_flow(kn, pa - pt, p_lam),
+    )
+
+
+@njit(cache=True, inline="always")
+def nn_forward(
+    w: np.ndarray, start: int, x0: float, x1: float, x2: float, x3: float
+) -> tuple[float, float]:
+    """The 4-5-2 tanh/linear network whose flat vector starts at ``w[start]`` (module
+    docstring layout); inputs and outputs in the units the network was trained in."""
+    z0 = (x0 - w[start + NN_IN_OFFSET]) / w[start + NN_IN_SCALE]
+    z1 = (x1 - w[start + NN_IN_OFFSET + 1]) / w[start + NN_IN_SCALE + 1]
+    z2 = (x2 - w[start + NN_IN_OFFSET + 2]) / w[start + NN_IN_SCALE + 2]
+    z3 = (x3 - w[start + NN_IN_OFFSET + 3]) / w[start + NN_IN_SCALE + 3]
+    y0 = w[start + NN_B2]
+    y1 = w[start + NN_B2 + 1]
+    for j in range(NN_HIDDEN):
+        r = start + NN_W1 + NN_INPUTS * j
+        h = math.tanh(
+            w[r] * z0 + w[r + 1] * z1 + w[r + 2] * z2 + w[r + 3] * z3 + w[start + NN_B1 + j]
+        )
+        y0 += w[start + NN_W2 + j] * h
+        y1 += w[start + NN_W2 + NN_HIDDEN + j] * h
+    return (
+        w[start + NN_OUT_OFFSET] + w[start + NN_OUT_SCALE] * y0,
+        w[start + NN_OUT_OFFSET + 1] + w[start + NN_OUT_SCALE + 1] * y1,
+    )
+
+
+@njit(cache=True)
+def nn_forward_batch(w: np.ndarray, inputs: np.ndarray, out: np.ndarray) -> None:
+    """:func:`nn_forward` for every row of ``inputs`` (n×4); writes ``out`` (n×2)."""
+    for i in range(inputs.shape[0]):
+        q0, q1 = nn_forward(w, 0, inputs[i, 0], inputs[i, 1], inputs[i, 2], inputs[i, 3])
+        out[i, 0] = q0
+        out[i, 1] = q1

@@ -1,0 +1,215 @@
+"""Servo-valve driving a hydraulic motor with a cable drum: the compensator of seed 001's AHC stand.
+
+States (SI): ``spool`` the valve opening as a fraction of full opening [1], ``w`` drum
+speed [rad/s], ``theta`` drum angle [rad] (positive pays cable out), ``p_a`` and
+``p_b`` the motor port pressures [Pa].
+
+    τ_v · dspool/dt = u / u_rated − spool                      (first-order spool, not in the seed)
+    Q_a = port_flow(+spool, p_a),  Q_b = port_flow(−spool, p_b)          (seed 001 eq. 3-4)
+    Q_lea = k_lea·(p_a − p_b)                   volumetric losses (eq. 12-13, k_lea)
+    (V_a/E)·dp_a/dt = Q_a − D_m·w − Q_lea
+    (V_b/E)·dp_b/dt = Q_b + D_m·w + Q_lea
+    (J + m·r²)·dw/dt = η_hm·D_m·(p_a − p_b) − b_w·w − T_c·tanh(w/w_c) + m·g·r   (eq. 14-15, motor eq.)
+    dtheta/dt = w
+
+``D_m`` is the displacement per radian (V_m/2π of eq. 10-11). The hydro-mechanical
+efficiency ``η_hm`` of eq. 15 is a constant factor on the ideal torque, applied in both
+directions of power flow (a simplification: a back-driven motor loses torque the
+other way); ``b_w`` and ``T_c`` are the speed-dependent and constant terms of the
+seed's hydro-mechanical losses (b_ω, b), smoothed over ``w_c``.
+
+The 5 kg load hangs on a rigid cable from the drum of radius r: its weight pulls the
+cable out (+m·g·r) and its inertia adds m·r². The plant's load input is the platform
+(cylinder rod) position z_w [m], which carries the motor; the load's absolute height
+is ``z_load = z_w − r·theta`` (signal). The platform's acceleration is left out of the
+cable tension: for the 0.05-0.2 Hz waves of the heave scenario it stays below
+0.2 m/s², 2 % of g.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from fuzzyservo._jit import njit
+from fuzzyservo.components.servo_valve import port_flow, return_flow, supply_flow
+from fuzzyservo.params import index_of, quantity
+
+STATES = ("spool", "w", "theta", "p_a", "p_b")
+SIGNALS = (
+    "spool", "w", "theta", "p_a", "p_b", "q_a", "q_b", "q_lea",
+    "q_supply", "q_return", "t_loss", "payout", "z_load",
+)  # fmt: skip
+SIGNAL_UNITS = {
+    "spool": "1", "w": "rad/s", "theta": "rad", "p_a": "Pa", "p_b": "Pa", "q_a": "m^3/s",
+    "q_b": "m^3/s", "q_lea": "m^3/s", "q_supply": "m^3/s", "q_return": "m^3/s",
+    "t_loss": "N*m", "payout": "m", "z_load": "m",
+}  # fmt: skip
+INPUT = ("u_valve", "V")  # the plant input: valve amplifier command
+LOAD = ("z_wave", "m")  # height of the platform (cylinder rod) carrying the motor
+
+
+@dataclass(frozen=True)
+class AhcMotorParams:
+    """Seed 001 §2.2 and §3-4 parameters, SI units (the rig file gives each with its source)."""
+
+    valve_time_constant_s: float = quantity("valve_time_constant", "s", positive=True)
+    rated_command_v: float = quantity("rated_command", "V", positive=True)
+    rated_flow_m3_s: float = quantity("rated_flow", "m^3/s", positive=True)
+    rated_pressure_drop_pa: float = quantity("rated_pressure_drop", "Pa", positive=True)
+    valve_leakage_m3_s_pa: float = quantity("valve_leakage", "m^3/(s*Pa)", nonnegative=True)
+    supply_pressure_pa: float = quantity("supply_pressure", "Pa", positive=True)
+    tank_pressure_pa: float = quantity("tank_pressure", "Pa", nonnegative=True)
+    displacement_m3_rad: float = quantity("motor_displacement", "m^3/rad", positive=True)
+    port_volume_m3: float = quantity("port_volume", "m^3", positive=True)
+    motor_leakage_m3_s_pa: float = quantity("motor_leakage", "m^3/(s*Pa)", nonnegative=True)
+    hydromechanical_efficiency: float = quantity(
+        "hydromechanical_efficiency", "1", positive=True, maximum=1.0
+    )
+    viscous_friction_n_m_s: float = quantity("viscous_friction", "N*m*s/rad", nonnegative=True)
+    coulomb_torque_n_m: float = quantity("coulomb_torque", "N*m", nonnegative=True)
+    coulomb_velocity_rad_s: float = quantity("coulomb_velocity", "rad/s", positive=True)
+    inertia_kg_m2: float = quantity("inertia", "kg*m^2", positive=True)
+    drum_radius_m: float = quantity("drum_radius", "m", positive=True)
+    load_mass_kg: float = quantity("load_mass", "kg", nonnegative=True)
+    gravity_m_s2: float = quantity("gravity", "m/s^2", nonnegative=True)
+    bulk_modulus_pa: float = quantity("bulk_modulus", "Pa", positive=True)
+    laminar_pressure_pa: float = quantity("laminar_pressure", "Pa", positive=True)
+
+    def __post_init__(self) -> None:
+        if self.supply_pressure_pa <= self.tank_pressure_pa:
+            raise ValueError(
+                f"supply_pressure: must exceed tank_pressure "
+                f"(got {self.supply_pressure_pa} Pa <= {self.tank_pressure_pa} Pa); "
+                f"check both values and their units"
+            )
+
+    @property
+    def valve_coeff(self) -> float:
+        """Fully open land K = Q_n / sqrt(Δp_n/2) [m³/(s·sqrt(Pa))]: Δp_n over two lands."""
+        return self.rated_flow_m3_s / math.sqrt(0.5 * self.rated_pressure_drop_pa)
+
+    @property
+    def load_torque_n_m(self) -> float:
+        """Torque of the hanging load on the drum, m·g·r [N·m]."""
+        return self.load_mass_kg * self.gravity_m_s2 * self.drum_radius_m
+
+
+PARAMS = AhcMotorParams
+_P = {name: index_of(AhcMotorParams, name) for name in AhcMotorParams.__dataclass_fields__}
+P_TAU = _P["valve_time_constant_s"]
+P_UN = _P["rated_command_v"]
+P_QN = _P["rated_flow_m3_s"]
+P_DPN = _P["rated_pressure_drop_pa"]
+P_KL = _P["valve_leakage_m3_s_pa"]
+P_PS = _P["supply_pressure_pa"]
+P_PT = _P["tank_pressure_pa"]
+P_DM = _P["displacement_m3_rad"]
+P_V = _P["port_volume_m3"]
+P_KLEA = _P["motor_leakage_m3_s_pa"]
+P_ETA = _P["hydromechanical_efficiency"]
+P_BW = _P["viscous_friction_n_m_s"]
+P_TC = _P["coulomb_torque_n_m"]
+P_WC = _P["coulomb_velocity_rad_s"]
+P_J = _P["inertia_kg_m2"]
+P_R = _P["drum_radius_m"]
+P_ML = _P["load_mass_kg"]
+P_G = _P["gravity_m_s2"]
+P_E = _P["bulk_modulus_pa"]
+P_PLAM = _P["laminar_pressure_pa"]
+
+
+@njit(cache=True, inline="always")
+def _evaluate(
+    x: np.ndarray, u: float, z_wave: float, p: np.ndarray, dx: np.ndarray, out: np.ndarray
+) -> None:
+    """The whole model in one flat function; writes dx/dt and, when ``out`` has room, SIGNALS."""
+    s = x[0]
+    w = x[1]
+    pa = x[3]
+    pb = x[4]
+    k = p[P_QN] / math.sqrt(0.5 * p[P_DPN])
+    ps = p[P_PS]
+    pt = p[P_PT]
+    lam = p[P_PLAM]
+    kl = p[P_KL]
+    dm = p[P_DM]
+    r = p[P_R]
+    qa = port_flow(s, k, kl, ps, pt, pa, lam)
+    qb = port_flow(-s, k, kl, ps, pt, pb, lam)
+    qlea = p[P_KLEA] * (pa - pb)  # volumetric losses (eq. 12-13)
+    t_loss = p[P_BW] * w + p[P_TC] * math.tanh(w / p[P_WC])
+    t_load = p[P_ML] * p[P_G] * r
+    e_v = p[P_E] / p[P_V]
+    dx[0] = (u / p[P_UN] - s) / p[P_TAU]
+    dx[1] = (p[P_ETA] * dm * (pa - pb) - t_loss + t_load) / (p[P_J] + p[P_ML] * r * r)
+    dx[2] = w
+    dx[3] = e_v * (qa - dm * w - qlea)
+    dx[4] = e_v * (qb + dm * w + qlea)
+    if out.size >= 13:
+        out[0] = s
+        out[1] = w
+        out[2] = x[2]
+        out[3] = pa
+        out[4] = pb
+        out[5] = qa
+        out[6] = qb
+        out[7] = qlea
+        out[8] = supply_flow(s, k, kl, ps, pa, lam) + supply_flow(-s, k, kl, ps, pb, lam)
+        out[9] = return_flow(s, k, kl, pt, pa, lam) + return_flow(-s, k, kl, pt, pb, lam)
+        out[10] = t_loss
+        out[11] = r * x[2]
+        out[12] = z_wave - r * x[2]
+
+
+@njit(cache=True, inline="always")
+def rhs(x: np.ndarray, u: float, z_wave: float, p: np.ndarray, dx: np.ndarray) -> None:
+    """Right-hand side dx/dt of the seed-001 compensator motor (module docstring).
+
+    ``x`` states (STATES), ``u`` valve command [V], ``z_wave`` platform height [m]
+    (enters only the signals: the cable is rigid), ``p`` packed :class:`AhcMotorParams`.
+    """
+    _evaluate(x, u, z_wave, p, dx, dx)
+
+
+@njit(cache=True)
+def signals(x: np.ndarray, u: float, z_wave: float, p: np.ndarray, out: np.ndarray) -> None:
+    """Every signal of SIGNALS for state ``x``; writes ``out``."""
+    dx = np.empty(x.size)
+    _evaluate(x, u, z_wave, p, dx, out)
+
+
+@njit(cache=True)
+def in_end_stop(x: np.ndarray, p: np.ndarray) -> bool:
+    """A motor has no end stop."""
+    return False
+
+
+def state_scale(params: AhcMotorParams) -> np.ndarray:
+    """Unit of local error per state: 1e-4 of spool, 0.01 rad/s, 0.1 mrad, 1 kPa."""
+    return np.array([1e-4, 1e-2, 1e-4, 1e3, 1e3])
+
+
+def typical_state(params: AhcMotorParams) -> np.ndarray:
+    """Typical magnitude of each state (finite-difference increments): 0.1, 10 rad/s, 1 rad, 1 MPa."""
+    return np.array([0.1, 10.0, 1.0, 1e6, 1e6])
+
+
+INITIAL_KEYS = {"angle": ("theta_rad", "rad")}
+
+
+def holding_pressures(params: AhcMotorParams) -> tuple[float, float]:
+    """Port pressures (p_a, p_b) [Pa] whose torque holds the load at rest: symmetric about
+    the valve's null pressure, p_b − p_a = m·g·r/(η_hm·D_m) (eq. 15). The flows balance
+    with a spool opening of a fraction of a percent, which the loop finds."""
+    null = 0.5 * (params.supply_pressure_pa + params.tank_pressure_pa)
+    dp = params.load_torque_n_m / (params.hydromechanical_efficiency * params.displacement_m3_rad)
+    return null - 0.5 * dp, null + 0.5 * dp
+
+
+def initial_state(params: AhcMotorParams, *, theta_rad: float = 0.0) -> np.ndarray:
+    """At rest at ``theta_rad``, spool centred, port pressures holding the load."""
+    pa, pb = holding_pressures(params)
+    return np.array([0.0, 0.0, theta_rad, pa, pb])

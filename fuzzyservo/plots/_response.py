@@ -11,17 +11,22 @@ from matplotlib.figure import Figure
 from fuzzyservo.plots._display import axis_label, controller_colour, to_display
 from fuzzyservo.simulation.result import SimResult
 
-# Seed 002 Fig. 6.c: p1 green, p2 blue, p3 magenta, p4 red.
+# Seed 002 Fig. 6.c: p1 green, p2 blue, p3 magenta, p4 red; other rigs' pressures
+# (any signal in Pa) take the next colours of this cycle.
 _PRESSURE_COLOURS = {
     "p1": "tab:green",
     "p2": "tab:blue",
     "p3": "magenta",
     "p4": "tab:red",
     "p_load": "black",
+    "p_a": "magenta",
+    "p_b": "tab:red",
+    "p_s": "tab:green",
 }
-# With several controllers, the chamber pressures p3 and p4 (the ones that move the
-# piston) are enough; four pressures per controller would not read.
-_PRESSURES_COMPARED = ("p3", "p4")
+_OTHER_COLOURS = ("tab:purple", "tab:brown", "tab:olive", "tab:cyan")
+# With several controllers, the actuator chamber pressures (the ones that move the
+# piston) are enough; every pressure per controller would not read.
+_PRESSURES_COMPARED = (("p3", "p4"), ("p_a", "p_b"))
 _LINE_STYLES = ("-", "--", "-.", ":")
 _REFERENCE_COLOUR = "tab:green"
 
@@ -32,8 +37,8 @@ def response_figure(results: Sequence[SimResult]) -> Figure:
     Three panels sharing the time axis, as seed 002 Fig. 6: (a) the reference (dashed,
     once) and every controller's output; (b) every actuator signal with the actuator
     limits (dotted) and the first result's saturated intervals shaded; (c) the
-    pressures among ``p1 p2 p3 p4 p_load`` the rig records (all of them for one
-    result, ``p3``/``p4`` per controller when comparing). Signals are shown in the
+    pressures the rig records (every signal in Pa for one result, the actuator
+    chambers ``p3``/``p4`` or ``p_a``/``p_b`` per controller when comparing). Signals are shown in the
     rig's display unit, else bar, mA and l/min, else SI. The warm-up (``t <
     warmup_s``) is shaded grey. All results must come from one rig and scenario.
     """
@@ -146,9 +151,21 @@ def _shade_saturation(ax: Axes, result: SimResult) -> None:
 
 def _pressure_panel(ax: Axes, results: list[SimResult]) -> None:
     ax.set_title("(c) pressures", loc="left", fontsize=10)
-    recorded = [n for n in _PRESSURE_COLOURS if all(n in r.signals for r in results)]
-    if len(results) > 1 and all(n in recorded for n in _PRESSURES_COMPARED):
-        recorded = list(_PRESSURES_COMPARED)
+    first = results[0]
+    recorded = [
+        n
+        for n in first.signals
+        if first.units.get(n) == "Pa" and all(n in r.signals for r in results)
+    ]
+    colours = {
+        n: _PRESSURE_COLOURS.get(n, _OTHER_COLOURS[k % len(_OTHER_COLOURS)])
+        for k, n in enumerate(recorded)
+    }
+    if len(results) > 1:
+        for pair in _PRESSURES_COMPARED:
+            if all(n in recorded for n in pair):
+                recorded = list(pair)
+                break
     if not recorded:
         ax.text(0.5, 0.5, "no pressures recorded", transform=ax.transAxes, ha="center")
         ax.set_ylabel("pressure")
@@ -159,13 +176,12 @@ def _pressure_panel(ax: Axes, results: list[SimResult]) -> None:
         for name in recorded:
             p, unit = to_display(r, name, r.signals[name])
             if len(results) == 1:
-                ax.plot(r.t, p, color=_PRESSURE_COLOURS[name], lw=1.2, label=name)
+                ax.plot(r.t, p, color=colours[name], lw=1.2, label=name)
             elif len(recorded) == 1:
                 # One pressure: tell controllers apart by the colours of panels (a), (b).
                 ax.plot(r.t, p, color=controller_colour(k), lw=1.2, label=_label(r))
             else:
-                colour = _PRESSURE_COLOURS[name]
-                ax.plot(r.t, p, color=colour, ls=style, lw=1.2, label=f"{name} {_label(r)}")
+                ax.plot(r.t, p, color=colours[name], ls=style, lw=1.2, label=f"{name} {_label(r)}")
     what = recorded[0] if len(recorded) == 1 else "pressure"
     ax.set_ylabel(axis_label(what, unit))
     ax.legend(loc="best", fontsize=8, ncol=2 if len(results) > 1 and len(recorded) > 1 else 1)

@@ -312,6 +312,21 @@ def _fmt_values(values) -> str:
     return ", ".join(_fmt(v) for v in values)
 
 
+def _network_file_of(rig_name: str) -> Path:
+    """The weights file a rig names under ``nn_weights`` (written next to the rig)."""
+    from fuzzyservo.io._yaml import read_yaml
+
+    path = resolve(rig_name, "rigs", "rig")
+    entry = read_yaml(path).get("plant", {}).get("parameters", {}).get("nn_weights")
+    if not isinstance(entry, dict) or "file" not in entry:
+        raise ConfigError(
+            "names no nn_weights file; give --out FILE",
+            file=str(path),
+            key="plant.parameters.nn_weights",
+        )
+    return path.parent / entry["file"]
+
+
 def cmd_fit_valve(args: argparse.Namespace) -> int:
     """Train the seed-003 valve network on a valve-data CSV and write it as JSON."""
     from fuzzyservo.components.nn_fit import fit_valve_network
@@ -325,7 +340,7 @@ def cmd_fit_valve(args: argparse.Namespace) -> int:
         fit = fit_valve_network(data, seed=args.seed, restarts=args.restarts)
     except ValueError as exc:
         raise DataError(f"{args.data}: {exc}") from None
-    out = Path(args.out) if args.out else Path(args.data).with_suffix(".json")
+    out = Path(args.out) if args.out else _network_file_of(args.rig)
     write_valve_network(
         out,
         fit.weights,
@@ -498,7 +513,16 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument(
         "data", help="CSV with columns p_s_bar, u_c_V, p_a_bar, p_b_bar, q_a_l_min, q_b_l_min"
     )
-    p.add_argument("--out", metavar="FILE", help="network JSON to write (default: DATA with .json)")
+    p.add_argument(
+        "--out",
+        metavar="FILE",
+        help="network JSON to write (default: the file the rig names, next to it)",
+    )
+    p.add_argument(
+        "--rig",
+        default="hydroprax_pdcv",
+        help="rig whose nn_weights file to write (default: hydroprax_pdcv)",
+    )
     p.add_argument(
         "--seed", type=int, default=0, help="seed of the split and restarts (default: 0)"
     )

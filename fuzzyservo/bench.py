@@ -18,6 +18,7 @@ from pathlib import Path
 
 import numpy as np
 
+from fuzzyservo.io.paths import project_root
 from fuzzyservo.simulation import SimResult, simulate
 from fuzzyservo.simulation.reference import simulate_reference
 
@@ -62,11 +63,6 @@ class BenchResult:
             "integration_steps": self.integration_steps,
             "error": self.error,
         }
-
-
-def project_root() -> Path:
-    """The checkout holding ``rigs/`` and ``studies/`` (the package's parent folder)."""
-    return Path(__file__).resolve().parent.parent
 
 
 CASES = (

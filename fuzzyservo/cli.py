@@ -22,25 +22,11 @@ EXIT_FAILED_RUN = 1
 
 
 # --------------------------------------------------------------------------- files
-def _search_dirs() -> list[Path]:
-    from fuzzyservo.bench import project_root
-
-    return [Path.cwd(), project_root()]
-
-
 def resolve(name: str, folder: str, what: str) -> Path:
     """A path as given, or a bare name looked up as ``<folder>/<name>.yaml`` (here, then in the checkout)."""
-    given = Path(name)
-    if given.is_file():
-        return given
-    if given.suffix in (".yaml", ".yml", ".fis") or "/" in name:
-        raise ConfigError(f"{what} file not found; check the path", file=name)
-    for base in _search_dirs():
-        candidate = base / folder / f"{name}.yaml"
-        if candidate.is_file():
-            return candidate
-    known = sorted({p.stem for base in _search_dirs() for p in (base / folder).glob("*.yaml")})
-    raise ConfigError(f"no {what} named {name!r}; known: {', '.join(known) or 'none'}", file=name)
+    from fuzzyservo.io.paths import find_file
+
+    return find_file(name, folder, what)
 
 
 def _load(rig_name: str, controller_names: Sequence[str]):

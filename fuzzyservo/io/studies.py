@@ -30,6 +30,7 @@ from typing import Any
 
 from fuzzyservo.errors import ConfigError
 from fuzzyservo.io._yaml import Node, read_yaml
+from fuzzyservo.io.paths import find_file
 from fuzzyservo.metrics import METRIC_NAMES
 from fuzzyservo.tuning.spec import AGGREGATES, SAMPLERS, Constraint, Objective, ParamSpec, StudySpec
 
@@ -38,22 +39,6 @@ _TOP = (
     "objective", "aggregate", "constraints", "sampler", "seed", "trials", "timeout_s", "storage", "penalty",
 )  # fmt: skip
 DEFAULT_BASELINE = "p_k10"
-
-
-def locate(name: str, relative_to: Path, folder: str, what: str) -> Path:
-    """A path relative to the study file, or a bare name under the checkout's ``folder``."""
-    given = Path(name)
-    for candidate in (relative_to.parent / given, given):
-        if candidate.is_file():
-            return candidate
-    if not given.suffix:
-        from fuzzyservo.bench import project_root
-
-        for base in (Path.cwd(), project_root()):
-            candidate = base / folder / f"{name}.yaml"
-            if candidate.is_file():
-                return candidate
-    raise FileNotFoundError(f"no {what} {name!r} (looked beside the study and under {folder}/)")
 
 
 def load_study(path: str | Path) -> StudySpec:
@@ -70,9 +55,9 @@ def load_study(path: str | Path) -> StudySpec:
     ):
         name = root.str(key, default=default)
         try:
-            files[key] = str(locate(name, here, folder, key))
-        except FileNotFoundError as exc:
-            root.fail(f"{exc}; check the name", key=key)
+            files[key] = str(find_file(name, folder, key, relative_to=here))
+        except ConfigError as exc:
+            root.fail(f"{exc.detail} (looked beside the study and under {folder}/)", key=key)
     scenarios = root.data.get("scenarios")
     if isinstance(scenarios, str):
         scenarios = [scenarios]

@@ -1,0 +1,532 @@
+"""Measured rig data (CSV or MATLAB ``.mat``) ⇄ :class:`Measured`, time series in SI units.
+
+Every column (or ``.mat`` variable) is named ``<signal>_<unit>``: ``t_s``, ``y_cm``,
+``p1_bar``, ``w_rad_s`` (signal ``w`` in rad/s), ``v_m_s`` (``v`` in m/s), ``ref_1``
+(dimensionless, e.g. a normalised force). The unit is the longest known suffix, so
+``w_rad_s`` is ``w`` in ``rad_s``, not ``w_rad`` in ``s``. Files with plain names
+(``t,r,u,y,d``) are read through ``mapping={"t": "t_s", "r": "ref_1", ...}``.
+
+Signals are any identifier; ``t`` is time and must be given in a time unit. Values are
+converted with :func:`fuzzyservo.units.to_si`. Groundwork for calibration: this module
+only reads and checks data, it fits nothing.
+
+A file that cannot be used raises :class:`~fuzzyservo.errors.DataError` with one line:
+file, column, problem, fix. Row numbers are file line numbers (the header is row 1),
+which is also the row a spreadsheet shows.
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import re
+from collections.abc import Callable, Iterable, Mapping
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from fuzzyservo.errors import DataError
+from fuzzyservo.units import parse_unit, to_si
+
+__all__ = ["UNIT_SUFFIXES", "Measured", "read_measured"]
+
+MIN_SAMPLES = 20
+UNEVEN_TOLERANCE = 0.01  # relative spread (max dt - min dt) / median dt
+
+# header suffix -> (unit expression for fuzzyservo.units, SI unit of the stored values)
+UNIT_SUFFIXES: dict[str, tuple[str, str]] = {
+    "s": ("s", "s"),
+    "ms": ("ms", "s"),
+    "min": ("min", "s"),
+    "m": ("m", "m"),
+    "cm": ("cm", "m"),
+    "mm": ("mm", "m"),
+    "um": ("um", "m"),
+    "rad": ("rad", "rad"),
+    "deg": ("deg", "rad"),
+    "m_s": ("m/s", "m/s"),
+    "cm_s": ("cm/s", "m/s"),
+    "mm_s": ("mm/s", "m/s"),
+    "m_s2": ("m/s^2", "m/s^2"),
+    "rad_s": ("rad/s", "rad/s"),
+    "deg_s": ("deg/s", "rad/s"),
+    "rpm": ("rpm", "rad/s"),
+    "A": ("A", "A"),
+    "mA": ("mA", "A"),
+    "V": ("V", "V"),
+    "mV": ("mV", "V"),
+    "Pa": ("Pa", "Pa"),
+    "kPa": ("kPa", "Pa"),
+    "bar": ("bar", "Pa"),
+    "MPa": ("MPa", "Pa"),
+    "N": ("N", "N"),
+    "kN": ("kN", "N"),
+    "N_m": ("N*m", "N*m"),
+    "l_min": ("l/min", "m^3/s"),
+    "m3_s": ("m^3/s", "m^3/s"),
+    "1": ("1", "1"),
+    "pct": ("pct", "1"),
+}
+_BY_LENGTH = sorted(UNIT_SUFFIXES, key=len, reverse=True)
+_SIGNAL = re.compile(r"[A-Za-z][A-Za-z0-9_]*\Z")
+_TIME_DIMS = parse_unit("s").dims
+
+
+@dataclass(frozen=True, eq=False)
+class Measured:
+    """Sampled signals on one time axis, all in SI units.
+
+    ``t`` is time in s (as in the file, not shifted to zero); ``signals`` maps a signal
+    name (``y``, ``u``, ``p1`` ...) to an array of the same length as ``t``; ``units``
+    gives the SI unit of each signal (``m``, ``Pa``, ``rad/s``, ``1`` ...);
+    ``sample_period_s`` is the median of ``diff(t)``. Arrays are read-only.
+    """
+
+    t: np.ndarray
+    signals: dict[str, np.ndarray]
+    units: dict[str, str]
+    source: str
+    sample_period_s: float
+
+    def __post_init__(self) -> None:
+        t = np.array(self.t, dtype=np.float64)
+        if t.ndim != 1 or t.size < 2:
+            raise ValueError(f"t must be a vector of at least 2 samples, got shape {t.shape}")
+        signals = {}
+        for name, values in self.signals.items():
+            x = np.array(values, dtype=np.float64)
+            if x.shape != t.shape:
+                raise ValueError(
+                    f"signal {name!r} has shape {x.shape}, t has {t.shape}; give one value per time"
+                )
+            x.setflags(write=False)
+            signals[name] = x
+        if set(self.units) != set(signals):
+            raise ValueError(
+                f"units name {sorted(self.units)} but signals are {sorted(signals)}; "
+                "give one unit per signal"
+            )
+        t.setflags(write=False)
+        object.__setattr__(self, "t", t)
+        object.__setattr__(self, "signals", signals)
+        object.__setattr__(self, "units", dict(self.units))
+
+    def __len__(self) -> int:
+        return int(self.t.size)
+
+    def _take(self, index: slice | np.ndarray, source: str) -> Measured:
+        t = self.t[index]
+        if t.size < 2:
+            raise ValueError(
+                f"{source} holds {t.size} sample(s) of {self.source}; choose a range with at least 2"
+            )
+        return Measured(
+            t=t,
+            signals={k: v[index] for k, v in self.signals.items()},
+            units=self.units,
+            source=source,
+            sample_period_s=float(np.median(np.diff(t))),
+        )
+
+    def segment(self, t0_s: float, t1_s: float) -> Measured:
+        """Samples with ``t0_s <= t < t1_s`` (half-open, so consecutive segments do not overlap)."""
+        if not t0_s < t1_s:
+            raise ValueError(f"segment needs t0_s < t1_s, but got (t0_s={t0_s}, t1_s={t1_s})")
+        mask = (self.t >= t0_s) & (self.t < t1_s)
+        return self._take(mask, f"{self.source}[{t0_s:g} s, {t1_s:g} s)")
+
+    def split(self, fraction: float) -> tuple[Measured, Measured]:
+        """(training, held-out): the first ``fraction`` of the samples and the rest, in time order."""
+        if not 0.0 < fraction < 1.0:
+            raise ValueError(f"split needs 0 < fraction < 1, but got fraction={fraction}")
+        k = round(fraction * len(self))
+        train = self._take(slice(0, k), f"{self.source}[:{k}]")
+        held_out = self._take(slice(k, len(self)), f"{self.source}[{k}:]")
+        return train, held_out
+
+
+@dataclass
+class _Column:
+    name: str  # as in the file
+    spec: str  # <signal>_<unit>, after mapping
+    signal: str
+    suffix: str
+    values: np.ndarray | None = None
+
+    def label(self, kind: str) -> str:
+        mapped = f" (mapped to {self.spec})" if self.spec != self.name else ""
+        return f"{kind} {self.name!r}{mapped}"
+
+
+def _known_units() -> str:
+    return ", ".join(UNIT_SUFFIXES)
+
+
+def _parse_name(file: str, kind: str, name: str, spec: str) -> _Column:
+    """Split ``<signal>_<unit>`` at the longest known unit suffix."""
+    where = f"{file}: {kind} {name!r}" + (f" (mapped to {spec!r})" if spec != name else "")
+    for suffix in _BY_LENGTH:
+        if spec.endswith("_" + suffix):
+            signal = spec[: -len(suffix) - 1]
+            if _SIGNAL.match(signal):
+                break
+    else:
+        if "_" not in spec.strip("_"):
+            raise DataError(
+                f"{where}: the name says no unit; name it <signal>_<unit> (e.g. y_cm, u_V) "
+                f"or pass mapping={{{name!r}: 'y_cm'}} with its real signal and unit"
+            )
+        head, unit = spec.split("_", 1)
+        if not _SIGNAL.match(head):
+            raise DataError(
+                f"{where}: cannot read a signal name before the unit; start it with a letter, "
+                "e.g. y_cm or p1_bar"
+            )
+        raise DataError(
+            f"{where}: unknown unit {unit!r}; convert the values to a known unit "
+            f"({_known_units()}) and rename it, e.g. {head}_{_BY_LENGTH[-1]}"
+        )
+    if signal == "t" and parse_unit(UNIT_SUFFIXES[suffix][0]).dims != _TIME_DIMS:
+        raise DataError(
+            f"{where}: signal 't' is time but unit {suffix!r} is not a time unit; give time in "
+            "s or ms, or rename the signal (e.g. tau_N_m for a torque)"
+        )
+    return _Column(name=name, spec=spec, signal=signal, suffix=suffix)
+
+
+def _columns(
+    file: str, kind: str, names: list[str], mapping: Mapping[str, str] | None
+) -> list[_Column]:
+    mapping = dict(mapping or {})
+    missing = [k for k in mapping if k not in names]
+    if missing:
+        raise DataError(
+            f"{file}: mapping names {kind} {missing[0]!r}, which the file does not have; "
+            f"use one of: {', '.join(names)}"
+        )
+    columns = []
+    seen: dict[str, str] = {}
+    for name in names:
+        col = _parse_name(file, kind, name, mapping.get(name, name))
+        if col.signal in seen:
+            raise DataError(
+                f"{file}: {col.label(kind)}: signal {col.signal!r} is also given by "
+                f"{kind} {seen[col.signal]!r}; keep one of them or rename a signal"
+            )
+        seen[col.signal] = name
+        columns.append(col)
+    return columns
+
+
+def _check_required(
+    file: str, kind: str, columns: list[_Column], require: Iterable[str], has_period: bool
+) -> None:
+    signals = {c.signal for c in columns}
+    found = ", ".join(c.spec for c in columns)
+    for signal in dict.fromkeys(("t", *require)):
+        if signal in signals or (signal == "t" and has_period):
+            continue
+        if signal == "t":
+            raise DataError(
+                f"{file}: no time {kind} (found {found}); add a t_s {kind}, map one with "
+                "mapping={'time': 't_s'}, or pass sample_period_s to build time as n*T"
+            )
+        raise DataError(
+            f"{file}: required signal {signal!r} missing (found {found}); add a "
+            f"{signal}_<unit> {kind} or map one with mapping={{'<name>': '{signal}_<unit>'}}"
+        )
+
+
+def _check_finite(file: str, where: str, x: np.ndarray, row: Callable[[int], str]) -> None:
+    bad = ~np.isfinite(x)
+    if bad.any():
+        i = int(np.flatnonzero(bad)[0])
+        what = "NaN" if np.isnan(x[i]) else "an infinite value"
+        raise DataError(
+            f"{file}: {where}: {what} at {row(i)} ({int(bad.sum())} non-finite values); "
+            "fill the gap or delete those rows"
+        )
+
+
+def _time_axis(
+    file: str,
+    where: str,
+    t: np.ndarray,
+    signals: dict[str, np.ndarray],
+    row: Callable[[int], str],
+    resample: bool,
+) -> tuple[np.ndarray, dict[str, np.ndarray]]:
+    """Check the time column; with ``resample`` average repeated stamps and interpolate."""
+    dt = np.diff(t)
+    back = np.flatnonzero(dt < 0)
+    if back.size:
+        i = int(back[0])
+        raise DataError(
+            f"{file}: {where}: time goes backwards from {t[i]:.6g} s at {row(i)} to "
+            f"{t[i + 1]:.6g} s at {row(i + 1)} ({back.size} such steps); sort the rows by time "
+            "or split the file where a new record starts"
+        )
+    repeated = np.flatnonzero(dt == 0)
+    if repeated.size and not resample:
+        i = int(repeated[0])
+        raise DataError(
+            f"{file}: {where}: repeated time stamp {t[i]:.6g} s at {row(i)} and {row(i + 1)} "
+            f"({repeated.size} repeated stamps); pass resample=True to average them and resample "
+            "onto a uniform grid, or sample_period_s=T to rebuild time as n*T"
+        )
+    if resample:
+        stamps, inverse, counts = np.unique(t, return_inverse=True, return_counts=True)
+        if stamps.size < 2:
+            raise DataError(
+                f"{file}: {where}: every row has the time stamp {t[0]:.6g} s; "
+                "give a real time column or pass sample_period_s"
+            )
+        # Same number of points as rows: the mean row interval is the best estimate of the
+        # true period when stamps are quantised (printed with too few digits).
+        grid = np.linspace(stamps[0], stamps[-1], t.size)
+        out = {
+            k: np.interp(grid, stamps, np.bincount(inverse, weights=v) / counts)
+            for k, v in signals.items()
+        }
+        return grid, out
+    median = float(np.median(dt))
+    spread = float(dt.max() - dt.min()) / median
+    if spread > UNEVEN_TOLERANCE:
+        i = int(np.argmax(np.abs(dt - median)))
+        raise DataError(
+            f"{file}: {where}: uneven sampling, dt from {dt.min():.6g} to {dt.max():.6g} s "
+            f"(median {median:.6g} s, spread {100 * spread:.1f} % > {100 * UNEVEN_TOLERANCE:g} %); "
+            f"worst gap {dt[i]:.6g} s between {row(i)} and {row(i + 1)} (t = {t[i]:.6g} s); "
+            "pass resample=True to resample onto a uniform grid by linear interpolation"
+        )
+    return t, signals
+
+
+def _build(
+    file: str,
+    kind: str,
+    columns: list[_Column],
+    row: Callable[[int], str],
+    sample_period_s: float | None,
+    resample: bool,
+) -> Measured:
+    if not columns:
+        raise DataError(f"{file}: no signal {kind}s besides time; add the measured signals")
+    n = columns[0].values.size
+    if n < MIN_SAMPLES:
+        raise DataError(
+            f"{file}: {columns[0].label(kind)}: only {n} samples, "
+            f"at least {MIN_SAMPLES} are needed; record a longer run"
+        )
+    signals: dict[str, np.ndarray] = {}
+    units: dict[str, str] = {}
+    time_col = None
+    for col in columns:
+        expr, si = UNIT_SUFFIXES[col.suffix]
+        values = col.values * to_si(1.0, expr, si)
+        if col.signal == "t":
+            time_col = (col, values)
+            continue
+        signals[col.signal] = values
+        units[col.signal] = si
+    if sample_period_s is not None:
+        t = np.arange(n) * sample_period_s
+    else:
+        if time_col is None:  # _check_required rules this out; keep the error one line anyway
+            raise DataError(f"{file}: no time {kind}; add a t_s {kind} or pass sample_period_s")
+        col, t = time_col
+        t, signals = _time_axis(file, col.label(kind), t, signals, row, resample)
+    return Measured(
+        t=t,
+        signals=signals,
+        units=units,
+        source=file,
+        sample_period_s=float(np.median(np.diff(t))),
+    )
+
+
+# -- CSV ---------------------------------------------------------------------------------
+
+
+def _read_csv_cells(p: Path, file: str) -> tuple[list[str], list[list[str]], list[int]]:
+    try:
+        text = p.read_text(encoding="utf-8-sig")
+    except UnicodeDecodeError as exc:
+        raise DataError(
+            f"{file}: not UTF-8 text (byte {exc.object[exc.start]:#04x} at offset {exc.start}); "
+            "save the file as UTF-8 CSV"
+        ) from None
+    except OSError as exc:
+        raise DataError(
+            f"{file}: cannot read the file ({exc.strerror or exc}); check its permissions"
+        ) from None
+    first = next((line for line in text.splitlines() if line.strip()), "")
+    if not first:
+        raise DataError(f"{file}: the file is empty; give a header line and data rows")
+    delimiter = "," if "," in first else ";" if ";" in first else "\t" if "\t" in first else ","
+    reader = csv.reader(io.StringIO(text), delimiter=delimiter)
+    header: list[str] | None = None
+    rows: list[list[str]] = []
+    lines: list[int] = []
+    for cells in reader:
+        if not any(c.strip() for c in cells):
+            continue
+        if header is None:
+            header = [c.strip() for c in cells]
+            continue
+        if len(cells) != len(header):
+            raise DataError(
+                f"{file}: row {reader.line_num} has {len(cells)} cells, the header has "
+                f"{len(header)}; fix or delete the row"
+            )
+        rows.append(cells)
+        lines.append(reader.line_num)
+    if header is None or not rows:
+        raise DataError(f"{file}: no data rows below the header; add measurements")
+    for j, name in enumerate(header):
+        if not name:
+            raise DataError(
+                f"{file}: column {j + 1} has no name; name it <signal>_<unit> (e.g. y_cm)"
+            )
+        if name in header[:j]:
+            raise DataError(f"{file}: column {name!r} appears twice; rename or delete one")
+    return header, rows, lines
+
+
+def _csv_values(file: str, where: str, cells: list[str], row: Callable[[int], str]) -> np.ndarray:
+    cells = [c.strip() for c in cells]
+    try:
+        return np.array(cells, dtype=np.float64)
+    except ValueError:
+        pass
+    if cells and not any(cells):
+        raise DataError(f"{file}: {where}: the column is empty; fill it or delete the column")
+    for i, cell in enumerate(cells):
+        if not cell:
+            raise DataError(
+                f"{file}: {where}: empty cell at {row(i)}; fill the gap or delete the row"
+            )
+        try:
+            float(cell)
+        except ValueError:
+            raise DataError(
+                f"{file}: {where}: {cell!r} at {row(i)} is not a number; write a plain number "
+                "(decimal point '.', no units or thousands separators) or delete the row"
+            ) from None
+    raise DataError(f"{file}: {where}: cannot read the numbers; check the column")  # unreachable
+
+
+# -- MATLAB ------------------------------------------------------------------------------
+
+
+def _read_mat_vectors(p: Path, file: str) -> dict[str, np.ndarray]:
+    import scipy.io  # only .mat files need scipy.io
+
+    try:
+        data = scipy.io.loadmat(p)
+    except Exception as exc:  # scipy raises many types for files it cannot read
+        raise DataError(
+            f"{file}: cannot read it as a MATLAB file ({type(exc).__name__}: {exc}); "
+            "save it from MATLAB with save(..., '-v7')"
+        ) from None
+    vectors = {}
+    for name, value in data.items():
+        if name.startswith("__"):
+            continue
+        x = np.asarray(value)
+        if x.dtype.kind not in "biuf":
+            raise DataError(
+                f"{file}: variable {name!r} holds {x.dtype} data, not real numbers; "
+                "save each signal as a numeric vector"
+            )
+        if sum(d > 1 for d in x.shape) > 1:
+            raise DataError(
+                f"{file}: variable {name!r} is a {'x'.join(map(str, x.shape))} matrix; "
+                "save each signal as its own vector"
+            )
+        vectors[name] = x.astype(np.float64).ravel()
+    if not vectors:
+        raise DataError(f"{file}: the file holds no variables; save the signals into it")
+    return vectors
+
+
+# -- entry point -------------------------------------------------------------------------
+
+
+def read_measured(
+    path: str | Path,
+    *,
+    mapping: Mapping[str, str] | None = None,
+    sample_period_s: float | None = None,
+    resample: bool = False,
+    require: Iterable[str] = ("t",),
+) -> Measured:
+    """Read a measured-data CSV or ``.mat`` file into SI arrays.
+
+    Parameters
+    ----------
+    path:
+        A CSV file (one header line of ``<signal>_<unit>`` names) or a MATLAB ``.mat``
+        file (one vector per variable, named the same way).
+    mapping:
+        Plain column or variable name -> ``<signal>_<unit>``, e.g. ``{"r": "ref_1"}``.
+    sample_period_s:
+        Build time as ``n * sample_period_s``; a time column, if any, is then ignored
+        (for files without a usable time column, e.g. stamps printed with too few digits).
+    resample:
+        Average repeated time stamps and interpolate linearly onto a uniform grid with
+        as many points as rows. Without it, repeated stamps or a spread of dt above 1 %
+        is an error. Time that goes backwards is always an error.
+    require:
+        Signals that must be present, e.g. ``("t", "u", "y")`` for a closed-loop replay;
+        time (``t``) is always needed, from a column or from ``sample_period_s``.
+
+    Raises :class:`DataError` (one line: file, column, problem, fix) for a file that
+    cannot be used.
+    """
+    file = str(path)
+    p = Path(path)
+    if sample_period_s is not None and not (
+        isinstance(sample_period_s, int | float) and 0.0 < sample_period_s < float("inf")
+    ):
+        raise DataError(
+            f"{file}: sample_period_s must be a positive number of seconds, got "
+            f"{sample_period_s!r}; pass e.g. sample_period_s=0.001"
+        )
+    if not p.is_file():
+        raise DataError(f"{file}: file not found (looked in {p.resolve().parent}); check the path")
+
+    if p.suffix.lower() == ".mat":
+        kind = "variable"
+        vectors = _read_mat_vectors(p, file)
+        columns = _columns(file, kind, list(vectors), mapping)
+        _check_required(file, kind, columns, require, sample_period_s is not None)
+
+        def row(i: int) -> str:
+            return f"sample {i + 1}"
+
+        for col in columns:
+            col.values = vectors[col.name]
+            if col.values.size != columns[0].values.size:
+                raise DataError(
+                    f"{file}: {col.label(kind)}: {col.values.size} samples but "
+                    f"{columns[0].name!r} has {columns[0].values.size}; save vectors of one length"
+                )
+    else:
+        kind = "column"
+        header, rows, lines = _read_csv_cells(p, file)
+        columns = _columns(file, kind, header, mapping)
+        _check_required(file, kind, columns, require, sample_period_s is not None)
+
+        def row(i: int) -> str:
+            return f"row {lines[i]}"
+
+        for j, col in enumerate(columns):
+            col.values = _csv_values(file, col.label(kind), [r[j] for r in rows], row)
+
+    if sample_period_s is not None:
+        columns = [c for c in columns if c.signal != "t"]  # time is rebuilt; ignore the stamps
+    for col in columns:
+        _check_finite(file, col.label(kind), col.values, row)
+    return _build(file, kind, columns, row, sample_period_s, resample)

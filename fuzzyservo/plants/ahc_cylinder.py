@@ -27,6 +27,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from fuzzyservo._jit import njit
+from fuzzyservo.components.geometry import circle_area
 from fuzzyservo.components.servo_valve import port_flow, return_flow, supply_flow
 from fuzzyservo.params import index_of, quantity
 
@@ -86,12 +87,12 @@ class AhcCylinderParams:
     @property
     def area_a_m2(self) -> float:
         """Piston area A = π·D²/4 [m²]."""
-        return math.pi * self.piston_diameter_m**2 / 4.0
+        return circle_area(self.piston_diameter_m)
 
     @property
     def area_b_m2(self) -> float:
         """Annulus a·A = π·(D² − d²)/4 [m²]."""
-        return math.pi * (self.piston_diameter_m**2 - self.rod_diameter_m**2) / 4.0
+        return circle_area(self.piston_diameter_m) - circle_area(self.rod_diameter_m)
 
     @property
     def valve_coeff(self) -> float:
@@ -129,7 +130,6 @@ P_CSTOP = _P["end_stop_damping_n_s_m"]
 # Chamber volumes never fall below this fraction of their dead volume, even deep in an
 # end stop, so that no volume reaches zero whatever the integrator tries.
 _MIN_VOLUME_FRACTION = 0.05
-_QUARTER_PI = math.pi / 4.0
 
 
 @njit(cache=True, inline="always")
@@ -142,8 +142,8 @@ def _evaluate(
     v = x[2]
     pa = x[3]
     pb = x[4]
-    area_a = _QUARTER_PI * p[P_DP] * p[P_DP]
-    area_b = area_a - _QUARTER_PI * p[P_DR] * p[P_DR]
+    area_a = circle_area(p[P_DP])
+    area_b = area_a - circle_area(p[P_DR])
     va = max(p[P_VA0] + area_a * y, _MIN_VOLUME_FRACTION * p[P_VA0])
     vb = max(p[P_VB0] + area_b * (p[P_STROKE] - y), _MIN_VOLUME_FRACTION * p[P_VB0])
     k = p[P_QN] / math.sqrt(0.5 * p[P_DPN])

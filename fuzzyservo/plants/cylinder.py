@@ -36,12 +36,12 @@ volumes must never reach zero").
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 
 import numpy as np
 
 from fuzzyservo._jit import njit
+from fuzzyservo.components.geometry import circle_area
 from fuzzyservo.components.orifice import signed_sqrt_flow
 from fuzzyservo.params import index_of, quantity
 
@@ -120,12 +120,12 @@ class CylinderParams:
     @property
     def area_3_m2(self) -> float:
         """Piston-side area S3 = π·dp²/4 [m²] (seed 002 §4: 7.068 cm²)."""
-        return math.pi * self.piston_diameter_m**2 / 4.0
+        return circle_area(self.piston_diameter_m)
 
     @property
     def area_4_m2(self) -> float:
         """Rod-side annulus S4 = π·(dp² − dt²)/4 [m²] (seed 002 §4: 5.529 cm²)."""
-        return math.pi * (self.piston_diameter_m**2 - self.rod_diameter_m**2) / 4.0
+        return circle_area(self.piston_diameter_m) - circle_area(self.rod_diameter_m)
 
     @property
     def stroke_limits_m(self) -> tuple[float, float]:
@@ -165,9 +165,6 @@ P_CSTOP = _P["end_stop_damping_n_s_m"]
 _MIN_LENGTH_FRACTION = 0.05
 
 
-_QUARTER_PI = math.pi / 4.0
-
-
 @njit(cache=True, inline="always")
 def _stop_force(y: float, v: float, p: np.ndarray) -> float:
     """End-stop force [N]: spring-damper beyond the dead length, zero inside the stroke."""
@@ -191,8 +188,8 @@ def _evaluate(
     y = x[0]
     v = x[1]
     # geometry (eq. 7); chamber lengths floored so that no volume reaches zero
-    s3 = _QUARTER_PI * p[P_DP] * p[P_DP]
-    s4 = s3 - _QUARTER_PI * p[P_DT] * p[P_DT]
+    s3 = circle_area(p[P_DP])
+    s4 = s3 - circle_area(p[P_DT])
     lmin = _MIN_LENGTH_FRACTION * p[P_LDEAD]
     l3 = max(p[P_L30] + y, lmin)
     l4 = max(p[P_L40] - y, lmin)

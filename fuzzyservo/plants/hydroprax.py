@@ -39,6 +39,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from fuzzyservo._jit import njit
+from fuzzyservo.components.geometry import circle_area
 from fuzzyservo.components.valves import NN_SIZE, four_way_flows, nn_forward, polynomial_flow
 from fuzzyservo.params import index_of, pack, quantity, vector, vector_offset
 
@@ -125,7 +126,7 @@ class HydropraxParams:
                 "nn_weights: valve_model 2 (neural network) needs trained weights; "
                 "name the JSON file written by `fuzzyservo fit-valve` under nn_weights"
             )
-        if self.rod_diameter_m**2 * math.pi / 4.0 >= self.piston_area_m2:
+        if circle_area(self.rod_diameter_m) >= self.piston_area_m2:
             raise ValueError(
                 f"rod_diameter: the rod ({self.rod_diameter_m} m) must be thinner than the "
                 f"piston (area {self.piston_area_m2} m^2); check both values"
@@ -145,7 +146,7 @@ class HydropraxParams:
     @property
     def area_b_m2(self) -> float:
         """Rod-side annulus A_b = A_p − π·d_rod²/4 [m²]."""
-        return self.piston_area_m2 - math.pi * self.rod_diameter_m**2 / 4.0
+        return self.piston_area_m2 - circle_area(self.rod_diameter_m)
 
     @property
     def stroke_limits_m(self) -> tuple[float, float]:
@@ -203,7 +204,6 @@ P_NN = vector_offset(HydropraxParams, "nn_weights")
 
 # Chamber volumes never fall below this fraction of their dead volume (cylinder.py)
 _MIN_VOLUME_FRACTION = 0.05
-_QUARTER_PI = math.pi / 4.0
 
 
 @njit(cache=True, inline="always")
@@ -218,7 +218,7 @@ def _evaluate(
     pb = x[4]
     pt = p[P_PT]
     aa = p[P_AP]
-    ab = aa - _QUARTER_PI * p[P_DR] * p[P_DR]
+    ab = aa - circle_area(p[P_DR])
     va = max(p[P_VDA] + aa * y, _MIN_VOLUME_FRACTION * p[P_VDA])
     vb = max(p[P_VDB] + ab * (p[P_L] - y), _MIN_VOLUME_FRACTION * p[P_VDB])
     # valve (eq. 7 / Fig. 7 / ideal orifice)

@@ -3,48 +3,44 @@
 from __future__ import annotations
 
 import math
-from pathlib import Path
 
 import numpy as np
 import pytest
 from scipy.optimize import fsolve
 
-from fuzzyservo.io.controllers import load_controller
-from fuzzyservo.io.rigs import load_rig
 from fuzzyservo.metrics import compensation_pct, heave_metrics, result_metrics
 from fuzzyservo.params import pack
 from fuzzyservo.plants import ahc_cylinder, ahc_motor
 from fuzzyservo.simulation import simulate
 from fuzzyservo.simulation.reference import simulate_reference
-
-ROOT = Path(__file__).resolve().parent.parent
+from tests.conftest import controller_named, rig_named
 
 PRESSURES = ("steps_5mpa", "steps_10mpa", "steps_15mpa")
 
 
 @pytest.fixture(scope="module")
 def cyl():
-    return load_rig(ROOT / "rigs" / "ahc_cylinder.yaml")
+    return rig_named("ahc_cylinder")
 
 
 @pytest.fixture(scope="module")
 def mot():
-    return load_rig(ROOT / "rigs" / "ahc_motor.yaml")
+    return rig_named("ahc_motor")
 
 
 @pytest.fixture(scope="module")
 def p_cyl():
-    return load_controller(ROOT / "studies" / "controllers" / "p_ahc_cylinder.yaml")
+    return controller_named("p_ahc_cylinder")
 
 
 @pytest.fixture(scope="module")
 def p_mot():
-    return load_controller(ROOT / "studies" / "controllers" / "p_ahc_motor.yaml")
+    return controller_named("p_ahc_motor")
 
 
 @pytest.fixture(scope="module")
 def flc_mot():
-    return load_controller(ROOT / "studies" / "controllers" / "flc_ahc_motor.yaml")
+    return controller_named("flc_ahc_motor")
 
 
 def test_seed_diameters_are_read_swapped(cyl):

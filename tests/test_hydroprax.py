@@ -4,7 +4,6 @@ models, the seed's PI result, convergence, and the valve-network training path."
 from __future__ import annotations
 
 import json
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -12,7 +11,6 @@ import pytest
 from fuzzyservo.cli import main
 from fuzzyservo.components.nn_fit import predict
 from fuzzyservo.errors import ConfigError, DataError
-from fuzzyservo.io.controllers import load_controller
 from fuzzyservo.io.rigs import load_rig
 from fuzzyservo.io.valve_data import read_valve_csv, read_valve_network, write_valve_csv
 from fuzzyservo.metrics import result_metrics
@@ -20,19 +18,19 @@ from fuzzyservo.params import pack
 from fuzzyservo.plants import hydroprax
 from fuzzyservo.simulation import simulate
 from fuzzyservo.simulation.reference import simulate_reference
+from tests.conftest import ROOT, controller_named, rig_named
 
-ROOT = Path(__file__).resolve().parent.parent
 SIG = {name: i for i, name in enumerate(hydroprax.SIGNALS)}
 
 
 @pytest.fixture(scope="module")
 def rig():
-    return load_rig(ROOT / "rigs" / "hydroprax_pdcv.yaml")
+    return rig_named("hydroprax_pdcv")
 
 
 @pytest.fixture(scope="module")
 def pi():
-    return load_controller(ROOT / "studies" / "controllers" / "pi_hydroprax.yaml")
+    return controller_named("pi_hydroprax")
 
 
 @pytest.fixture(scope="module")

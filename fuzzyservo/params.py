@@ -26,6 +26,7 @@ def quantity(
     nonnegative: bool = False,
     nonzero: bool = False,
     doc: str = "",
+    effect: bool = False,
 ) -> Any:
     """Declare a dataclass field that holds a physical quantity in SI units.
 
@@ -41,9 +42,14 @@ def quantity(
         "nonnegative": nonnegative,
         "nonzero": nonzero,
         "doc": doc,
+        "effect": effect,
     }
     if default is None:
         return dataclasses.field(metadata=meta)
+    if effect:
+        # effect parameters (components/effects.py) are inherited by every plant's
+        # parameter set; keyword-only keeps them out of the positional signature
+        return dataclasses.field(default=default, metadata=meta, kw_only=True)
     return dataclasses.field(default=default, metadata=meta)
 
 
@@ -65,9 +71,14 @@ def vectors_by_key(cls: type) -> dict[str, dataclasses.Field]:
     }
 
 
-def fields_by_key(cls: type) -> dict[str, dataclasses.Field]:
-    """Map file keys to the dataclass fields declared with :func:`quantity`."""
-    return {f.metadata["key"]: f for f in dataclasses.fields(cls) if "key" in f.metadata}
+def fields_by_key(cls: type, *, effects: bool = False) -> dict[str, dataclasses.Field]:
+    """Map file keys to the dataclass fields declared with :func:`quantity`: the plant's
+    own parameters, or with ``effects=True`` the inherited effect parameters."""
+    return {
+        f.metadata["key"]: f
+        for f in dataclasses.fields(cls)
+        if "key" in f.metadata and f.metadata.get("effect", False) == effects
+    }
 
 
 def check(params: Any) -> None:

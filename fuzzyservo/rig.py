@@ -11,6 +11,7 @@ from typing import Any
 
 import numpy as np
 
+from fuzzyservo.components.effects import LIBRARY, Scales
 from fuzzyservo.params import check
 from fuzzyservo.plants import PlantModel
 from fuzzyservo.signals import Constant, Signal
@@ -101,8 +102,28 @@ class Scenario:
 
 
 @dataclass(frozen=True)
+class MeasuredFormat:
+    """How a rig's measured-data files are read (the rig file's ``measured:`` section).
+
+    ``columns``: plain column name -> ``<signal>_<unit>`` (see :mod:`fuzzyservo.io.measured`);
+    ``sample_period_s``: rebuild time as n·period (None: use the time column);
+    ``resample``: average repeated stamps onto a uniform grid.
+    """
+
+    columns: dict[str, str] = field(default_factory=dict)
+    sample_period_s: float | None = None
+    resample: bool = False
+
+
+@dataclass(frozen=True)
 class Rig:
-    """A servo system ready to simulate."""
+    """A servo system ready to simulate.
+
+    ``effects``: names of the effects (components/effects.py) the rig declares, their
+    parameters live in ``params``. ``unknowns``: parameter field -> (lower, upper) SI
+    bounds of values the rig file marks as unknown (``fit: [lo, hi]``), which
+    calibration fits. ``measured``: how its data files are read.
+    """
 
     name: str
     plant: PlantModel
@@ -118,6 +139,9 @@ class Rig:
     title: str = ""
     source: str = ""
     path: str = ""
+    effects: tuple[str, ...] = ()
+    unknowns: dict[str, tuple[float, float]] = field(default_factory=dict)
+    measured: MeasuredFormat | None = None
 
     def __post_init__(self) -> None:
         if not self.sample_time_s > 0:
@@ -155,3 +179,47 @@ class Rig:
         new = dataclasses.replace(self.params, **changes)
         check(new)
         return dataclasses.replace(self, params=new)
+
+    @property
+    def rated_input(self) -> float:
+        """The largest plant input the actuator can apply [A or V]."""
+        return max(abs(self.actuator.lower), abs(self.actuator.upper))
+
+    def scales(self) -> Scales:
+        """Sizes of this rig that effect bounds scale with (components/effects.py)."""
+        if self.plant.effect_scales is None:
+            nan = float("nan")
+            return Scales(nan, nan, nan, nan, self.rated_input, nan, self.sample_time_s)
+        return self.plant.effect_scales(self.params, self.rated_input, self.sample_time_s)
+
+    def with_effect(self, name: str, **values: float) -> Rig:
+        """A copy with effect ``name`` declared: ``values`` by parameter key (SI); fixed
+        parameters not given take their library default."""
+        if name not in LIBRARY:
+            raise KeyError(f"unknown effect {name!r}; choose one of {sorted(LIBRARY)}")
+        if name not in self.plant.effects:
+            raise ValueError(
+                f"effect {name!r} is not modelled for plant type {self.plant.type_name!r}; "
+                f"it models {list(self.plant.effects)}"
+            )
+        effect = LIBRARY[name]
+        scales = self.scales()
+        changes: dict[str, float] = {}
+        for param in effect.params:
+            if param.key in values:
+                changes[param.field] = float(values[param.key])
+            elif param.default is not None and not getattr(self.params, param.field):
+                changes[param.field] = float(param.default(scales))
+        unknown = set(values) - {p.key for p in effect.params}
+        if unknown:
+            raise KeyError(
+                f"effect {name!r} has no parameter {sorted(unknown)[0]!r}; "
+                f"it has {[p.key for p in effect.params]}"
+            )
+        rig = self.with_params(**changes)
+        effects = self.effects if name in self.effects else (*self.effects, name)
+        return dataclasses.replace(rig, effects=effects)
+
+    def effect_values(self, name: str) -> dict[str, float]:
+        """The declared parameters of effect ``name`` by key (SI)."""
+        return {p.key: float(getattr(self.params, p.field)) for p in LIBRARY[name].params}

@@ -12,6 +12,13 @@ Layout of a rig file (every number as ``{value, unit, source}``; see ``rigs/``):
     controller: {sample_time: ...}
     output:   {signal: y, display_unit: cm}
     scenarios: {name: {duration, warmup, reference, load, overrides, initial, description}}
+    effects:  {coulomb_friction: {force: {value: 150, unit: N}}, valve_lag: {...}}  # optional
+    measured: {columns: {d: y_mm, u: u_V}, sample_period: {value: 7.7531, unit: ms}}  # optional
+
+A plant parameter or effect parameter may carry ``fit: [lower, upper]`` (in its
+``unit``): it is then an unknown that ``fuzzyservo calibrate`` fits within the bounds.
+Effects are off unless declared; the names and parameters are those of
+:data:`fuzzyservo.components.effects.LIBRARY`.
 """
 
 from __future__ import annotations
@@ -24,7 +31,7 @@ from fuzzyservo.errors import ConfigError, DataError
 from fuzzyservo.io._yaml import Node, read_yaml
 from fuzzyservo.params import check, fields_by_key, vectors_by_key
 from fuzzyservo.plants import PLANTS, PlantModel
-from fuzzyservo.rig import Actuator, LinearSensor, Rig, Scenario
+from fuzzyservo.rig import Actuator, LinearSensor, MeasuredFormat, Rig, Scenario
 from fuzzyservo.signals import Affine, Constant, Pulse, Signal, Sines, Steps
 from fuzzyservo.units import parse_unit
 
@@ -39,6 +46,8 @@ _TOP = (
     "controller",
     "output",
     "scenarios",
+    "effects",
+    "measured",
 )
 
 
@@ -55,7 +64,8 @@ def load_rig(path: str | Path) -> Rig:
             f"unknown plant type {type_name!r}; choose one of {sorted(PLANTS)}", key="type"
         )
     plant = PLANTS[type_name]
-    params = _params(plant, plant_node.child("parameters"))
+    unknowns: dict[str, tuple[float, float]] = {}
+    params = _params(plant, plant_node.child("parameters"), unknowns)
     initial = _initial(plant, plant_node.child("initial", default={}))
 
     feedback = _sensor(root.child("feedback"), plant)
@@ -69,6 +79,11 @@ def load_rig(path: str | Path) -> Rig:
             f"must be > 0 s, got {sample_time} s; give the controller's sampling period",
             key="sample_time",
         )
+    rated = max(abs(actuator.lower), abs(actuator.upper))
+    params, effects = _effects(
+        plant, params, root.child("effects", default={}), rated, sample_time, unknowns
+    )
+    measured = _measured(root.child("measured")) if root.has("measured") else None
 
     out = root.child("output")
     out.only(("signal", "display_unit"))
@@ -107,25 +122,149 @@ def load_rig(path: str | Path) -> Rig:
             display_units=display_units,
             scenarios=scenarios,
             path=file,
+            effects=effects,
+            unknowns=unknowns,
+            measured=measured,
         )
     except ValueError as exc:
         # Rig re-checks what was validated above; reaching here is a loader bug, still one line
         raise ConfigError(f"{exc}; fix the rig file", file=file) from None
 
 
-def _params(plant: PlantModel, node: Node) -> Any:
+def _params(
+    plant: PlantModel, node: Node, unknowns: dict[str, tuple[float, float]] | None = None
+) -> Any:
     by_key = fields_by_key(plant.params_cls)
     vectors = vectors_by_key(plant.params_cls)
     node.only((*by_key, *vectors))
     values: dict[str, Any] = {}
     for key, f in by_key.items():
-        values[f.name] = node.quantity(
-            key, f.metadata["unit"], default=f.metadata.get("default_value")
-        )
+        values[f.name] = _quantity(node, key, f.metadata["unit"], f.name, unknowns)
     for key, f in vectors.items():
         if node.has(key):
             values[f.name] = _vector(node.child(key), f.metadata["format"])
     return _build_params(plant, values, node)
+
+
+def _quantity(
+    node: Node,
+    key: str,
+    si_unit: str,
+    field: str,
+    unknowns: dict[str, tuple[float, float]] | None,
+) -> float:
+    """A quantity that may carry ``fit: [lower, upper]`` (same unit as its value): the
+    bounds go to ``unknowns[field]`` in SI."""
+    raw = node.data.get(key) if isinstance(node.data, dict) else None
+    if not (isinstance(raw, dict) and "fit" in raw):
+        return node.quantity(key, si_unit)
+    if unknowns is None:
+        node.fail("`fit` bounds are not allowed here; give a plain value", key=f"{key}.fit")
+    plain = Node({k: v for k, v in raw.items() if k != "fit"}, node.file, node.path(key))
+    value_node = Node({key: plain.data}, node.file, node.key)
+    value = value_node.quantity(key, si_unit)
+    unit = plain.str("unit", default=si_unit)
+    bounds = Node(raw, node.file, node.path(key)).numbers("fit")
+    if len(bounds) != 2 or not bounds[0] < bounds[1]:
+        node.fail(
+            f"must be [lower, upper] with lower < upper (in {unit}), got {bounds}; "
+            "give the range the value may take",
+            key=f"{key}.fit",
+        )
+    lo, hi = (plain.convert(b, unit, si_unit) for b in bounds)
+    lo, hi = min(lo, hi), max(lo, hi)
+    if not lo <= value <= hi:
+        node.fail(
+            f"value {value:g} {si_unit} lies outside its fit bounds [{lo:g}, {hi:g}] {si_unit}; "
+            "widen the bounds or move the value",
+            key=f"{key}.fit",
+        )
+    unknowns[field] = (lo, hi)
+    return value
+
+
+def _effects(
+    plant: PlantModel,
+    params: Any,
+    node: Node,
+    rated_input: float,
+    sample_time: float,
+    unknowns: dict[str, tuple[float, float]],
+) -> tuple[Any, tuple[str, ...]]:
+    """The ``effects:`` section: each declared effect's parameters written into ``params``."""
+    from fuzzyservo.components.effects import LIBRARY
+
+    if not isinstance(node.data, dict):
+        node.fail("must be a mapping of effect names to their parameters; see rigs/README")
+    for name in node.data:
+        if name not in LIBRARY:
+            node.fail(f"unknown effect {name!r}; choose one of {sorted(LIBRARY)}", key=name)
+        if name not in plant.effects:
+            node.fail(
+                f"effect {name!r} is not modelled for plant type {plant.type_name!r}; "
+                f"it models {list(plant.effects)}",
+                key=name,
+            )
+    values: dict[str, float] = {}
+    declared: list[str] = []
+    for name, effect_node in _effect_nodes(node):
+        effect = LIBRARY[name]
+        effect_node.only((*(p.key for p in effect.params), "source", "note"))
+        for param in effect.params:
+            si_unit = _effect_unit(plant, param.unit)
+            if effect_node.has(param.key):
+                values[param.field] = _quantity(
+                    effect_node, param.key, si_unit, param.field, unknowns
+                )
+            elif param.fitted:
+                effect_node.fail(
+                    f"missing key {param.key!r} (a value in {si_unit}); give it, or "
+                    f"`{{value: ..., unit: {si_unit}, fit: [lower, upper]}}` to have it fitted",
+                )
+        declared.append(name)
+    if not declared:
+        return params, ()
+    params = _build_params(plant, {**dataclasses.asdict(params), **values}, node)
+    scales = plant.effect_scales(params, rated_input, sample_time) if plant.effect_scales else None
+    defaults = {}
+    for name in declared:
+        for param in LIBRARY[name].params:
+            if param.field not in values and param.default is not None and scales is not None:
+                defaults[param.field] = param.default(scales)
+    if defaults:
+        params = dataclasses.replace(params, **defaults)
+    return params, tuple(declared)
+
+
+def _effect_nodes(node: Node) -> list[tuple[str, Node]]:
+    return [
+        (name, Node(data if data is not None else {}, node.file, node.path(name)))
+        for name, data in node.data.items()
+    ]
+
+
+def _effect_unit(plant: PlantModel, token: str) -> str:
+    """SI unit of an effect parameter on ``plant``: "force", "velocity", "input" resolved."""
+    if token == "input":
+        return plant.input[1]
+    return plant.mechanics.get(token, token)
+
+
+def _measured(node: Node) -> MeasuredFormat:
+    """The ``measured:`` section: plain column names -> ``<signal>_<unit>``, sample period."""
+    node.only(("columns", "sample_period", "resample", "source", "note"))
+    columns: dict[str, str] = {}
+    if node.has("columns"):
+        cols = node.child("columns")
+        for plain in cols.data:
+            columns[str(plain)] = cols.str(str(plain))
+    period = node.quantity("sample_period", "s") if node.has("sample_period") else None
+    if period is not None and not period > 0:
+        node.fail(f"must be > 0 s, got {period} s; give the logger's period", key="sample_period")
+    resample = node.data.get("resample", False)
+    if not isinstance(resample, bool):
+        node.fail(f"must be true or false, got {resample!r}", key="resample")
+    return MeasuredFormat(columns=columns, sample_period_s=period, resample=resample)
 
 
 def _read_valve_network(path: Path) -> tuple[float, ...]:

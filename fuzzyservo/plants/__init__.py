@@ -39,6 +39,10 @@ class PlantModel:
     state_scale: Callable[[Any], np.ndarray]
     typical_state: Callable[[Any], np.ndarray]
     description: str
+    effects: tuple[str, ...]  # names of components/effects.py this plant models
+    mechanics: dict[str, str]  # SI units of "force" and "velocity" for effect parameters
+    null_input: Callable[[Any], float]
+    effect_scales: Callable[[Any, float, float], Any] | None
 
     @classmethod
     def from_module(
@@ -59,6 +63,10 @@ class PlantModel:
             state_scale=module.state_scale,
             typical_state=module.typical_state,
             description=description,
+            effects=module.EFFECTS,
+            mechanics=getattr(module, "MECHANICS", {"force": "N", "velocity": "m/s"}),
+            null_input=module.null_input,
+            effect_scales=getattr(module, "effect_scales", None),
         )
 
 

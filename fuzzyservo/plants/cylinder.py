@@ -41,6 +41,18 @@ from dataclasses import dataclass
 import numpy as np
 
 from fuzzyservo._jit import njit
+from fuzzyservo.components.effects import (
+    E_LEAK,
+    E_LINE,
+    LIBRARY,
+    EffectParams,
+    Scales,
+    bulk_modulus,
+    effective_bulk_modulus,
+    friction_force,
+    port_pressure,
+    pump_limited,
+)
 from fuzzyservo.components.geometry import circle_area
 from fuzzyservo.components.orifice import signed_sqrt_flow
 from fuzzyservo.params import index_of, quantity
@@ -48,19 +60,19 @@ from fuzzyservo.params import index_of, quantity
 STATES = ("y", "v", "xi1", "xi2", "xi3", "xi4")
 SIGNALS = (
     "y", "v", "p1", "p2", "p3", "p4",
-    "q_a", "q_r", "q1", "q2", "q3", "q4", "f_stop",
+    "q_a", "q_r", "q1", "q2", "q3", "q4", "f_stop", "f_friction", "q_leak",
 )  # fmt: skip
 SIGNAL_UNITS = {
     "y": "m", "v": "m/s", "p1": "Pa", "p2": "Pa", "p3": "Pa", "p4": "Pa",
     "q_a": "m^3/s", "q_r": "m^3/s", "q1": "m^3/s", "q2": "m^3/s", "q3": "m^3/s",
-    "q4": "m^3/s", "f_stop": "N",
+    "q4": "m^3/s", "f_stop": "N", "f_friction": "N", "q_leak": "m^3/s",
 }  # fmt: skip
 INPUT = ("i", "A")  # the plant input: servo-valve current
 LOAD = ("f_load", "N")  # external force opposing extension (+y)
 
 
 @dataclass(frozen=True)
-class CylinderParams:
+class CylinderParams(EffectParams):
     """Seed 002 section 4 parameters, SI units (the rig file gives each with its source)."""
 
     piston_diameter_m: float = quantity("piston_diameter", "m", positive=True)
@@ -194,7 +206,7 @@ def _evaluate(
     l3 = max(p[P_L30] + y, lmin)
     l4 = max(p[P_L40] - y, lmin)
     # pressures from liquid volumes (eq. 5, 6, 10, 11)
-    e = p[P_E]
+    e = bulk_modulus(p, p[P_E])
     p1 = e * (x[2] / p[P_V1] - 1.0)
     p2 = e * (x[3] / p[P_V2] - 1.0)
     p3 = e * (x[4] / (s3 * l3) - 1.0)
@@ -210,20 +222,29 @@ def _evaluate(
     c14 = max(c14, 0.0)
     c23 = max(c23, 0.0)
     lam = p[P_PLAM]
-    qa = signed_sqrt_flow(p[P_RA], p[P_PA] - p1, lam)
+    qa = pump_limited(signed_sqrt_flow(p[P_RA], p[P_PA] - p1, lam), p)  # supply_droop
     qr = signed_sqrt_flow(p[P_RR], p2 - p[P_PR], lam)
-    q1 = signed_sqrt_flow(c14, p1 - p3, lam)
-    q2 = signed_sqrt_flow(c23, p3 - p2, lam)
-    q3 = signed_sqrt_flow(c23, p1 - p4, lam)
-    q4 = signed_sqrt_flow(c14, p4 - p2, lam)
+    # valve ports: the chambers themselves, or line_resistance's port nodes
+    pa_port = p3
+    pb_port = p4
+    r_line = p[E_LINE]
+    if r_line > 0.0:
+        pa_port = port_pressure(c14, p1, c23, p2, p3, r_line, lam)
+        pb_port = port_pressure(c23, p1, c14, p2, p4, r_line, lam)
+    q1 = signed_sqrt_flow(c14, p1 - pa_port, lam)
+    q2 = signed_sqrt_flow(c23, pa_port - p2, lam)
+    q3 = signed_sqrt_flow(c23, p1 - pb_port, lam)
+    q4 = signed_sqrt_flow(c14, pb_port - p2, lam)
+    q_leak = p[E_LEAK] * (p3 - p4)  # internal_leakage across the piston
+    f_fric = friction_force(v, p)  # coulomb_friction, stribeck_friction
     f_stop = _stop_force(y, v, p)
     dx[0] = v
-    dx[1] = (p3 * s3 - p4 * s4 - p[P_F] * v - f_load + f_stop) / p[P_M]  # eq. 12
+    dx[1] = (p3 * s3 - p4 * s4 - p[P_F] * v - f_fric - f_load + f_stop) / p[P_M]  # eq. 12
     dx[2] = qa - q1 - q3  # eq. 3
     dx[3] = q2 + q4 - qr  # eq. 4
-    dx[4] = q1 - q2  # eq. 8
-    dx[5] = q3 - q4  # eq. 9
-    if out.size >= 13:
+    dx[4] = q1 - q2 - q_leak  # eq. 8
+    dx[5] = q3 - q4 + q_leak  # eq. 9
+    if out.size >= 15:
         out[0] = y
         out[1] = v
         out[2] = p1
@@ -237,6 +258,8 @@ def _evaluate(
         out[10] = q3
         out[11] = q4
         out[12] = f_stop
+        out[13] = f_fric
+        out[14] = q_leak
 
 
 @njit(cache=True, inline="always")
@@ -280,7 +303,7 @@ def in_end_stop(x: np.ndarray, p: np.ndarray) -> bool:
 
 def state_scale(params: CylinderParams) -> np.ndarray:
     """Unit of local error per state: 1 µm, 1 mm/s, and 1 kPa of pressure in each chamber."""
-    e = params.bulk_modulus_pa
+    e = effective_bulk_modulus(params)
     dp = 1e3
     v3 = params.area_3_m2 * params.chamber_length_3_m
     v4 = params.area_4_m2 * params.chamber_length_4_m
@@ -320,7 +343,7 @@ def initial_state(
     y = 0) sets the pressure through m = ρ0·V·(1 + p/E).
     """
     pa, pr = params.supply_pressure_pa, params.return_pressure_pa
-    e = params.bulk_modulus_pa
+    e = effective_bulk_modulus(params)
     v3 = params.area_3_m2 * (params.chamber_length_3_m + y_m)
     v4 = params.area_4_m2 * (params.chamber_length_4_m - y_m)
     if m3_kg is not None:
@@ -339,7 +362,7 @@ def initial_state(
 
 def pressure_from_mass(mass_kg: float, volume_m3: float, params: CylinderParams) -> float:
     """Invert m = ρ0·V·(1 + p/E) for p [Pa] (seed 002 §4 gives m30, m40 this way)."""
-    return params.bulk_modulus_pa * (mass_kg / (params.density_kg_m3 * volume_m3) - 1.0)
+    return effective_bulk_modulus(params) * (mass_kg / (params.density_kg_m3 * volume_m3) - 1.0)
 
 
 def typical_state(params: CylinderParams) -> np.ndarray:
@@ -348,3 +371,33 @@ def typical_state(params: CylinderParams) -> np.ndarray:
         [1e-3, 0.1, params.valve_volume_1_m3, params.valve_volume_2_m3,
          params.area_3_m2 * params.chamber_length_3_m, params.area_4_m2 * params.chamber_length_4_m]
     )  # fmt: skip
+
+
+# Every effect of the library acts on this plant (components/effects.py).
+EFFECTS = tuple(LIBRARY)
+MECHANICS = {"force": "N", "velocity": "m/s"}
+
+
+def null_input(params: CylinderParams) -> float:
+    """The valve current of hydraulic null [A]: the bias current (seed 002 eq. 13-16)."""
+    return params.bias_current_a
+
+
+def effect_scales(params: CylinderParams, input_a: float, sample_time_s: float) -> Scales:
+    """Sizes the effect bounds scale with: stall force pa·S3, rated flow at full opening
+    (slot coefficient a + b·I_cl with half the supply drop), its piston speed."""
+    dp = params.supply_pressure_pa - params.return_pressure_pa
+    opening = (
+        params.slot_coeff_a_m3_s_sqrtpa
+        + params.slot_coeff_b_m3_s_a_sqrtpa * params.closing_current_a
+    )
+    flow = opening * (0.5 * dp) ** 0.5
+    return Scales(
+        force=params.supply_pressure_pa * params.area_3_m2,
+        velocity=flow / params.area_3_m2,
+        flow=flow,
+        pressure=dp,
+        input=input_a,
+        bulk_modulus=params.bulk_modulus_pa,
+        sample_time=sample_time_s,
+    )

@@ -39,6 +39,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from fuzzyservo._jit import njit
+from fuzzyservo.components.effects import INPUT_EFFECTS, EffectParams
 from fuzzyservo.components.geometry import circle_area
 from fuzzyservo.components.valves import NN_SIZE, four_way_flows, nn_forward, polynomial_flow
 from fuzzyservo.params import index_of, pack, quantity, vector, vector_offset
@@ -67,7 +68,7 @@ VALVE_MODELS = {
 
 
 @dataclass(frozen=True)
-class HydropraxParams:
+class HydropraxParams(EffectParams):
     """Seed 003 Table 1 and the values it lacks, SI units (the rig file gives the sources)."""
 
     piston_area_m2: float = quantity("piston_area", "m^2", positive=True)
@@ -367,3 +368,13 @@ def generate_valve_data(params: HydropraxParams, n: int, seed: int) -> np.ndarra
     pa = pt + rng.uniform(0.0, 1.0, n) * (ps - pt)
     pb = pt + rng.uniform(0.0, 1.0, n) * (ps - pt)
     return np.column_stack([ps, u, pa, pb, valve_flows(poly, ps, u, pa, pb)])
+
+
+# Only the input effects (applied by the simulation loop) act on this plant; its
+# kernels do not read the plant-side effect parameters (components/effects.py).
+EFFECTS = INPUT_EFFECTS
+
+
+def null_input(params: object) -> float:
+    """The plant input of hydraulic null: zero."""
+    return 0.0

@@ -27,10 +27,20 @@ from dataclasses import dataclass
 import numpy as np
 
 from fuzzyservo._jit import njit
+from fuzzyservo.components.effects import (
+    E_LEAK,
+    E_LINE,
+    LIBRARY,
+    EffectParams,
+    Scales,
+    bulk_modulus,
+    friction_force,
+    pump_limited,
+)
 from fuzzyservo.params import index_of, quantity
 
 STATES = ("spool", "w", "theta", "p_load")
-SIGNALS = ("spool", "w", "theta", "p_load", "q_valve", "t_friction")
+SIGNALS = ("spool", "w", "theta", "p_load", "q_valve", "t_friction", "q_leak")
 SIGNAL_UNITS = {
     "spool": "V",
     "w": "rad/s",
@@ -38,13 +48,14 @@ SIGNAL_UNITS = {
     "p_load": "Pa",
     "q_valve": "m^3/s",
     "t_friction": "N*m",
+    "q_leak": "m^3/s",
 }
 INPUT = ("u_valve", "V")  # the plant input: servo-amplifier input voltage
 LOAD = ("t_load", "N*m")  # load torque opposing forward rotation (the brake)
 
 
 @dataclass(frozen=True)
-class MotorParams:
+class MotorParams(EffectParams):
     """Seed 000 Table 2, SI units (the rig file gives each with its source)."""
 
     valve_time_constant_s: float = quantity("valve_time_constant", "s", positive=True)
@@ -90,9 +101,36 @@ def valve_flow(spool: float, p_load: float, p: np.ndarray) -> float:
 
 
 @njit(cache=True)
+def line_flow(spool: float, p_load: float, p: np.ndarray) -> float:
+    """Valve flow Q [m³/s] through the lines to the motor, with the pump's limit.
+
+    With ``line_resistance`` R the valve sees the load pressure plus the drop of both
+    lines, ``Q = valve_flow(spool, P_x + 2·R·Q)``; the right side falls as Q rises, so
+    the root lies between 0 and ``valve_flow(spool, P_x)`` and bisection finds it.
+    ``supply_droop`` then caps |Q| at the pump's flow (components/effects.py).
+    """
+    q = valve_flow(spool, p_load, p)
+    r2 = 2.0 * p[E_LINE]
+    if r2 > 0.0 and q != 0.0:
+        lo = min(0.0, q)
+        hi = max(0.0, q)
+        for _ in range(60):
+            mid = 0.5 * (lo + hi)
+            if mid - valve_flow(spool, p_load + r2 * mid, p) > 0.0:
+                hi = mid
+            else:
+                lo = mid
+            if hi - lo <= 1e-13 * abs(q):
+                break
+        q = 0.5 * (lo + hi)
+    return pump_limited(q, p)
+
+
+@njit(cache=True)
 def friction_torque(w: float, p: np.ndarray) -> float:
-    """Viscous plus smoothed Coulomb friction torque [N·m] (seed 000 eq. 10, Table 2)."""
-    return p[P_B] * w + p[P_TF] * math.tanh(w / p[P_WC])
+    """Viscous plus smoothed Coulomb friction torque [N·m] (seed 000 eq. 10, Table 2),
+    plus the friction effects when declared."""
+    return p[P_B] * w + p[P_TF] * math.tanh(w / p[P_WC]) + friction_force(w, p)
 
 
 @njit(cache=True)
@@ -105,11 +143,12 @@ def rhs(x: np.ndarray, u: float, t_load: float, p: np.ndarray, dx: np.ndarray) -
     spool = x[0]
     w = x[1]
     pl = x[3]
-    q = valve_flow(spool, pl, p)
+    q = line_flow(spool, pl, p)
     dx[0] = (p[P_KA] * u - spool) / p[P_TAU]
     dx[1] = (p[P_VM] * pl - friction_torque(w, p) - t_load) / p[P_J]
     dx[2] = w
-    dx[3] = 4.0 * p[P_KH] / p[P_VC] * (q - p[P_VM] * w - p[P_LE] * pl)
+    leak = (p[P_LE] + p[E_LEAK]) * pl  # eq. 17 plus internal_leakage
+    dx[3] = 4.0 * bulk_modulus(p, p[P_KH]) / p[P_VC] * (q - p[P_VM] * w - leak)
 
 
 @njit(cache=True)
@@ -119,8 +158,9 @@ def signals(x: np.ndarray, u: float, t_load: float, p: np.ndarray, out: np.ndarr
     out[1] = x[1]
     out[2] = x[2]
     out[3] = x[3]
-    out[4] = valve_flow(x[0], x[3], p)
+    out[4] = line_flow(x[0], x[3], p)
     out[5] = friction_torque(x[1], p)
+    out[6] = p[E_LEAK] * x[3]
 
 
 @njit(cache=True)
@@ -147,3 +187,28 @@ def initial_state(
 ) -> np.ndarray:
     """State at rest (spool centred, no load pressure) unless a speed is given."""
     return np.array([0.0, w_rad_s, theta_rad, 0.0])
+
+
+# Every effect of the library acts on this plant (components/effects.py).
+EFFECTS = tuple(LIBRARY)
+MECHANICS = {"force": "N*m", "velocity": "rad/s"}
+
+
+def null_input(params: MotorParams) -> float:
+    """The amplifier input of hydraulic null [V]: zero (seed 000 eq. 8)."""
+    return 0.0
+
+
+def effect_scales(params: MotorParams, input_v: float, sample_time_s: float) -> Scales:
+    """Sizes the effect bounds scale with: stall torque V_m·P_s, the valve's flow at the
+    rated input, and the no-load speed it gives."""
+    flow = abs(params.valve_flow_gain_m3_s_v * params.amplifier_gain) * input_v
+    return Scales(
+        force=params.motor_displacement_m3_rad * params.supply_pressure_pa,
+        velocity=flow / params.motor_displacement_m3_rad,
+        flow=flow,
+        pressure=params.supply_pressure_pa,
+        input=input_v,
+        bulk_modulus=params.bulk_modulus_pa,
+        sample_time=sample_time_s,
+    )

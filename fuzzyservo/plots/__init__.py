@@ -5,6 +5,7 @@ pyplot, no global backend or state), so they render headless; :func:`save` write
 """
 
 from fuzzyservo.plots._bars import metrics_bar_figure
+from fuzzyservo.plots._calibration import candidates_figure, overlay_figure, residual_figure
 from fuzzyservo.plots._display import save
 from fuzzyservo.plots._fuzzy import (
     control_curve_figure,
@@ -15,13 +16,16 @@ from fuzzyservo.plots._response import response_figure
 from fuzzyservo.plots._tuning import history_figure, importance_figure, pareto_figure
 
 __all__ = [
+    "candidates_figure",
     "control_curve_figure",
     "fuzzy_overview_figure",
     "history_figure",
     "importance_figure",
     "membership_figure",
     "metrics_bar_figure",
+    "overlay_figure",
     "pareto_figure",
+    "residual_figure",
     "response_figure",
     "save",
 ]

@@ -9,6 +9,12 @@ error estimate keeps the slow piston motion accurate. On the seed-002 pulses it 
 40 % fewer steps than MATLAB's ode23s pair (tried first) for the same accuracy.
 Nothing in here raises: a failure ends the run with a status code the caller turns
 into a result.
+
+Input effects (components/effects.py) sit between the held actuator value and the
+plant: ``transport_delay`` shifts the held sequence in time (an interval is integrated
+in two parts where the delayed input switches), ``valve_bias`` adds to it,
+``valve_lag`` appends one state (the spool, ``τ·ds/dt = a + b − s``) to the plant's,
+and ``valve_deadband`` maps the spool onto the plant input around its null.
 """
 
 from __future__ import annotations
@@ -18,6 +24,7 @@ import math
 import numpy as np
 
 from fuzzyservo._jit import njit
+from fuzzyservo.components.effects import E_BIAS, E_DEADBAND, E_DELAY, E_LAG, deadband
 from fuzzyservo.controllers.kernels import controller_step
 from fuzzyservo.plants.kernels import plant_in_end_stop, plant_rhs
 
@@ -107,6 +114,26 @@ def _lu_solve(a: np.ndarray, piv: np.ndarray, b: np.ndarray) -> None:
         b[i] = s / a[i, i]
 
 
+@njit(cache=True, inline="always")
+def loop_rhs(
+    kind: int, x: np.ndarray, a: float, load: float, p: np.ndarray, null: float, dx: np.ndarray
+) -> None:
+    """dx/dt of the plant behind the input effects, for held actuator value ``a``.
+
+    Without ``valve_lag`` the plant input is ``dz(a + b)``; with it, the last state is
+    the spool ``s`` (``ds/dt = (a + b − s)/τ``) and the plant input is ``dz(s)``, where
+    ``b`` is ``valve_bias`` and ``dz`` the ``valve_deadband`` around ``null``.
+    """
+    tau = p[E_LAG]
+    if tau > 0.0:
+        n = x.size - 1
+        s = x[n]
+        dx[n] = (a + p[E_BIAS] - s) / tau
+        plant_rhs(kind, x[:n], deadband(s, null, p[E_DEADBAND]), load, p, dx[:n])
+    else:
+        plant_rhs(kind, x, deadband(a + p[E_BIAS], null, p[E_DEADBAND]), load, p, dx)
+
+
 @njit(cache=True)
 def workspace(n: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Scratch arrays for :func:`integrate_interval` on a system of ``n`` states."""
@@ -117,6 +144,7 @@ def workspace(n: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
 def integrate_interval(
     kind: int,
     p: np.ndarray,
+    null: float,
     x: np.ndarray,
     u: float,
     load: float,
@@ -131,7 +159,8 @@ def integrate_interval(
 ) -> tuple[int, float, int]:
     """Advance ``x`` in place over ``duration`` seconds with constant input ``u`` and load.
 
-    Returns ``(status, h_next, steps)``; ``h`` is the proposed first step. The local
+    ``u`` is the actuator value before the input effects (:func:`loop_rhs`, plant
+    null input ``null``). Returns ``(status, h_next, steps)``; ``h`` is the proposed first step. The local
     error of each state is kept below ``tol·scale[i]`` (absolute units per state).
     ``work``, ``mats`` and ``piv`` are scratch space from :func:`workspace`, allocated
     once per run rather than once per interval.
@@ -153,7 +182,7 @@ def integrate_interval(
     steps = 0
     h = min(h, duration)
     h_min = 1e-14 * duration
-    plant_rhs(kind, x, u, load, p, f0)
+    loop_rhs(kind, x, u, load, p, null, f0)
     need_jac = True
     jac_fresh = False
     while t < duration * (1.0 - 1e-12):
@@ -165,7 +194,7 @@ def integrate_interval(
                 xj = x[j]
                 dj = 1.4901161193847656e-08 * max(abs(xj), typical[j])
                 x[j] = xj + dj
-                plant_rhs(kind, x, u, load, p, ftmp)
+                loop_rhs(kind, x, u, load, p, null, ftmp)
                 x[j] = xj
                 for i in range(n):
                     jac[i, j] = (ftmp[i] - f0[i]) / dj
@@ -192,7 +221,7 @@ def integrate_interval(
                 for i in range(n):
                     ftmp[i] = f0[i]
             else:
-                plant_rhs(kind, xs, u, load, p, ftmp)
+                loop_rhs(kind, xs, u, load, p, null, ftmp)
             for i in range(n):
                 acc = ftmp[i]
                 if st > 0:
@@ -219,7 +248,7 @@ def integrate_interval(
             t += h_step
             for i in range(n):
                 x[i] = xn[i]
-            plant_rhs(kind, x, u, load, p, f0)
+            loop_rhs(kind, x, u, load, p, null, f0)
             jac_fresh = False
             fac = 5.0 if err == 0.0 else min(5.0, max(0.2, 0.8 * err ** (-1.0 / 3.0)))
             if h_step < h:
@@ -244,6 +273,7 @@ def integrate_interval(
 def closed_loop(
     plant_kind: int,
     p: np.ndarray,
+    null: float,
     x0: np.ndarray,
     ctrl_kind: int,
     cp: np.ndarray,
@@ -270,6 +300,9 @@ def closed_loop(
     At sample k: measure ``y = offset + gain·x[sensor_index]``, compute
     ``u = controller(r_k, y)``, apply ``a = clip(act_gain·u, act_lo, act_hi)`` held
     constant (zero-order hold) while the plant is integrated to the next sample.
+    ``x0`` carries one more state than the plant when ``valve_lag`` is on: the spool,
+    which starts where the first command puts it. ``actuator`` records the value the
+    controller commanded, before the input effects.
     Fills ``states[k]``, ``command[k]``, ``actuator[k]``, ``saturated[k]`` and returns
     ``(status, sample of the first problem or -1, integration steps)``. After a
     failure the remaining samples are NaN.
@@ -283,6 +316,16 @@ def closed_loop(
     total = 0
     hi_edge = act_hi - 1e-9 * abs(act_hi)
     lo_edge = act_lo + 1e-9 * abs(act_lo)
+    lag = p[E_LAG] > 0.0
+    n_plant = x.size - 1 if lag else x.size
+    delay = p[E_DELAY] / dt
+    whole = int(delay)
+    part = delay - whole
+    if part < 1e-9:
+        part = 0.0
+    elif part > 1.0 - 1e-9:
+        whole += 1
+        part = 0.0
     for k in range(n):
         for i in range(x.size):
             states[k, i] = x[i]
@@ -300,15 +343,30 @@ def closed_loop(
             status = STATUS_DIVERGED
             where = k
             break
-        code, h, steps = integrate_interval(
-            plant_kind, p, x, a, load[k], dt, h, tol, scale, typical, work, mats, piv
-        )
-        total += steps
+        if k == 0 and lag:
+            x[x.size - 1] = a + p[E_BIAS]
+            states[0, x.size - 1] = x[x.size - 1]
+        # transport_delay: the held value of sample k - whole - 1, then of k - whole
+        a_now = actuator[max(k - whole, 0)]
+        code = STATUS_OK
+        if part > 0.0:
+            a_before = actuator[max(k - whole - 1, 0)]
+            code, h, steps = integrate_interval(
+                plant_kind, p, null, x, a_before, load[k], part * dt, h, tol, scale, typical,
+                work, mats, piv,
+            )  # fmt: skip
+            total += steps
+        if code == STATUS_OK:
+            code, h, steps = integrate_interval(
+                plant_kind, p, null, x, a_now, load[k], (1.0 - part) * dt, h, tol, scale,
+                typical, work, mats, piv,
+            )  # fmt: skip
+            total += steps
         if code != STATUS_OK:
             status = code
             where = k
             break
-        if status == STATUS_OK and plant_in_end_stop(plant_kind, x, p):
+        if status == STATUS_OK and plant_in_end_stop(plant_kind, x[:n_plant], p):
             status = STATUS_END_STOP
             where = k + 1
     if status == STATUS_DIVERGED or status == STATUS_STEP_FAILURE:

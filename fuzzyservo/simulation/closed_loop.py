@@ -39,6 +39,14 @@ class Prepared:
     t: np.ndarray
     ref: np.ndarray
     load: np.ndarray
+    null: float  # the plant input of hydraulic null (valve_deadband is centred on it)
+    scale: np.ndarray  # local-error unit per state (plant states, then the spool)
+    typical: np.ndarray  # finite-difference increments per state
+
+    @property
+    def plant_states(self) -> int:
+        """How many of the states are the plant's (``valve_lag`` appends the spool)."""
+        return len(self.rig.plant.states)
 
 
 def prepare(
@@ -56,7 +64,17 @@ def prepare(
     n = round(duration / rig.sample_time_s)
     t = np.arange(n) * rig.sample_time_s
     initial = {**rig.initial, **sc.initial}
-    x0 = rig.plant.initial_state(params, **initial)
+    plant = rig.plant
+    x0 = np.asarray(plant.initial_state(params, **initial), dtype=np.float64)
+    scale = np.asarray(plant.state_scale(params), dtype=np.float64)
+    typical = np.asarray(plant.typical_state(params), dtype=np.float64)
+    null = float(plant.null_input(params))
+    if params.valve_lag_s > 0:
+        # valve_lag: the spool state, in plant-input units (the loop sets its start)
+        rated = max(abs(rig.actuator.lower), abs(rig.actuator.upper))
+        x0 = np.append(x0, null)
+        scale = np.append(scale, 1e-5 * rated)
+        typical = np.append(typical, rated)
     if not controller.has_limits:
         controller = controller.with_limits(*rig.actuator.command_limits)
     return Prepared(
@@ -65,10 +83,13 @@ def prepare(
         controller=controller,
         params=params,
         p=pack(params),
-        x0=np.asarray(x0, dtype=np.float64),
+        x0=x0,
         t=t,
         ref=np.ascontiguousarray(sc.reference.sample(t), dtype=np.float64),
         load=np.ascontiguousarray(sc.load.sample(t), dtype=np.float64),
+        null=null,
+        scale=scale,
+        typical=typical,
     )
 
 
@@ -99,6 +120,7 @@ def simulate(
     status, where, steps = _loop.closed_loop(
         rig.plant.kind,
         prep.p,
+        prep.null,
         prep.x0,
         prep.controller.kind,
         cp,
@@ -113,8 +135,8 @@ def simulate(
         rig.actuator.lower,
         rig.actuator.upper,
         tol,
-        rig.plant.state_scale(prep.params),
-        rig.plant.typical_state(prep.params),
+        prep.scale,
+        prep.typical,
         states,
         command,
         actuator,
@@ -138,6 +160,7 @@ def assemble(
     plant = rig.plant
     n = prep.t.size
     values = np.empty((n, len(plant.signals)))
+    states = np.ascontiguousarray(states[:, : prep.plant_states])
     plant_signal_table(plant.kind, states, actuator, prep.load, prep.p, values)
     signals = {name: values[:, j] for j, name in enumerate(plant.signals)}
     units = dict(plant.signal_units)

@@ -12,8 +12,9 @@ import numpy as np
 from scipy.integrate import solve_ivp
 
 from fuzzyservo.controllers.base import Controller
-from fuzzyservo.plants.kernels import plant_in_end_stop, plant_rhs
+from fuzzyservo.plants.kernels import plant_in_end_stop
 from fuzzyservo.rig import Rig, Scenario
+from fuzzyservo.simulation._loop import loop_rhs
 from fuzzyservo.simulation.closed_loop import assemble, prepare
 from fuzzyservo.simulation.result import SimResult
 
@@ -33,6 +34,11 @@ def simulate_reference(
     liquid volumes, whose absolute tolerance is ``rtol`` times their scale of 1 kPa.
     """
     prep = prepare(rig, controller, scenario, duration_s)
+    if prep.params.transport_delay_s > 0:
+        raise ValueError(
+            "simulate_reference: transport_delay is not supported on the reference path; "
+            "use simulate"
+        )
     plant = rig.plant
     kind, p = plant.kind, prep.p
     n = prep.t.size
@@ -45,7 +51,9 @@ def simulate_reference(
     fb = rig.feedback
     act = rig.actuator
     sensor_index = plant.states.index(fb.signal)
-    atol = rtol * 1e3 * plant.state_scale(prep.params)
+    atol = rtol * 1e3 * prep.scale
+    null = prep.null
+    lag = prep.params.valve_lag_s > 0
     dt = rig.sample_time_s
     status, where, steps = "ok", -1, 0
     for k in range(n):
@@ -56,10 +64,12 @@ def simulate_reference(
         command[k], actuator[k] = u, a
         saturated[k] = a >= act.upper * (1 - 1e-9) or a <= act.lower * (1 + 1e-9)
         load = prep.load[k]
+        if k == 0 and lag:
+            x[-1] = states[0, -1] = a + prep.params.valve_bias_si
 
         def f(_t: float, xx: np.ndarray, a: float = a, load: float = load) -> np.ndarray:
             dx = np.empty_like(xx)
-            plant_rhs(kind, xx, a, load, p, dx)
+            loop_rhs(kind, xx, a, load, p, null, dx)
             return dx
 
         sol = solve_ivp(f, (0.0, dt), x, method=method, rtol=rtol, atol=atol)
@@ -68,6 +78,6 @@ def simulate_reference(
             status, where = "diverged", k
             break
         x = np.ascontiguousarray(sol.y[:, -1])
-        if status == "ok" and plant_in_end_stop(kind, x, p):
+        if status == "ok" and plant_in_end_stop(kind, x[: prep.plant_states], p):
             status, where = "end_stop", k + 1
     return assemble(prep, states, command, actuator, saturated, status, where, steps)

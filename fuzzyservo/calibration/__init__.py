@@ -1,0 +1,1 @@
+"""Calibration against measured data: replay, residual analysis, effect candidates."""

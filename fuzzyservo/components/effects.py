@@ -1,0 +1,434 @@
+"""The effect library: physical effects a model may lack, declarable in any rig file, off by default.
+
+Every plant's parameter set inherits :class:`EffectParams`, so the effects travel in
+the packed parameter vector at the same positions (``E_*``) for every plant, and a
+zero value switches an effect off. Two stages:
+
+* **input effects**, applied by the simulation loop between the actuator and the plant
+  input for every plant: ``transport_delay`` → ``valve_bias`` → ``valve_lag`` →
+  ``valve_deadband`` (the order of the physical chain: the command travels, the torque
+  motor adds its null offset, the spool follows with its lag, the spool overlap hides
+  small openings);
+* **plant effects**, evaluated inside the plant kernels that list them in their
+  ``EFFECTS`` (seed-002 cylinder and seed-000 motor): friction, line resistance,
+  internal leakage, effective bulk modulus, supply droop.
+
+Formulations (SI units; "force" is N for a cylinder and N·m for a motor, "velocity"
+m/s or rad/s, "input" the plant input unit, A or V). Sources: MODELLING.md tables
+"what the residual tells you" and "typical ranges"; seed 002 §5 (dry friction and
+line resistance neglected), seed 003 §2 (leakage), seed 000 Table 2.
+
+==================  =========================================================  ==============
+effect              formulation                                                parameters
+==================  =========================================================  ==============
+coulomb_friction    F = Fc·tanh(v/vc)                                          Fc; vc fixed
+stribeck_friction   F = (Fc + Fst·exp(−(v/vs)²))·tanh(v/vc)                    Fc, Fst, vs
+line_resistance     laminar line Δp = R·q between each valve port and chamber  R [Pa·s/m³]
+internal_leakage    q = Kl·(pA − pB) across piston or motor                    Kl [m³/(s·Pa)]
+valve_deadband      i_eff = i0 + sign(Δi)·max(|Δi| − w, 0), Δi = i − i0       w [input]
+valve_bias          i_eff = i + b (null bias beyond the declared one)          b [input]
+valve_lag           τ·di_s/dt = i − i_s (first-order spool dynamics)           τ [s]
+transport_delay     i_eff(t) = i(t − d)                                        d [s]
+bulk_modulus        E_eff replaces the oil's E (air, hoses)                    E_eff [Pa]
+supply_droop        q_supply = min(q_demand, Qp): pump flow limit with relief   Qp [m³/s]
+==================  =========================================================  ==============
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import Any
+
+from fuzzyservo._jit import njit
+from fuzzyservo.components.orifice import signed_sqrt_flow
+from fuzzyservo.params import index_of, quantity
+
+
+def _effect_field(key: str, unit: str, doc: str, **bounds: Any) -> Any:
+    return quantity(key, unit, default=0.0, doc=doc, effect=True, **bounds)
+
+
+@dataclass(frozen=True, kw_only=True)
+class EffectParams:
+    """Effect parameters every plant parameter set carries; 0 switches an effect off.
+
+    Units of ``*_si`` fields depend on the plant: force N (cylinder) or N·m (motor),
+    velocity m/s or rad/s, input A or V (the plant's input unit).
+    """
+
+    coulomb_force_si: float = _effect_field(
+        "coulomb_friction.force", "force", "Coulomb friction force or torque", nonnegative=True
+    )
+    friction_smoothing_velocity_si: float = _effect_field(
+        "friction.smoothing_velocity", "velocity", "tanh smoothing of sign(v)", nonnegative=True
+    )
+    stribeck_coulomb_force_si: float = _effect_field(
+        "stribeck_friction.coulomb_force", "force", "Coulomb level", nonnegative=True
+    )
+    stribeck_stiction_force_si: float = _effect_field(
+        "stribeck_friction.stiction_force", "force", "breakaway minus Coulomb", nonnegative=True
+    )
+    stribeck_velocity_si: float = _effect_field(
+        "stribeck_friction.stribeck_velocity", "velocity", "Stribeck velocity", nonnegative=True
+    )
+    line_resistance_pa_s_m3: float = _effect_field(
+        "line_resistance.resistance", "Pa*s/m^3", "laminar line resistance", nonnegative=True
+    )
+    internal_leakage_m3_s_pa: float = _effect_field(
+        "internal_leakage.coefficient", "m^3/(s*Pa)", "cross-port leakage", nonnegative=True
+    )
+    valve_deadband_si: float = _effect_field(
+        "valve_deadband.width", "input", "dead band half-width", nonnegative=True
+    )
+    valve_bias_si: float = _effect_field("valve_bias.offset", "input", "null bias offset")
+    valve_lag_s: float = _effect_field(
+        "valve_lag.time_constant", "s", "spool time constant", nonnegative=True
+    )
+    transport_delay_s: float = _effect_field(
+        "transport_delay.delay", "s", "input delay", nonnegative=True
+    )
+    effective_bulk_modulus_pa: float = _effect_field(
+        "bulk_modulus.effective", "Pa", "effective bulk modulus (0: the oil's)", nonnegative=True
+    )
+    pump_flow_m3_s: float = _effect_field(
+        "supply_droop.pump_flow", "m^3/s", "pump flow limit (0: unlimited)", nonnegative=True
+    )
+
+
+def _index(name: str) -> int:
+    return index_of(EffectParams, name)
+
+
+# Positions in every plant's packed vector (the inherited fields come first).
+E_COULOMB = _index("coulomb_force_si")
+E_SMOOTH = _index("friction_smoothing_velocity_si")
+E_STRIBECK_FC = _index("stribeck_coulomb_force_si")
+E_STRIBECK_FS = _index("stribeck_stiction_force_si")
+E_STRIBECK_VS = _index("stribeck_velocity_si")
+E_LINE = _index("line_resistance_pa_s_m3")
+E_LEAK = _index("internal_leakage_m3_s_pa")
+E_DEADBAND = _index("valve_deadband_si")
+E_BIAS = _index("valve_bias_si")
+E_LAG = _index("valve_lag_s")
+E_DELAY = _index("transport_delay_s")
+E_BULK = _index("effective_bulk_modulus_pa")
+E_PUMP = _index("pump_flow_m3_s")
+
+
+def effective_bulk_modulus(params: Any) -> float:
+    """The bulk modulus the plant uses [Pa]: the effect's E_eff when set, else the oil's."""
+    return params.effective_bulk_modulus_pa or params.bulk_modulus_pa
+
+
+# --------------------------------------------------------------------------- kernels
+
+
+@njit(cache=True, inline="always")
+def bulk_modulus(p: Any, declared: float) -> float:
+    """E_eff [Pa] when the ``bulk_modulus`` effect is on, else the declared oil modulus."""
+    e = p[E_BULK]
+    return e if e > 0.0 else declared
+
+
+@njit(cache=True, inline="always")
+def friction_force(v: float, p: Any) -> float:
+    """Coulomb plus Stribeck friction [N or N·m] opposing velocity ``v`` [m/s or rad/s].
+
+    ``F = (Fc + Fc_s + Fst·exp(−(v/vs)²))·tanh(v/vc)`` (MODELLING.md "Friction", smooth
+    form; Armstrong-Hélouvry's Stribeck curve without its viscous part, which every
+    plant already has). Zero when both friction effects are off.
+    """
+    fc = p[E_COULOMB] + p[E_STRIBECK_FC]
+    fst = p[E_STRIBECK_FS]
+    if fc == 0.0 and fst == 0.0:
+        return 0.0
+    vc = p[E_SMOOTH]
+    if vc <= 0.0:
+        vc = 1e-4
+    level = fc
+    vs = p[E_STRIBECK_VS]
+    if fst > 0.0 and vs > 0.0:
+        r = v / vs
+        level += fst * math.exp(-r * r)
+    return level * math.tanh(v / vc)
+
+
+@njit(cache=True, inline="always")
+def deadband(i: float, null: float, width: float) -> float:
+    """Spool overlap: ``i0 + sign(Δi)·max(|Δi| − w, 0)`` with Δi = i − i0 (no flow change
+    for |Δi| ≤ w; MODELLING.md "dead band / overlap")."""
+    if width <= 0.0:
+        return i
+    d = i - null
+    if d > width:
+        return i - width
+    if d < -width:
+        return i + width
+    return null
+
+
+@njit(cache=True, inline="always")
+def _sqrt_flow_slope(coeff: float, dp: float, p_lam: float) -> float:
+    """d/dΔp of :func:`signed_sqrt_flow`: K·(Δp²/2 + λ²)/(Δp² + λ²)^(5/4)."""
+    s = dp * dp + p_lam * p_lam
+    return coeff * (0.5 * dp * dp + p_lam * p_lam) / (s * math.sqrt(math.sqrt(s)))
+
+
+@njit(cache=True)
+def port_pressure(
+    c_in: float,
+    p_in: float,
+    c_out: float,
+    p_out: float,
+    p_chamber: float,
+    resistance: float,
+    p_lam: float,
+) -> float:
+    """Pressure [Pa] of a valve port joined to a chamber by a laminar line (``line_resistance``).
+
+    Solves the port's flow balance ``c_in·√(p_in − x) − c_out·√(x − p_out) = (x − p_c)/R``
+    (turbulent valve slots in and out, laminar line Δp = R·q; MODELLING.md "line loss")
+    by Newton's method inside a bracket; the left side falls and the right side rises
+    with x, so the root is unique and lies between the smallest and largest pressure.
+    """
+    lo = min(p_in, p_out, p_chamber)
+    hi = max(p_in, p_out, p_chamber)
+    x = p_chamber
+    g = 1.0 / resistance
+    for _ in range(60):
+        f = (
+            signed_sqrt_flow(c_in, p_in - x, p_lam)
+            - signed_sqrt_flow(c_out, x - p_out, p_lam)
+            - (x - p_chamber) * g
+        )
+        if f > 0.0:
+            lo = x
+        else:
+            hi = x
+        slope = (
+            _sqrt_flow_slope(c_in, p_in - x, p_lam) + _sqrt_flow_slope(c_out, x - p_out, p_lam) + g
+        )
+        step = f / slope
+        x_new = x + step
+        if x_new <= lo or x_new >= hi:
+            x_new = 0.5 * (lo + hi)
+        if abs(x_new - x) <= 1e-10 * (abs(x) + 1e5) or hi - lo <= 1e-10 * (abs(x) + 1e5):
+            return x_new
+        x = x_new
+    return x
+
+
+@njit(cache=True, inline="always")
+def pump_limited(q: float, p: Any) -> float:
+    """Supply flow [m³/s] limited to the pump's delivery Qp (``supply_droop``); when the
+    demand exceeds Qp the relief valve closes and the supply pressure sags."""
+    qp = p[E_PUMP]
+    if qp <= 0.0:
+        return q
+    if q > qp:
+        return qp
+    if q < -qp:
+        return -qp
+    return q
+
+
+# --------------------------------------------------------------------------- library
+
+
+@dataclass(frozen=True)
+class Scales:
+    """Size of a rig, from which effect bounds follow: stall force [N or N·m], no-load
+    velocity [m/s or rad/s], rated flow [m³/s], supply-to-return pressure [Pa], rated
+    input [A or V], the declared bulk modulus [Pa] and the controller's period [s]."""
+
+    force: float
+    velocity: float
+    flow: float
+    pressure: float
+    input: float
+    bulk_modulus: float
+    sample_time: float
+
+
+@dataclass(frozen=True)
+class EffectParam:
+    """One parameter of an effect: file key, field, unit token, fitted or fixed, bounds."""
+
+    key: str
+    field: str
+    unit: str  # "force", "velocity", "input" or an SI expression
+    bounds: Callable[[Scales], tuple[float, float]]
+    fitted: bool = True
+    default: Callable[[Scales], float] | None = None
+    log: bool = False  # search the parameter on a logarithmic grid
+
+    def value_bounds(self, scales: Scales) -> tuple[float, float]:
+        lo, hi = self.bounds(scales)
+        return float(lo), float(hi)
+
+
+@dataclass(frozen=True)
+class Effect:
+    """A library entry: name, stage (``input`` or ``plant``), parameters, and what it models."""
+
+    name: str
+    stage: str
+    params: tuple[EffectParam, ...]
+    formulation: str
+    source: str
+
+    @property
+    def fitted(self) -> tuple[EffectParam, ...]:
+        return tuple(p for p in self.params if p.fitted)
+
+    def param(self, key: str) -> EffectParam:
+        for p in self.params:
+            if p.key == key:
+                return p
+        raise KeyError(key)
+
+
+def _smoothing() -> EffectParam:
+    return EffectParam(
+        "smoothing_velocity",
+        "friction_smoothing_velocity_si",
+        "velocity",
+        lambda s: (0.0, 0.1 * s.velocity),
+        fitted=False,
+        default=lambda s: 1e-3 * s.velocity,
+    )
+
+
+LIBRARY: dict[str, Effect] = {
+    e.name: e
+    for e in (
+        Effect(
+            "coulomb_friction",
+            "plant",
+            (
+                EffectParam("force", "coulomb_force_si", "force", lambda s: (0.0, 0.1 * s.force)),
+                _smoothing(),
+            ),
+            "F = Fc·tanh(v/vc) opposing the motion [N or N·m]; vc = 0.1 % of the no-load speed",
+            "MODELLING.md Friction (smooth form); seed 002 §5 names dry friction as neglected",
+        ),
+        Effect(
+            "stribeck_friction",
+            "plant",
+            (
+                EffectParam(
+                    "coulomb_force", "stribeck_coulomb_force_si", "force",
+                    lambda s: (0.0, 0.1 * s.force),
+                ),
+                EffectParam(
+                    "stiction_force", "stribeck_stiction_force_si", "force",
+                    lambda s: (0.0, 0.1 * s.force),
+                ),
+                EffectParam(
+                    "stribeck_velocity", "stribeck_velocity_si", "velocity",
+                    lambda s: (1e-3 * s.velocity, 0.1 * s.velocity), log=True,
+                ),
+                _smoothing(),
+            ),
+            "F = (Fc + Fst·exp(−(v/vs)²))·tanh(v/vc): breakaway Fc + Fst at rest, Fc in motion",
+            "MODELLING.md Friction and typical ranges (Fs/Fc 1.1-1.5, vs 1-10 mm/s)",
+        ),
+        Effect(
+            "line_resistance",
+            "plant",
+            (
+                EffectParam(
+                    "resistance", "line_resistance_pa_s_m3", "Pa*s/m^3",
+                    lambda s: (0.0, s.pressure / s.flow), log=True,
+                ),
+            ),
+            "laminar line between each valve port and its chamber: Δp = R·q [Pa], "
+            "R = 128·μ·L/(π·d⁴)",
+            "MODELLING.md line loss; seed 002 §5 names the valve-cylinder line as neglected",
+        ),
+        Effect(
+            "internal_leakage",
+            "plant",
+            (
+                EffectParam(
+                    "coefficient", "internal_leakage_m3_s_pa", "m^3/(s*Pa)",
+                    lambda s: (0.0, 0.2 * s.flow / s.pressure), log=True,
+                ),
+            ),
+            "q = Kl·(pA − pB) across the piston or motor [m³/s]",
+            "MODELLING.md typical ranges (1e-14..1e-12 cylinders, 1e-12..1e-11 motors); "
+            "seed 003 §2, seed 001 eq. 1-9",
+        ),
+        Effect(
+            "valve_deadband",
+            "input",
+            (
+                EffectParam(
+                    "width", "valve_deadband_si", "input", lambda s: (0.0, 0.1 * s.input)
+                ),
+            ),
+            "i_eff = i0 + sign(Δi)·max(|Δi| − w, 0) around the valve null i0",
+            "MODELLING.md dead band / overlap",
+        ),
+        Effect(
+            "valve_bias",
+            "input",
+            (
+                EffectParam(
+                    "offset", "valve_bias_si", "input",
+                    lambda s: (-0.05 * s.input, 0.05 * s.input),
+                ),
+            ),
+            "i_eff = i + b: a null bias beyond the declared one [A or V]",
+            "MODELLING.md null bias (≤ 2-3 % of rated current)",
+        ),
+        Effect(
+            "valve_lag",
+            "input",
+            (EffectParam("time_constant", "valve_lag_s", "s", lambda s: (0.0, 0.02)),),
+            "τ·di_s/dt = i − i_s: first-order spool dynamics [s]",
+            "MODELLING.md typical ranges (spool bandwidth 50-200 Hz: τ 0.8-3.2 ms); seed 000 eq. 8",
+        ),
+        Effect(
+            "transport_delay",
+            "input",
+            (
+                EffectParam(
+                    "delay", "transport_delay_s", "s",
+                    lambda s: (0.0, max(0.05, 5.0 * s.sample_time)),
+                ),
+            ),
+            "i_eff(t) = i(t − d): computation, bus and converter delay [s]",
+            "MODELLING.md transport delay (cross-correlation peak at lag > 0)",
+        ),
+        Effect(
+            "bulk_modulus",
+            "plant",
+            (
+                EffectParam(
+                    "effective", "effective_bulk_modulus_pa", "Pa",
+                    lambda s: (0.1e9, s.bulk_modulus),
+                ),
+            ),
+            "E_eff replaces the oil's bulk modulus in every chamber [Pa]",
+            "MODELLING.md typical ranges (oil 1.4-1.8 GPa; hoses or air 0.2-0.7 GPa)",
+        ),
+        Effect(
+            "supply_droop",
+            "plant",
+            (
+                EffectParam(
+                    "pump_flow", "pump_flow_m3_s", "m^3/s",
+                    lambda s: (0.1 * s.flow, 2.0 * s.flow),
+                ),
+            ),
+            "q_supply = min(q_demand, Qp): a pump of limited flow behind the relief valve; "
+            "the supply pressure sags when the valve asks for more",
+            "MODELLING.md supply droop; seed 003 eq. 1 (pump with relief)",
+        ),
+    )
+}  # fmt: skip
+
+INPUT_EFFECTS = tuple(name for name, e in LIBRARY.items() if e.stage == "input")

@@ -113,3 +113,25 @@ class Affine(Signal):
 
     def sample(self, t: np.ndarray) -> np.ndarray:
         return self.offset + self.gain * self.inner.sample(t)
+
+
+@dataclass(frozen=True, eq=False)
+class Sampled(Signal):
+    """A recorded signal held between its samples (zero-order hold, like a DAC):
+    ``s(t) = values[k]`` for ``times_s[k] <= t < times_s[k+1]``; the first value before
+    the first sample. Replays measured references and commands."""
+
+    times_s: np.ndarray
+    values: np.ndarray
+
+    def __post_init__(self) -> None:
+        if np.shape(self.times_s) != np.shape(self.values) or np.ndim(self.times_s) != 1:
+            raise ValueError("times_s and values must be vectors of the same length")
+        if np.any(np.diff(self.times_s) <= 0):
+            raise ValueError("times_s must increase strictly")
+
+    def sample(self, t: np.ndarray) -> np.ndarray:
+        t = np.asarray(t, dtype=float)
+        # a small tolerance so that a grid computed as k·dt lands on its own sample
+        k = np.searchsorted(self.times_s, t + 1e-9 * (1.0 + np.abs(t)), side="right") - 1
+        return np.asarray(self.values, dtype=float)[np.clip(k, 0, None)]

@@ -283,6 +283,12 @@ class Effect:
     def fitted(self) -> tuple[EffectParam, ...]:
         return tuple(p for p in self.params if p.fitted)
 
+    def param_by_field(self, field: str) -> EffectParam:
+        for p in self.params:
+            if p.field == field:
+                return p
+        raise KeyError(field)
+
     def param(self, key: str) -> EffectParam:
         for p in self.params:
             if p.key == key:
@@ -297,7 +303,7 @@ def _smoothing() -> EffectParam:
         "velocity",
         lambda s: (0.0, 0.1 * s.velocity),
         fitted=False,
-        default=lambda s: 1e-3 * s.velocity,
+        default=lambda s: 5e-3 * s.velocity,
     )
 
 
@@ -311,7 +317,7 @@ LIBRARY: dict[str, Effect] = {
                 EffectParam("force", "coulomb_force_si", "force", lambda s: (0.0, 0.1 * s.force)),
                 _smoothing(),
             ),
-            "F = Fc·tanh(v/vc) opposing the motion [N or N·m]; vc = 0.1 % of the no-load speed",
+            "F = Fc·tanh(v/vc) opposing the motion [N or N·m]; vc = 0.5 % of the no-load speed",
             "MODELLING.md Friction (smooth form); seed 002 §5 names dry friction as neglected",
         ),
         Effect(
@@ -328,7 +334,7 @@ LIBRARY: dict[str, Effect] = {
                 ),
                 EffectParam(
                     "stribeck_velocity", "stribeck_velocity_si", "velocity",
-                    lambda s: (1e-3 * s.velocity, 0.1 * s.velocity), log=True,
+                    lambda s: (1e-3 * s.velocity, 0.2 * s.velocity), log=True,
                 ),
                 _smoothing(),
             ),
@@ -354,7 +360,7 @@ LIBRARY: dict[str, Effect] = {
             (
                 EffectParam(
                     "coefficient", "internal_leakage_m3_s_pa", "m^3/(s*Pa)",
-                    lambda s: (0.0, 0.2 * s.flow / s.pressure), log=True,
+                    lambda s: (0.0, 0.1 * s.flow / s.pressure), log=True,
                 ),
             ),
             "q = Kl·(pA − pB) across the piston or motor [m³/s]",
@@ -421,7 +427,7 @@ LIBRARY: dict[str, Effect] = {
             (
                 EffectParam(
                     "pump_flow", "pump_flow_m3_s", "m^3/s",
-                    lambda s: (0.1 * s.flow, 2.0 * s.flow),
+                    lambda s: (0.1 * s.flow, 4.0 * s.flow),
                 ),
             ),
             "q_supply = min(q_demand, Qp): a pump of limited flow behind the relief valve; "

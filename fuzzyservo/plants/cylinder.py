@@ -385,13 +385,13 @@ def null_input(params: CylinderParams) -> float:
 
 def effect_scales(params: CylinderParams, input_a: float, sample_time_s: float) -> Scales:
     """Sizes the effect bounds scale with: stall force pa·S3, rated flow at full opening
-    (slot coefficient a + b·I_cl with half the supply drop), its piston speed."""
+    (slot coefficient a + b·I_cl across the whole supply drop), its piston speed."""
     dp = params.supply_pressure_pa - params.return_pressure_pa
     opening = (
         params.slot_coeff_a_m3_s_sqrtpa
         + params.slot_coeff_b_m3_s_a_sqrtpa * params.closing_current_a
     )
-    flow = opening * (0.5 * dp) ** 0.5
+    flow = opening * dp**0.5
     return Scales(
         force=params.supply_pressure_pa * params.area_3_m2,
         velocity=flow / params.area_3_m2,

@@ -1,0 +1,224 @@
+"""Replay a measured run on a rig model: the same input, the data's initial state, the
+model's channels on the data's time grid.
+
+Closed loop (a controller is given): the recorded reference ``ref`` drives the
+controller at the rig's sample time. Open loop: the recorded valve current ``i`` (or
+command ``u``) is applied through the actuator, held between samples at the data's
+sample period. The initial state takes every state the data shows at its first sample
+(position, pressures, speed); the rest comes from the rig file.
+
+The record is split in time: the first 70 % trains (parameters are fitted on it), the
+last 30 % is held out (fit % is reported on it), as MATLAB's System Identification
+Toolbox users split estimation and validation data.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass
+
+import numpy as np
+
+from fuzzyservo.calibration.residuals import noise_floor
+from fuzzyservo.controllers.base import Controller
+from fuzzyservo.controllers.classical import OpenLoop
+from fuzzyservo.errors import DataError
+from fuzzyservo.io.measured import Measured
+from fuzzyservo.rig import Rig, Scenario
+from fuzzyservo.signals import Sampled
+from fuzzyservo.simulation import simulate
+
+VALIDATION_FRACTION = 0.3
+INPUT_SIGNALS = ("t", "ref", "u", "i")  # what drives a replay; never a compared channel
+DIVERGED_COST = 1e12  # cost of a run that failed (noise-variance units)
+
+
+@dataclass(frozen=True, eq=False)
+class Replay:
+    """A measured run ready to be replayed on variants of one rig.
+
+    ``channels``: data signal -> model signal compared; ``drive``: the data signal that
+    drives the run (``ref``, ``i`` or ``u``); ``split``: first held-out sample.
+    """
+
+    data: Measured
+    controller: Controller
+    scenario: Scenario
+    sample_time_s: float
+    channels: dict[str, str]
+    drive: str
+    mode: str
+    split: int
+
+    @property
+    def t(self) -> np.ndarray:
+        """Data time from the first sample [s]."""
+        return self.data.t - self.data.t[0]
+
+    @property
+    def split_s(self) -> float:
+        return float(self.t[self.split])
+
+    def measured(self, channel: str) -> np.ndarray:
+        return self.data.signals[channel]
+
+    def run(self, rig: Rig) -> tuple[dict[str, np.ndarray], str]:
+        """Model channels on the data grid (NaN where the run failed) and the run's status."""
+        replay_rig = dataclasses.replace(rig, sample_time_s=self.sample_time_s, initial={})
+        result = simulate(replay_rig, self.controller, self.scenario)
+        t = self.t
+        out = {}
+        for channel, signal in self.channels.items():
+            values = result.signals[signal]
+            if np.isfinite(values).all():
+                out[channel] = np.interp(t, result.t, values)
+            else:
+                out[channel] = np.full(t.size, np.nan)
+        return out, result.status
+
+    @property
+    def sigma(self) -> dict[str, float]:
+        """Noise level of each channel, estimated from the data (residuals.noise_floor)."""
+        cached = self.__dict__.get("_sigma")
+        if cached is None:
+            cached = {}
+            for channel in self.channels:
+                y = self.measured(channel)
+                spread = float(np.std(y))
+                # quantised or noise-free data: never weigh a channel infinitely
+                cached[channel] = max(noise_floor(y), 1e-6 * spread, 1e-300)
+            self.__dict__["_sigma"] = cached
+        return cached
+
+    def costs(self, model: dict[str, np.ndarray]) -> tuple[float, float]:
+        """:meth:`cost` on (training, held-out)."""
+        return self.cost(model, slice(0, self.split)), self.cost(model, slice(self.split, None))
+
+    def cost(self, model: dict[str, np.ndarray], part: slice) -> float:
+        """Mean squared residual in units of each channel's noise variance, averaged over
+        channels: the maximum-likelihood criterion for white Gaussian measurement noise,
+        so a channel weighs by how precisely it was measured. A perfect model scores 1."""
+        total = 0.0
+        for channel in self.channels:
+            e = (self.measured(channel)[part] - model[channel][part]) / self.sigma[channel]
+            if not np.isfinite(e).all():
+                return DIVERGED_COST
+            total += float(e @ e) / e.size
+        return total / len(self.channels)
+
+    def residual_vector(self, model: dict[str, np.ndarray]) -> np.ndarray:
+        """Training residuals scaled so that their sum of squares is the training cost."""
+        part = slice(0, self.split)
+        parts = []
+        for channel in self.channels:
+            e = self.measured(channel)[part] - model[channel][part]
+            e = e / (self.sigma[channel] * np.sqrt(e.size * len(self.channels)))
+            parts.append(np.where(np.isfinite(e), e, np.sqrt(DIVERGED_COST / e.size)))
+        return np.concatenate(parts)
+
+    def noise_cost(self) -> float:
+        """The cost a perfect model leaves: 1 (white noise of the estimated level)."""
+        return 1.0
+
+
+def make_replay(rig: Rig, data: Measured, controller: Controller | None = None) -> Replay:
+    """A replay of ``data`` on ``rig``: closed loop through ``controller``, else open loop."""
+    plant = rig.plant
+    channels = _channels(rig, data)
+    if not channels:
+        raise DataError(
+            f"{data.source}: no signal the model computes (the data has {sorted(data.signals)}; "
+            f"the model gives y, {', '.join(plant.signals)}); name the measured output column y_<unit>"
+        )
+    t = data.t - data.t[0]
+    if controller is not None:
+        if "ref" not in data.signals:
+            raise DataError(
+                f"{data.source}: a closed-loop replay needs the reference column ref_<unit>; "
+                "add it, or leave out --controller to replay open loop from i or u"
+            )
+        reference = _reference_volts(rig, data)
+        sample_time = rig.sample_time_s
+        drive, mode = "ref", f"closed loop through {controller.name}"
+    else:
+        drive = "i" if "i" in data.signals else "u" if "u" in data.signals else ""
+        if not drive:
+            raise DataError(
+                f"{data.source}: an open-loop replay needs the valve current i_<unit> or the "
+                "command u_V; add one, or give --controller and a ref_<unit> column"
+            )
+        values = data.signals[drive]
+        if drive == "i":
+            reference = values / rig.actuator.gain  # back to command volts
+        else:
+            reference = np.asarray(values, dtype=float)
+        controller = OpenLoop(gain=1.0, name="recorded input")
+        sample_time = data.sample_period_s
+        mode = f"open loop from the recorded {drive}"
+    controller = controller.with_limits(*rig.actuator.command_limits)
+    n = round((t[-1] + data.sample_period_s) / sample_time)
+    scenario = Scenario(
+        name="replay",
+        duration_s=n * sample_time,
+        reference=Sampled(times_s=t, values=np.asarray(reference, dtype=float)),
+        initial=_initial(rig, data, channels),
+        description=f"replay of {data.source}",
+    )
+    split = int(round((1.0 - VALIDATION_FRACTION) * t.size))
+    return Replay(
+        data=data,
+        controller=controller,
+        scenario=scenario,
+        sample_time_s=sample_time,
+        channels=channels,
+        drive=drive,
+        mode=mode,
+        split=split,
+    )
+
+
+def _channels(rig: Rig, data: Measured) -> dict[str, str]:
+    """Data signal -> model signal: ``y`` is the rig's output, others match by name."""
+    plant = rig.plant
+    out = {}
+    for name, unit in data.units.items():
+        if name in INPUT_SIGNALS:
+            continue
+        signal = rig.output if name == "y" else name
+        if signal not in plant.signals:
+            continue
+        if unit != plant.signal_units[signal]:
+            raise DataError(
+                f"{data.source}: column {name!r} is in {unit} but the model's {signal} is in "
+                f"{plant.signal_units[signal]}; rename the column with a unit of that kind"
+            )
+        out[name] = signal
+    return out
+
+
+def _reference_volts(rig: Rig, data: Measured) -> np.ndarray:
+    """The recorded reference in the feedback unit: volts as recorded, or through the sensor."""
+    fb = rig.feedback
+    ref = np.asarray(data.signals["ref"], dtype=float)
+    unit = data.units["ref"]
+    if unit == "V":
+        return ref
+    if unit == rig.plant.signal_units[fb.signal]:
+        return np.asarray(fb.read(ref))
+    raise DataError(
+        f"{data.source}: column 'ref' is in {unit}; give it in V (the feedback reading) or in "
+        f"{rig.plant.signal_units[fb.signal]} (the sensed {fb.signal})"
+    )
+
+
+def _initial(rig: Rig, data: Measured, channels: dict[str, str]) -> dict[str, float]:
+    """The initial state the data shows: first samples of every channel that is a state."""
+    initial = dict(rig.initial)
+    for channel, signal in channels.items():
+        for kw, _unit in rig.plant.initial_keys.values():
+            if kw.startswith(signal + "_"):
+                initial[kw] = float(data.signals[channel][0])
+                if signal.startswith("p") and signal[1:].isdigit():
+                    # a measured chamber pressure replaces the chamber mass the rig gives
+                    initial.pop(f"m{signal[1:]}_kg", None)
+    return initial

@@ -348,6 +348,82 @@ def cmd_fit_valve(args: argparse.Namespace) -> int:
     return 0
 
 
+def cmd_calibrate(args: argparse.Namespace) -> int:
+    from fuzzyservo.calibration.replay import make_replay
+    from fuzzyservo.calibration.report import write_outputs
+    from fuzzyservo.calibration.search import calibrate
+    from fuzzyservo.components.effects import LIBRARY
+    from fuzzyservo.io.controllers import load_controller
+    from fuzzyservo.io.measured import read_measured
+    from fuzzyservo.io.rigs import load_rig
+
+    rig = load_rig(resolve(args.rig, "rigs", "rig"))
+    controller = None
+    if args.controller:
+        controller = load_controller(resolve(args.controller, "studies/controllers", "controller"))
+    fmt = rig.measured
+    data = read_measured(
+        args.data,
+        mapping=fmt.columns if fmt and fmt.columns else None,
+        sample_period_s=fmt.sample_period_s if fmt else None,
+        resample=bool(fmt and fmt.resample) or args.resample,
+    )
+    effects = None
+    if args.effects:
+        effects = [e.strip() for e in args.effects.split(",") if e.strip()]
+        for e in effects:
+            if e not in LIBRARY:
+                raise ConfigError(
+                    f"--effects: unknown effect {e!r}; choose from {', '.join(LIBRARY)}"
+                )
+    if args.max_effects < 0:
+        raise ConfigError(f"--max-effects must be >= 0, got {args.max_effects}")
+    replay = make_replay(rig, data, controller)
+    candidates = [
+        e for e in (effects or LIBRARY) if e in rig.plant.effects and e not in rig.effects
+    ]
+    print(
+        f"calibrate {rig.name} on {data.source}: {replay.mode}; {len(data)} samples, "
+        f"channels {', '.join(replay.channels)}; {len(candidates)} candidate effects"
+    )
+    bar = _progress(len(candidates) * max(args.max_effects, 1), "candidates")
+    try:
+        outcome = calibrate(
+            replay,
+            rig,
+            effects=effects,
+            max_effects=args.max_effects,
+            progress=lambda name: (bar.set_postfix_str(name), bar.update(1)),
+        )
+    finally:
+        bar.close()
+    out = (
+        Path(args.out) if args.out else Path("out") / f"calibrate_{rig.name}_{Path(args.data).stem}"
+    )
+    paths = write_outputs(outcome, replay, args.data, out)
+    import json
+
+    summary = json.loads(paths["summary"].read_text(encoding="utf-8"))
+    print(f"effects added: {summary['decision']}")
+    for c in outcome.added:
+        print(f"  {c.name}: " + ", ".join(f"{k} = {v:.4g}" for k, v in c.params.items()))
+    print("held-out fit %  (channel: before -> after)")
+    for channel in replay.channels:
+        b = summary["fit_before_pct"][channel]
+        a = summary["fit_after_pct"][channel]
+        print(f"  {channel:6s} {_fmt(b):>8s} -> {_fmt(a):>8s}")
+    if outcome.rounds:
+        ranking = ", ".join(f"{c['name']} {_fmt(c['score'])}" for c in summary["candidates"][:5])
+        print(f"ranking (score, lower is better): {ranking}")
+    print(f"calibrated in {outcome.seconds:.1f} s; report: {paths['report']}")
+    if "rig" in paths:
+        print(f"calibrated rig: {paths['rig']}")
+    if args.json:
+        write_json(args.json, summary)
+        print(f"JSON written to {args.json}")
+    return 0
+
+
 def cmd_bench(args: argparse.Namespace) -> int:
     from fuzzyservo import bench
 
@@ -494,6 +570,28 @@ def build_parser() -> argparse.ArgumentParser:
         "--workers", type=int, default=2, help="worker processes of the study case (default: 2)"
     )
     p.set_defaults(func=cmd_bench)
+
+    p = sub.add_parser(
+        "calibrate",
+        help="replay measured data on a rig, trace the residual to missing effects, add them",
+    )
+    p.add_argument("rig", help="rig file or name in rigs/")
+    p.add_argument("data", help="measured data: CSV with <signal>_<unit> columns, or .mat")
+    p.add_argument(
+        "--controller",
+        help="replay closed loop through this controller from the data's ref column "
+        "(default: open loop from the recorded i or u)",
+    )
+    p.add_argument("--out", help="output folder (default out/calibrate_<rig>_<data>)")
+    p.add_argument("--json", help="also write the summary JSON here")
+    p.add_argument(
+        "--effects", help="comma-separated candidate effects (default: the whole library)"
+    )
+    p.add_argument("--max-effects", type=int, default=2, help="effects to add at most (default 2)")
+    p.add_argument(
+        "--resample", action="store_true", help="resample uneven or repeated time stamps"
+    )
+    p.set_defaults(func=cmd_calibrate)
 
     p = sub.add_parser("fit-valve", help="train the seed-003 valve network on a valve-data CSV")
     p.add_argument(

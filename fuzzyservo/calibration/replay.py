@@ -164,7 +164,7 @@ def make_replay(rig: Rig, data: Measured, controller: Controller | None = None) 
         initial=_initial(rig, data, channels),
         description=f"replay of {data.source}",
     )
-    split = int(round((1.0 - VALIDATION_FRACTION) * t.size))
+    split = round((1.0 - VALIDATION_FRACTION) * t.size)
     return Replay(
         data=data,
         controller=controller,

@@ -171,7 +171,6 @@ def fit(
     start = time.perf_counter()
     space = _space(base, effect)
     objective = _Objective(replay, base, effect, space)
-    n = len(space.names)
     n_effect = sum(1 for owner, _ in space.names if owner == effect) if effect else 0
     z0 = np.array(
         [

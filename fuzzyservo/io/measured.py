@@ -29,7 +29,7 @@ import numpy as np
 from fuzzyservo.errors import DataError
 from fuzzyservo.units import parse_unit, to_si
 
-__all__ = ["UNIT_SUFFIXES", "Measured", "read_measured"]
+__all__ = ["UNIT_SUFFIXES", "Measured", "read_measured", "write_measured"]
 
 MIN_SAMPLES = 20
 UNEVEN_TOLERANCE = 0.01  # relative spread (max dt - min dt) / median dt
@@ -530,3 +530,34 @@ def read_measured(
     for col in columns:
         _check_finite(file, col.label(kind), col.values, row)
     return _build(file, kind, columns, row, sample_period_s, resample)
+
+
+def write_measured(path: str | Path, data: Measured, units: Mapping[str, str]) -> Path:
+    """Write ``data`` as a CSV with ``<signal>_<unit>`` headers, each signal converted from
+    SI to the header unit given in ``units`` (a key of :data:`UNIT_SUFFIXES`; SI if absent)."""
+    p = Path(path)
+    p.parent.mkdir(parents=True, exist_ok=True)
+    columns = [np.asarray(data.t, dtype=float)]
+    header = [f"t_{units.get('t', 's')}"]
+    for name in data.signals:
+        suffix = units.get(name) or _si_suffix(data.units[name])
+        expr, si = UNIT_SUFFIXES[suffix]
+        factor = to_si(1.0, expr, si)
+        columns.append(np.asarray(data.signals[name], dtype=float) / factor)
+        header.append(f"{name}_{suffix}")
+    if "t" in units:
+        expr, si = UNIT_SUFFIXES[units["t"]]
+        columns[0] = columns[0] / to_si(1.0, expr, si)
+    rows = np.column_stack(columns)
+    with p.open("w", encoding="utf-8", newline="") as fh:
+        fh.write(",".join(header) + "\n")
+        for row in rows:
+            fh.write(",".join(f"{v:.10g}" for v in row) + "\n")
+    return p
+
+
+def _si_suffix(si_unit: str) -> str:
+    for suffix, (_expr, si) in UNIT_SUFFIXES.items():
+        if si == si_unit and UNIT_SUFFIXES[suffix][0] == si_unit:
+            return suffix
+    raise ValueError(f"no column suffix for SI unit {si_unit!r}; give one in units")

@@ -467,3 +467,46 @@ def _signal(node: Node, si_unit: str, wrap) -> Signal:
             node.fail(f"{rest}; correct the value", key=key)
         node.fail(f"{exc}; correct the {kind} signal")
     return wrap(signal)
+
+
+def write_calibrated_rig(
+    source: str | Path,
+    out: str | Path,
+    *,
+    parameters: dict[str, tuple[float, str, str]],
+    effects: dict[str, dict[str, tuple[float, str, str]]],
+    header: str,
+) -> Path:
+    """Write a copy of rig file ``source`` with ``parameters`` (key -> value, unit,
+    source) changed under ``plant.parameters`` and ``effects`` (name -> key -> value,
+    unit, source) declared. Comments of the original are not kept; ``header`` opens the
+    file. Files the rig names are re-pointed relative to the new location."""
+    import os
+
+    import yaml
+
+    data = read_yaml(source)
+    src_dir = Path(source).resolve().parent
+    out = Path(out)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    plant_params = data["plant"]["parameters"]
+    for key, entry in plant_params.items():
+        if isinstance(entry, dict) and "file" in entry:
+            target = (src_dir / entry["file"]).resolve()
+            entry["file"] = os.path.relpath(target, out.parent.resolve())
+    for key, (value, unit, source_text) in parameters.items():
+        old = plant_params.get(key, {})
+        note = old.get("source") if isinstance(old, dict) else None
+        plant_params[key] = {"value": float(value), "unit": unit, "source": source_text}
+        if note:
+            plant_params[key]["note"] = f"declared source: {note}"
+    section = data.setdefault("effects", {}) or {}
+    for name, values in effects.items():
+        section[name] = {
+            key: {"value": float(v), "unit": u, "source": s} for key, (v, u, s) in values.items()
+        }
+    data["effects"] = section
+    text = yaml.safe_dump(data, sort_keys=False, allow_unicode=True, width=100)
+    lines = "".join(f"# {line}\n" for line in header.splitlines())
+    out.write_text(lines + text, encoding="utf-8")
+    return out

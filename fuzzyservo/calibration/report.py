@@ -1,0 +1,357 @@
+"""Calibration outputs: the calibrated rig file, figures, a Markdown report and the summary JSON."""
+
+from __future__ import annotations
+
+import dataclasses
+import datetime as _dt
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from fuzzyservo.calibration.replay import Replay
+from fuzzyservo.calibration.residuals import (
+    autocorrelation,
+    confidence_band,
+    cross_correlation,
+    signature_regression,
+    whiteness,
+)
+from fuzzyservo.calibration.search import Outcome, fit_table
+from fuzzyservo.calibration.signatures import mean_share, signatures
+from fuzzyservo.components.effects import LIBRARY
+from fuzzyservo.rig import Rig
+
+# SI unit -> (display unit, factor) for plots and tables
+_DISPLAY = {"m": ("mm", 1e3), "Pa": ("bar", 1e-5), "A": ("mA", 1e3), "m/s": ("mm/s", 1e3)}
+
+
+def _display(unit: str) -> tuple[str, float]:
+    return _DISPLAY.get(unit, (unit, 1.0))
+
+
+def _input_signal(replay: Replay) -> tuple[str, np.ndarray]:
+    """The input the residual is cross-correlated with: the valve current or command if
+    recorded, else the reference."""
+    for name in ("i", "u", "ref"):
+        if name in replay.data.signals:
+            return name, np.asarray(replay.data.signals[name], dtype=float)
+    return "ref", np.zeros(replay.t.size)
+
+
+def residual_analysis(replay: Replay, model: dict[str, np.ndarray]) -> dict[str, Any]:
+    """Whiteness and independence of each channel's held-out residual (MATLAB ``resid``)."""
+    part = slice(replay.split, None)
+    name, u = _input_signal(replay)
+    out: dict[str, Any] = {"input": name, "channels": {}}
+    for channel in replay.channels:
+        e = (replay.measured(channel) - model[channel])[part]
+        if not np.isfinite(e).all():
+            out["channels"][channel] = None
+            continue
+        w = whiteness(e, u[part])
+        out["channels"][channel] = dataclasses.asdict(w)
+    return out
+
+
+def signature_table(replay: Replay, rig: Rig, model: dict[str, np.ndarray]) -> dict[str, float]:
+    """R² of the held-out residual regressed on each effect's signature."""
+    result = replay_result(replay, rig)
+    regs = signatures(result, rig)
+    part = slice(replay.split, None)
+    t = replay.t
+    regressors = {k: np.interp(t, result.t, v)[part] for k, v in regs.items()}
+    residuals = {
+        c: ((replay.measured(c) - model[c]) / replay.sigma[c])[part] for c in replay.channels
+    }
+    table = signature_regression(residuals, regressors)
+    table["valve_bias"] = mean_share(residuals)
+    delay_u = table.pop("transport_delay_u", 0.0)
+    table["transport_delay"] = max(table.get("transport_delay", 0.0), delay_u)
+    return table
+
+
+def replay_result(replay: Replay, rig: Rig):
+    from fuzzyservo.simulation import simulate
+
+    replay_rig = dataclasses.replace(rig, sample_time_s=replay.sample_time_s, initial={})
+    return simulate(replay_rig, replay.controller, replay.scenario)
+
+
+def summary_data(outcome: Outcome, replay: Replay) -> dict[str, Any]:
+    """The ``--json`` payload: effects added, fit before/after, the ranking, and more."""
+    models = outcome.models
+    first = outcome.rounds[0].candidates if outcome.rounds else ()
+    data: dict[str, Any] = {
+        "effects_added": [{"name": c.name, "params": dict(c.params)} for c in outcome.added],
+        "fit_before_pct": fit_table(replay, models["declared"]),
+        "fit_after_pct": fit_table(replay, models["calibrated"]),
+        "candidates": [{"name": c.name, "score": c.score} for c in first],
+    }
+    if outcome.declared.unknowns:
+        data["fit_nominal_pct"] = fit_table(replay, models["nominal"])
+        data["fitted_parameters"] = {
+            f: float(getattr(outcome.calibrated.params, f))
+            for f in outcome.declared.unknowns
+            if not any(p.field == f for e in LIBRARY.values() for p in e.params)
+        }
+    data["decision"] = "none" if not outcome.added else ", ".join(c.name for c in outcome.added)
+    data["rounds"] = [
+        {
+            "start_cost": r.start_cost_val,
+            "added": r.added,
+            "candidates": [
+                {
+                    "name": c.name,
+                    "score": c.score,
+                    "cost_train": c.cost_train,
+                    "cost_val": c.cost_val,
+                    "n_params": c.n_params,
+                    "params": dict(c.params),
+                    "fit_val_pct": c.fit_val,
+                    "status": c.status,
+                    "evaluations": c.evaluations,
+                    "seconds": c.seconds,
+                }
+                for c in r.candidates
+            ],
+        }
+        for r in outcome.rounds
+    ]
+    data["noise_cost"] = outcome.noise_cost
+    data["noise_floor"] = {c: replay.sigma[c] for c in replay.channels}
+    data["cost_val"] = {
+        "declared": outcome.cost_declared,
+        "nominal": outcome.cost_nominal,
+        "calibrated": outcome.cost_final,
+    }
+    data["replay"] = {
+        "mode": replay.mode,
+        "samples": int(replay.t.size),
+        "held_out_from_s": replay.split_s,
+        "channels": dict(replay.channels),
+    }
+    data["seconds"] = outcome.seconds
+    return data
+
+
+def write_outputs(
+    outcome: Outcome, replay: Replay, data_path: str | Path, out_dir: Path
+) -> dict[str, Path]:
+    """Write the calibrated rig, figures, report and summary into ``out_dir``."""
+    from fuzzyservo.io.jsonfile import write_json
+    from fuzzyservo.io.rigs import write_calibrated_rig
+    from fuzzyservo.plots import candidates_figure, overlay_figure, residual_figure, save
+
+    out_dir.mkdir(parents=True, exist_ok=True)
+    rig = outcome.calibrated
+    paths: dict[str, Path] = {}
+    stamp = _dt.date.today().isoformat()
+    origin = f"fuzzyservo calibrate on {Path(data_path).name} ({stamp})"
+    parameters = {}
+    for f in outcome.declared.unknowns:
+        meta = type(rig.params).__dataclass_fields__[f].metadata
+        if meta.get("effect"):
+            continue
+        parameters[meta["key"]] = (
+            float(getattr(rig.params, f)),
+            meta["unit"],
+            f"fitted by {origin}",
+        )
+    effects = {}
+    for name in rig.effects:
+        effect = LIBRARY[name]
+        values = rig.effect_values(name)
+        fitted = name in {c.name for c in outcome.added} or any(
+            p.field in outcome.declared.unknowns for p in effect.params
+        )
+        how = f"fitted by {origin}" if fitted else "declared in the rig file"
+        effects[name] = {
+            p.key: (values[p.key], _effect_unit(rig, p.unit), how) for p in effect.params
+        }
+    header = (
+        f"Calibrated by {origin}\n"
+        f"from rig file {outcome.declared.path}; effects added: "
+        f"{', '.join(c.name for c in outcome.added) or 'none'}"
+    )
+    if outcome.declared.path:
+        paths["rig"] = write_calibrated_rig(
+            outcome.declared.path,
+            out_dir / f"{outcome.declared.name}_calibrated.yaml",
+            parameters=parameters,
+            effects=effects,
+            header=header,
+        )
+    summary = summary_data(outcome, replay)
+    if "rig" in paths:
+        summary["calibrated_rig"] = str(paths["rig"])
+
+    # figures
+    t = replay.t
+    units, measured, before, after = {}, {}, {}, {}
+    for channel in replay.channels:
+        unit, k = _display(replay.data.units[channel])
+        units[channel] = unit
+        measured[channel] = k * replay.measured(channel)
+        before[channel] = k * outcome.models["nominal"][channel]
+        after[channel] = k * outcome.models["calibrated"][channel]
+    fit_before = fit_table(replay, outcome.models["nominal"])
+    fit_after = summary["fit_after_pct"]
+    title = f"{outcome.declared.name}: {replay.mode}"
+    fig = overlay_figure(
+        t, measured, before, after, units, replay.split_s, fit_before, fit_after, title
+    )
+    paths["overlay"] = save(fig, out_dir / "overlay.png")
+    band = confidence_band(t.size - replay.split)
+    input_name, u = _input_signal(replay)
+    part = slice(replay.split, None)
+    analyses = {}
+    for label, model in (
+        ("before", outcome.models["nominal"]),
+        ("after", outcome.models["calibrated"]),
+    ):
+        res, acf, xcf = {}, {}, {}
+        for channel in replay.channels:
+            e = measured[channel] - (before if label == "before" else after)[channel]
+            res[channel] = e
+            if np.isfinite(e[part]).all():
+                acf[channel] = autocorrelation(e[part])
+                xcf[channel] = cross_correlation(e[part], u[part])
+        fig = residual_figure(
+            t, res, units, acf, xcf, band, input_name, title=f"residuals {label}: {title}"
+        )
+        paths[f"residuals_{label}"] = save(fig, out_dir / f"residuals_{label}.png")
+        analyses[label] = residual_analysis(replay, model)
+    summary["residual_analysis"] = analyses
+    summary["signature_r2"] = signature_table(replay, outcome.nominal, outcome.models["nominal"])
+    for k, r in enumerate(outcome.rounds, start=1):
+        fig = candidates_figure(
+            [c.name for c in r.candidates],
+            [c.score for c in r.candidates],
+            r.start_cost_val,
+            outcome.noise_cost,
+            [r.added] if r.added else [],
+            title=f"round {k}: held-out score (noise-variance units, lower is better)",
+        )
+        paths[f"candidates_{k}"] = save(fig, out_dir / f"candidates_{k}.png")
+    paths["summary"] = write_json(out_dir / "summary.json", summary)
+    paths["report"] = out_dir / "report.md"
+    paths["report"].write_text(
+        _report(outcome, replay, summary, paths, data_path), encoding="utf-8"
+    )
+    return paths
+
+
+def _effect_unit(rig: Rig, token: str) -> str:
+    if token == "input":
+        return rig.plant.input[1]
+    return rig.plant.mechanics.get(token, token)
+
+
+def _pct(value: float | None) -> str:
+    if value is None or not np.isfinite(value):
+        return "failed" if value is not None and value == -np.inf else "n/a"
+    return f"{value:.1f} %"
+
+
+def _report(
+    outcome: Outcome, replay: Replay, summary: dict, paths: dict[str, Path], data_path
+) -> str:
+    def rel(key: str) -> str:
+        return paths[key].name
+
+    lines = [
+        f"# Calibration of {outcome.declared.name} on {Path(data_path).name}",
+        "",
+        f"Replay: {replay.mode}; {replay.t.size} samples at {replay.data.sample_period_s * 1e3:.4g} ms; "
+        f"the last {100 * (1 - replay.split / replay.t.size):.0f} % (from {replay.split_s:.2f} s) "
+        "is held out: fits are fitted on the first part and reported on it.",
+        "",
+        f"**Effects added: {summary['decision']}**"
+        + (f" → calibrated rig `{rel('rig')}`" if "rig" in paths else ""),
+        "",
+        "## Fit on held-out data (MATLAB `compare`: 100·(1 − ‖y − ŷ‖/‖y − ȳ‖))",
+        "",
+    ]
+    cols = ["declared rig"]
+    tables = [summary["fit_before_pct"]]
+    if "fit_nominal_pct" in summary:
+        cols.append("unknowns fitted")
+        tables.append(summary["fit_nominal_pct"])
+    cols.append("calibrated")
+    tables.append(summary["fit_after_pct"])
+    lines.append("| channel | noise σ | " + " | ".join(cols) + " |")
+    lines.append("|---|---|" + "---|" * len(cols))
+    for channel in replay.channels:
+        unit, k = _display(replay.data.units[channel])
+        sigma = f"{k * replay.sigma[channel]:.3g} {unit}"
+        lines.append(
+            f"| {channel} | {sigma} | " + " | ".join(_pct(t[channel]) for t in tables) + " |"
+        )
+    lines += ["", f"![overlay]({rel('overlay')})", ""]
+    if "fitted_parameters" in summary:
+        lines += ["## Fitted unknowns", "", "| parameter | bounds | value |", "|---|---|---|"]
+        for f, v in summary["fitted_parameters"].items():
+            lo, hi = outcome.declared.unknowns[f]
+            lines.append(f"| {f} | [{lo:.4g}, {hi:.4g}] | {v:.6g} |")
+        lines.append("")
+    lines += [
+        "## Candidates",
+        "",
+        "Score: held-out mean squared residual in units of each channel's noise variance "
+        "(1 = a perfect model) plus "
+        "0.1 per fitted parameter. An effect is added when it lowers the held-out cost by "
+        "more than 0.25 noise floors and 5 %.",
+        "",
+    ]
+    for k, r in enumerate(outcome.rounds, start=1):
+        lines += [
+            f"### Round {k}: starting cost {r.start_cost_val:.4g}, added: {r.added or 'none'}",
+            "",
+            "| rank | effect | score | held-out cost | parameters | runs | s |",
+            "|---|---|---|---|---|---|---|",
+        ]
+        for i, c in enumerate(r.candidates, start=1):
+            params = ", ".join(f"{key} = {v:.4g}" for key, v in c.params.items())
+            lines.append(
+                f"| {i} | {c.name} | {c.score:.4g} | {c.cost_val:.4g} | {params} | "
+                f"{c.evaluations} | {c.seconds:.1f} |"
+            )
+        lines += ["", f"![candidates]({rel(f'candidates_{k}')})", ""]
+    lines += [
+        "## Residual analysis (held-out part, lags ±25, 99 % band ±2.58/√N)",
+        "",
+        "| channel | before: autocorr. lags outside | before: cross-corr. outside (peak lag) | "
+        "after: autocorr. outside | after: cross-corr. outside (peak lag) |",
+        "|---|---|---|---|---|",
+    ]
+    ra = summary["residual_analysis"]
+    for channel in replay.channels:
+        b, a = ra["before"]["channels"][channel], ra["after"]["channels"][channel]
+
+        def cell(w):
+            if w is None:
+                return "n/a", "n/a"
+            return (
+                f"{w['autocorr_outside']}/25",
+                f"{w['crosscorr_outside']}/51 ({w['peak_crosscorr_lag']:+d})",
+            )
+
+        lines.append(f"| {channel} | " + " | ".join([*cell(b), *cell(a)]) + " |")
+    lines += [
+        "",
+        f"Cross-correlation with `{ra['before']['input']}`.",
+        "",
+        f"![residuals before]({rel('residuals_before')})",
+        f"![residuals after]({rel('residuals_after')})",
+        "",
+        "Residual of the model before calibration regressed on each effect's signature "
+        "(MODELLING.md table; share of residual variance explained):",
+        "",
+        "| effect | R² |",
+        "|---|---|",
+    ]
+    for name, r2 in sorted(summary["signature_r2"].items(), key=lambda kv: -kv[1]):
+        lines.append(f"| {name} | {r2:.3f} |")
+    lines.append("")
+    return "\n".join(lines)

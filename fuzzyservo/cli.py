@@ -427,7 +427,7 @@ def cmd_calibrate(args: argparse.Namespace) -> int:
 def cmd_bench(args: argparse.Namespace) -> int:
     from fuzzyservo import bench
 
-    known = [bench.FUZZY_EVAL, *(c.name for c in bench.CASES), bench.STUDY]
+    known = [bench.FUZZY_EVAL, *(c.name for c in bench.CASES), bench.STUDY, bench.CALIBRATE]
     wanted = args.case or known
     unknown = [c for c in wanted if c not in known]
     if unknown:
@@ -440,6 +440,8 @@ def cmd_bench(args: argparse.Namespace) -> int:
             results.append(bench.run_fuzzy_eval(runs=args.runs))
         elif name == bench.STUDY:
             results.append(bench.run_study_case(trials=args.study_trials, workers=args.workers))
+        elif name == bench.CALIBRATE:
+            results.append(bench.run_calibrate_case())
         else:
             case = next(c for c in bench.CASES if c.name == name)
             results.append(bench.run_case(case, runs=args.runs, reference_runs=args.reference_runs))
@@ -454,6 +456,14 @@ def cmd_bench(args: argparse.Namespace) -> int:
                 f"{r.name:<20} {_duration(x['wall_s']):>10} {'':>10} {'':>7}  {x['trials']} trials on "
                 f"{x['workers']} workers, {x['trials_per_s']:.1f} trials/s; in the trials: simulation "
                 f"{x['simulation_s']:.1f} s, sampler/storage/building {x['sampler_and_storage_s']:.1f} s; {err}"
+            )
+            continue
+        if r.name == bench.CALIBRATE:
+            x = r.extra
+            print(
+                f"{r.name:<20} {_duration(x['wall_s']):>10} {'':>10} {'':>7}  wall_s {x['wall_s']:.1f} "
+                f"(budget {x['budget_s']:.0f} s); {x['replays']} replays of 30 s, "
+                f"{x['replay_ms']:.0f} ms each; added {', '.join(x['added']) or 'none'}; {err}"
             )
             continue
         print(

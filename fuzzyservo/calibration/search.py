@@ -14,6 +14,7 @@ noise floor and the held-out costs.
 from __future__ import annotations
 
 import dataclasses
+import itertools
 import math
 import time
 from collections.abc import Callable, Sequence
@@ -32,7 +33,7 @@ from fuzzyservo.rig import Rig
 MARGIN_NOISE_FLOORS = 0.25
 MARGIN_RELATIVE = 0.05
 PENALTY_PER_PARAMETER = 0.1  # noise floors
-SCAN = (0.1, 0.3, 0.5, 0.7, 0.9)  # scan of each parameter (unit interval)
+SCAN = (0.0, 0.25, 0.5, 0.75, 1.0)  # grid of each parameter (unit interval)
 SCAN_FINE = tuple(np.linspace(0.05, 0.95, 10))  # scan of a single parameter
 START = 0.3  # start of the other parameters (unit interval)
 
@@ -88,16 +89,28 @@ class _Space:
     bounds: list[tuple[float, float]]
     log: list[bool]
 
+    def _geometric(self, j: int) -> bool:
+        """Positive bounds spanning more than two decades map geometrically."""
+        lo, hi = self.bounds[j]
+        return lo > 0 and hi / lo > 100
+
     def value(self, j: int, z: float) -> float:
         lo, hi = self.bounds[j]
         z = min(max(z, 0.0), 1.0)
+        if self._geometric(j):
+            return lo * (hi / lo) ** z
         return lo + (hi - lo) * (z**3 if self.log[j] else z)
 
     def unit(self, j: int, value: float) -> float:
         lo, hi = self.bounds[j]
-        z = (value - lo) / (hi - lo) if hi > lo else 0.0
+        if self._geometric(j):
+            z = math.log(max(value, lo) / lo) / math.log(hi / lo)
+        else:
+            z = (value - lo) / (hi - lo) if hi > lo else 0.0
         z = min(max(z, 0.0), 1.0)
-        return z ** (1.0 / 3.0) if self.log[j] else z
+        if self.log[j] and not self._geometric(j):
+            return z ** (1.0 / 3.0)
+        return z
 
 
 class _Objective:
@@ -214,14 +227,25 @@ def _minimise(objective: _Objective, z0: np.ndarray, n_effect: int, budget: int)
     if n == 0:
         return z
     grid = SCAN_FINE if n == 1 else SCAN
-    for _ in range(1 if n_effect == 1 else 2):
-        for j in range(n_effect):
+    if n_effect == 1:
+        trial = z.copy()
+        costs = []
+        for g in grid:
+            trial[0] = g
+            costs.append(objective.train_cost(trial))
+        z[0] = grid[int(np.argmin(costs))]
+    elif n_effect > 1:
+        # a full grid over the effect's parameters: friction with stiction trades its
+        # parameters against each other and a coordinate search stalls
+        best_cost = objective.train_cost(z)
+        for point in itertools.product(SCAN, repeat=n_effect):
             trial = z.copy()
-            costs = []
-            for g in grid:
-                trial[j] = g
-                costs.append(objective.train_cost(trial))
-            z[j] = grid[int(np.argmin(costs))]
+            trial[:n_effect] = point
+            cost = objective.train_cost(trial)
+            if cost < best_cost:
+                best_cost, best_point = cost, trial
+        if best_cost < objective.train_cost(z):
+            z = best_point
     if n == 1:
         step = grid[1] - grid[0]
         sol = minimize_scalar(
@@ -239,7 +263,7 @@ def _minimise(objective: _Objective, z0: np.ndarray, n_effect: int, budget: int)
             diff_step=1e-2,
             xtol=1e-4,
             ftol=1e-4,
-            max_nfev=max(budget - len(objective.cache), 4 * (n + 1)),
+            max_nfev=max(budget, 15 * (n + 1)),
         )
         best = sol.x
     return best if objective.train_cost(best) <= objective.train_cost(z) else z

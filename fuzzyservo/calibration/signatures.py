@@ -31,7 +31,7 @@ def signatures(result: SimResult, rig: Rig) -> dict[str, np.ndarray]:
     v = _first(result, ("v", "w"))
     scales = rig.scales()
     if v is not None:
-        vc = max(rig.params.friction_smoothing_velocity_si, 5e-3 * scales.velocity)
+        vc = rig.params.friction_smoothing_velocity_si or scales.smoothing_velocity
         out["coulomb_friction"] = np.tanh(v / vc)  # tanh(v/vc)
         vs = 0.05 * scales.velocity
         out["stribeck_friction"] = np.exp(-((v / vs) ** 2)) * np.sign(v)  # exp(−(v/vs)²)·sign(v)

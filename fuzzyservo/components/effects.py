@@ -241,7 +241,8 @@ def pump_limited(q: float, p: Any) -> float:
 class Scales:
     """Size of a rig, from which effect bounds follow: stall force [N or N·m], no-load
     velocity [m/s or rad/s], rated flow [m³/s], supply-to-return pressure [Pa], rated
-    input [A or V], the declared bulk modulus [Pa] and the controller's period [s]."""
+    input [A or V], the declared bulk modulus [Pa], the controller's period [s], and
+    the velocity over which friction's sign(v) is smoothed (tanh) on this plant."""
 
     force: float
     velocity: float
@@ -250,6 +251,7 @@ class Scales:
     input: float
     bulk_modulus: float
     sample_time: float
+    smoothing_velocity: float = float("nan")  # tanh smoothing of sign(v) the plant uses
 
 
 @dataclass(frozen=True)
@@ -303,7 +305,7 @@ def _smoothing() -> EffectParam:
         "velocity",
         lambda s: (0.0, 0.1 * s.velocity),
         fitted=False,
-        default=lambda s: 5e-3 * s.velocity,
+        default=lambda s: s.smoothing_velocity,
     )
 
 
@@ -317,7 +319,7 @@ LIBRARY: dict[str, Effect] = {
                 EffectParam("force", "coulomb_force_si", "force", lambda s: (0.0, 0.1 * s.force)),
                 _smoothing(),
             ),
-            "F = Fc·tanh(v/vc) opposing the motion [N or N·m]; vc = 0.5 % of the no-load speed",
+            "F = Fc·tanh(v/vc) opposing the motion [N or N·m]; vc the plant's smoothing velocity",
             "MODELLING.md Friction (smooth form); seed 002 §5 names dry friction as neglected",
         ),
         Effect(

@@ -139,7 +139,8 @@ def _params(
     node.only((*by_key, *vectors))
     values: dict[str, Any] = {}
     for key, f in by_key.items():
-        values[f.name] = _quantity(node, key, f.metadata["unit"], f.name, unknowns)
+        default = None if f.default is dataclasses.MISSING else f.default
+        values[f.name] = _quantity(node, key, f.metadata["unit"], f.name, unknowns, default)
     for key, f in vectors.items():
         if node.has(key):
             values[f.name] = _vector(node.child(key), f.metadata["format"])
@@ -152,12 +153,13 @@ def _quantity(
     si_unit: str,
     field: str,
     unknowns: dict[str, tuple[float, float]] | None,
+    default: float | None = None,
 ) -> float:
     """A quantity that may carry ``fit: [lower, upper]`` (same unit as its value): the
     bounds go to ``unknowns[field]`` in SI."""
     raw = node.data.get(key) if isinstance(node.data, dict) else None
     if not (isinstance(raw, dict) and "fit" in raw):
-        return node.quantity(key, si_unit)
+        return node.quantity(key, si_unit, default=default)
     if unknowns is None:
         node.fail("`fit` bounds are not allowed here; give a plain value", key=f"{key}.fit")
     plain = Node({k: v for k, v in raw.items() if k != "fit"}, node.file, node.path(key))
@@ -490,7 +492,7 @@ def write_calibrated_rig(
     out = Path(out)
     out.parent.mkdir(parents=True, exist_ok=True)
     plant_params = data["plant"]["parameters"]
-    for key, entry in plant_params.items():
+    for entry in plant_params.values():
         if isinstance(entry, dict) and "file" in entry:
             target = (src_dir / entry["file"]).resolve()
             entry["file"] = os.path.relpath(target, out.parent.resolve())

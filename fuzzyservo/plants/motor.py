@@ -211,4 +211,5 @@ def effect_scales(params: MotorParams, input_v: float, sample_time_s: float) -> 
         input=input_v,
         bulk_modulus=params.bulk_modulus_pa,
         sample_time=sample_time_s,
+        smoothing_velocity=params.coulomb_velocity_rad_s,  # as the seed's own T_f
     )

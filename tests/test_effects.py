@@ -1,0 +1,195 @@
+"""The effect library: formulations, their place in every plant, and how rig files declare them."""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from fuzzyservo.components import effects as fx
+from fuzzyservo.components.orifice import signed_sqrt_flow
+from fuzzyservo.controllers.classical import OpenLoop
+from fuzzyservo.errors import ConfigError
+from fuzzyservo.io.rigs import load_rig
+from fuzzyservo.params import index_of, pack
+from fuzzyservo.plants import PLANTS
+from fuzzyservo.plants import motor as motor_module
+from fuzzyservo.rig import Scenario
+from fuzzyservo.signals import Sampled, Steps
+from fuzzyservo.simulation import simulate
+from fuzzyservo.simulation.reference import simulate_reference
+from tests.conftest import ROOT, controller_named, rig_named
+
+ISSUE_NAMES = (
+    "coulomb_friction", "stribeck_friction", "line_resistance", "internal_leakage",
+    "valve_deadband", "valve_bias", "valve_lag", "transport_delay", "bulk_modulus",
+    "supply_droop",
+)  # fmt: skip
+
+
+def test_library_has_exactly_the_issue_names_with_units_bounds_and_sources() -> None:
+    assert tuple(fx.LIBRARY) == ISSUE_NAMES
+    scales = rig_named("dinca_cylinder").scales()
+    for effect in fx.LIBRARY.values():
+        assert effect.formulation and effect.source
+        assert effect.fitted, effect.name
+        for param in effect.params:
+            lo, hi = param.value_bounds(scales)
+            assert lo < hi and math.isfinite(lo) and math.isfinite(hi), (effect.name, param.key)
+
+
+@pytest.mark.parametrize("type_name", sorted(PLANTS))
+def test_every_plant_carries_the_effects_at_the_same_positions(type_name: str) -> None:
+    cls = PLANTS[type_name].params_cls
+    assert issubclass(cls, fx.EffectParams)
+    assert index_of(cls, "coulomb_force_si") == fx.E_COULOMB == 0
+    assert index_of(cls, "pump_flow_m3_s") == fx.E_PUMP
+    assert set(fx.INPUT_EFFECTS) <= set(PLANTS[type_name].effects)
+
+
+def test_friction_force_formulation() -> None:
+    # MODELLING.md: F = (Fc + Fst·exp(−(v/vs)²))·tanh(v/vc); here Fc = 100 + 50 N
+    p = np.zeros(13)
+    p[fx.E_COULOMB], p[fx.E_STRIBECK_FC], p[fx.E_STRIBECK_FS] = 100.0, 50.0, 30.0
+    p[fx.E_STRIBECK_VS], p[fx.E_SMOOTH] = 5e-3, 1e-4
+    assert fx.friction_force(0.0, p) == 0.0
+    assert fx.friction_force(1.0, p) == pytest.approx(150.0)  # far above vs: Coulomb only
+    v = 5e-3
+    expected = (150.0 + 30.0 * math.exp(-1.0)) * math.tanh(v / 1e-4)
+    assert fx.friction_force(v, p) == pytest.approx(expected)
+    assert fx.friction_force(-v, p) == pytest.approx(-expected)
+
+
+def test_deadband_around_the_null() -> None:
+    null, w = 2.83e-3, 0.5e-3
+    assert fx.deadband(null + 0.3e-3, null, w) == null
+    assert fx.deadband(null + 1.5e-3, null, w) == pytest.approx(null + 1.0e-3)
+    assert fx.deadband(null - 1.5e-3, null, w) == pytest.approx(null - 1.0e-3)
+    assert fx.deadband(7.0, null, 0.0) == 7.0
+
+
+def test_port_pressure_balances_the_flows() -> None:
+    c_in, c_out, lam = 2e-7, 1e-7, 1e4
+    p_in, p_out, p_c, r = 70e5, 0.0, 30e5, 2e10
+    x = fx.port_pressure(c_in, p_in, c_out, p_out, p_c, r, lam)
+    q_valve = signed_sqrt_flow(c_in, p_in - x, lam) - signed_sqrt_flow(c_out, x - p_out, lam)
+    assert q_valve == pytest.approx((x - p_c) / r, rel=1e-9, abs=1e-15)
+    # a negligible line leaves the chamber pressure at the port
+    assert fx.port_pressure(c_in, p_in, c_out, p_out, p_c, 1.0, lam) == pytest.approx(p_c, rel=1e-6)
+
+
+def test_motor_line_flow_solves_its_implicit_equation() -> None:
+    rig = rig_named("ehs160_motor")
+    p = pack(dataclasses.replace(rig.params, line_resistance_pa_s_m3=5e10))
+    spool, p_load = -2.0, 10e5
+    q = motor_module.line_flow(spool, p_load, p)
+    assert q == pytest.approx(motor_module.valve_flow(spool, p_load + 2 * 5e10 * q, p), rel=1e-9)
+    assert abs(q) < abs(motor_module.valve_flow(spool, p_load, p))
+
+
+def test_valve_bias_is_a_shifted_null() -> None:
+    """i_eff = i + b with Δi = i_eff − I_bias is the seed-002 valve with I_bias − b."""
+    rig, ctrl = rig_named("dinca_cylinder"), controller_named("p_k10")
+    b = 0.4e-3
+    with_bias = simulate(rig.with_effect("valve_bias", offset=b), ctrl, "steps")
+    shifted = simulate(rig.with_params(bias_current_a=rig.params.bias_current_a - b), ctrl, "steps")
+    assert np.allclose(with_bias.signals["y"], shifted.signals["y"], atol=1e-9)
+
+
+def test_transport_delay_of_one_sample_shifts_the_command() -> None:
+    rig = rig_named("dinca_cylinder")
+    dt = rig.sample_time_s
+    t = np.arange(200) * dt
+    u = np.where(t >= 0.5, 6.45, 6.2)
+    ctrl = OpenLoop(gain=0.01, name="open")  # 0.01 V/V: ±30 mA stays unsaturated
+    base = Scenario("s", 2.0, Sampled(t, u))
+    late = Scenario("s", 2.0, Sampled(t, np.concatenate([[u[0]], u[:-1]])))
+    delayed = simulate(rig.with_effect("transport_delay", delay=dt), ctrl, base)
+    shifted = simulate(rig, ctrl, late)
+    assert np.allclose(delayed.signals["y"], shifted.signals["y"], atol=2e-7)
+
+
+def test_valve_lag_matches_the_reference_path() -> None:
+    rig = rig_named("dinca_cylinder").with_effect("valve_lag", time_constant=5e-3)
+    ctrl = controller_named("p_k10")
+    fast = simulate(rig, ctrl, "steps", duration_s=3.0)
+    ref = simulate_reference(rig, ctrl, "steps", duration_s=3.0, rtol=1e-8)
+    assert np.max(np.abs(fast.signals["y"] - ref.signals["y"])) < 2e-6  # 2 µm
+    # a tiny lag is no lag
+    tiny = simulate(rig.with_effect("valve_lag", time_constant=1e-7), ctrl, "steps", duration_s=3.0)
+    plain = simulate(rig_named("dinca_cylinder"), ctrl, "steps", duration_s=3.0)
+    assert np.max(np.abs(tiny.signals["y"] - plain.signals["y"])) < 1e-6
+
+
+def test_lower_bulk_modulus_slows_the_pressure_build_up() -> None:
+    rig, ctrl = rig_named("dinca_cylinder"), controller_named("p_k10")
+    soft = simulate(rig.with_effect("bulk_modulus", effective=0.3e9), ctrl, "steps")
+    stiff = simulate(rig, ctrl, "steps")
+    # the softer liquid lags the stiff one by bars in the fast transients, then agrees
+    gap = np.abs(soft.signals["p3"] - stiff.signals["p3"])
+    assert gap.max() > 5e5
+    assert gap[-1] < 0.05e5
+
+
+# ---------------------------------------------------------------- rig files
+
+
+def _rig_with(tmp_path: Path, base: str, extra: str) -> Path:
+    path = tmp_path / f"{base}.yaml"
+    path.write_text((ROOT / "rigs" / f"{base}.yaml").read_text() + "\n" + extra)
+    return path
+
+
+def test_rig_file_declares_effects_and_unknowns(tmp_path: Path) -> None:
+    path = _rig_with(
+        tmp_path,
+        "dinca_cylinder",
+        "effects:\n"
+        "  coulomb_friction:\n    force: {value: 0.15, unit: kN, source: test}\n"
+        "  valve_lag:\n    time_constant: {value: 3, unit: ms, fit: [0, 20]}\n",
+    )
+    rig = load_rig(path)
+    assert rig.effects == ("coulomb_friction", "valve_lag")
+    assert rig.params.coulomb_force_si == pytest.approx(150.0)
+    assert rig.params.friction_smoothing_velocity_si == pytest.approx(
+        rig.scales().smoothing_velocity
+    )
+    assert rig.unknowns == {"valve_lag_s": pytest.approx((0.0, 0.02))}
+    assert rig_named("dinca_cylinder").effects == ()  # off by default
+
+
+@pytest.mark.parametrize(
+    ("base", "extra", "key", "words"),
+    [
+        ("dinca_cylinder", "effects:\n  coulomb_frction: {force: 10}\n", "effects.coulomb_frction", "unknown effect"),
+        ("ahc_cylinder", "effects:\n  coulomb_friction: {force: 10}\n", "effects.coulomb_friction", "not modelled"),
+        ("dinca_cylinder", "effects:\n  valve_lag: {}\n", "effects.valve_lag", "time_constant"),
+        ("dinca_cylinder", "effects:\n  valve_lag:\n    time_constant: {value: 30, unit: ms, fit: [0, 20]}\n", "effects.valve_lag.time_constant.fit", "outside"),
+        ("dinca_cylinder", "effects:\n  valve_lag:\n    time_constant: {value: 3, unit: kg}\n", "effects.valve_lag.time_constant.unit", "unit"),
+        ("dinca_cylinder", "measured:\n  sample_period: {value: -1, unit: s}\n", "measured.sample_period", "> 0"),
+    ],
+)  # fmt: skip
+def test_bad_effect_declarations_fail_with_one_line(
+    tmp_path: Path, base: str, extra: str, key: str, words: str
+) -> None:
+    with pytest.raises(ConfigError) as info:
+        load_rig(_rig_with(tmp_path, base, extra))
+    message = str(info.value)
+    assert key in message and words in message and "\n" not in message
+
+
+def test_with_effect_refuses_what_the_plant_does_not_model() -> None:
+    with pytest.raises(ValueError, match="not modelled"):
+        rig_named("hydroprax_pdcv").with_effect("internal_leakage", coefficient=1e-12)
+    rig = rig_named("hydroprax_pdcv").with_effect("valve_lag", time_constant=5e-3)
+    assert simulate(rig, controller_named("pi_hydroprax")).ok
+
+
+def test_steps_reference_through_open_loop() -> None:
+    # the Sampled signal holds each value until the next sample
+    s = Sampled(np.array([0.0, 1.0, 2.0]), np.array([1.0, 2.0, 3.0]))
+    assert list(s.sample(np.array([-1.0, 0.0, 0.5, 1.0, 2.5]))) == [1.0, 1.0, 1.0, 2.0, 3.0]
+    assert isinstance(Steps((1.0,), (2.0,)), Steps)

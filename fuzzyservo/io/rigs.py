@@ -197,7 +197,9 @@ def _effects(
     from fuzzyservo.components.effects import LIBRARY
 
     if not isinstance(node.data, dict):
-        node.fail("must be a mapping of effect names to their parameters; see rigs/README")
+        node.fail(
+            "must be a mapping of effect names to their parameters (README, The effect library)"
+        )
     for name in node.data:
         if name not in LIBRARY:
             node.fail(f"unknown effect {name!r}; choose one of {sorted(LIBRARY)}", key=name)

@@ -29,6 +29,12 @@ slots 1 and 4 (the seed's formulas close each slot where its opening coefficient
 reaches zero, I_cl = a/b = 3.70 mA; its prose swaps the two pairs). Every √ is the
 regularised orifice law of :func:`~fuzzyservo.components.orifice.signed_sqrt_flow`.
 
+Effects (components/effects.py, off unless a rig file declares them): friction
+``F_fric(v)`` joins eq. 12; ``line_resistance`` puts a laminar line between each valve
+port and its chamber (the port pressure balances slot and line flows); ``internal_leakage``
+moves Kl·(p3 − p4) from chamber 3 to 4; ``bulk_modulus`` replaces E; ``supply_droop`` caps
+Qa at the pump's flow. The input effects act before ``i`` reaches eq. 13-16.
+
 End stops: the chamber lengths never fall below ``dead_length_m``; a stiff
 spring-damper acts beyond that point (the seed is silent; MODELLING.md "chamber
 volumes must never reach zero").

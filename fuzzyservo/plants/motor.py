@@ -14,7 +14,9 @@ pressure P_x [Pa].
 input drives the motor forward. Eq. 9 is printed as sqrt(P_s − |P_x|): for a
 motoring load (P_x with the sign of the flow, every scenario of the seed) the two
 are the same; the signed form above keeps the flow physical when the load overruns.
-The square root is regularised near zero (``laminar_pressure_pa``), and the Coulomb
+Effects (components/effects.py, off unless declared) add friction to T_f, leakage to
+L_e, a line drop 2·R·Q to the load pressure the valve sees, E_eff for K_h, and the
+pump's cap on |Q|. The square root is regularised near zero (``laminar_pressure_pa``), and the Coulomb
 friction is smoothed over ``coulomb_velocity_rad_s`` so the right-hand side is
 Lipschitz (MODELLING.md "Friction").
 """

@@ -11,7 +11,7 @@ from typing import Any
 
 import numpy as np
 
-from fuzzyservo.components.effects import LIBRARY, Scales
+from fuzzyservo.components.effects import LIBRARY, Scales, fixed_defaults
 from fuzzyservo.params import check
 from fuzzyservo.plants import PlantModel
 from fuzzyservo.signals import Constant, Signal
@@ -63,6 +63,11 @@ class Actuator:
                 f"actuator {self.name!r}: `lower < upper` must hold, but got "
                 f"(lower={self.lower}, upper={self.upper})"
             )
+
+    @property
+    def rated(self) -> float:
+        """The largest plant input it can apply [A or V]."""
+        return max(abs(self.lower), abs(self.upper))
 
     @property
     def command_limits(self) -> tuple[float, float]:
@@ -180,36 +185,21 @@ class Rig:
         check(new)
         return dataclasses.replace(self, params=new)
 
-    @property
-    def rated_input(self) -> float:
-        """The largest plant input the actuator can apply [A or V]."""
-        return max(abs(self.actuator.lower), abs(self.actuator.upper))
-
     def scales(self) -> Scales:
         """Sizes of this rig that effect bounds scale with (components/effects.py)."""
-        if self.plant.effect_scales is None:
-            nan = float("nan")
-            return Scales(nan, nan, nan, nan, self.rated_input, nan, self.sample_time_s)
-        return self.plant.effect_scales(self.params, self.rated_input, self.sample_time_s)
+        return self.plant.scales(self.params, self.actuator.rated, self.sample_time_s)
 
     def with_effect(self, name: str, **values: float) -> Rig:
         """A copy with effect ``name`` declared: ``values`` by parameter key (SI); fixed
         parameters not given take their library default."""
         if name not in LIBRARY:
             raise KeyError(f"unknown effect {name!r}; choose one of {sorted(LIBRARY)}")
-        if name not in self.plant.effects:
-            raise ValueError(
-                f"effect {name!r} is not modelled for plant type {self.plant.type_name!r}; "
-                f"it models {list(self.plant.effects)}"
-            )
+        refusal = self.plant.refusal(name)
+        if refusal:
+            raise ValueError(refusal)
         effect = LIBRARY[name]
-        scales = self.scales()
-        changes: dict[str, float] = {}
-        for param in effect.params:
-            if param.key in values:
-                changes[param.field] = float(values[param.key])
-            elif param.default is not None and not getattr(self.params, param.field):
-                changes[param.field] = float(param.default(scales))
+        changes = fixed_defaults(name, self.params, self.scales(), values)
+        changes.update({p.field: float(values[p.key]) for p in effect.params if p.key in values})
         unknown = set(values) - {p.key for p in effect.params}
         if unknown:
             raise KeyError(

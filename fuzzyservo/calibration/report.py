@@ -167,7 +167,7 @@ def write_outputs(
         )
         how = f"fitted by {origin}" if fitted else "declared in the rig file"
         effects[name] = {
-            p.key: (values[p.key], _effect_unit(rig, p.unit), how) for p in effect.params
+            p.key: (values[p.key], rig.plant.effect_unit(p.unit), how) for p in effect.params
         }
     header = (
         f"Calibrated by {origin}\n"
@@ -240,12 +240,6 @@ def write_outputs(
         _report(outcome, replay, summary, paths, data_path), encoding="utf-8"
     )
     return paths
-
-
-def _effect_unit(rig: Rig, token: str) -> str:
-    if token == "input":
-        return rig.plant.input[1]
-    return rig.plant.mechanics.get(token, token)
 
 
 def _pct(value: float | None) -> str:

@@ -37,7 +37,7 @@ supply_droop        q_supply = min(q_demand, Qp): pump flow limit with relief   
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
+from collections.abc import Callable, Iterable
 from dataclasses import dataclass
 from typing import Any
 
@@ -440,3 +440,24 @@ LIBRARY: dict[str, Effect] = {
 }  # fmt: skip
 
 INPUT_EFFECTS = tuple(name for name, e in LIBRARY.items() if e.stage == "input")
+
+
+def fixed_defaults(
+    name: str, params: Any, scales: Scales, given: Iterable[str] = ()
+) -> dict[str, float]:
+    """Field -> library default for the parameters of effect ``name`` that have one, are
+    not among the keys ``given`` and are still 0 in ``params`` (e.g. friction smoothing)."""
+    given = set(given)
+    return {
+        p.field: float(p.default(scales))
+        for p in LIBRARY[name].params
+        if p.key not in given and p.default is not None and not getattr(params, p.field)
+    }
+
+
+def owner(field: str) -> str | None:
+    """The effect a parameter field belongs to, or None for a plant's own parameter."""
+    for name, effect in LIBRARY.items():
+        if any(p.field == field for p in effect.params):
+            return name
+    return None

@@ -79,9 +79,8 @@ def load_rig(path: str | Path) -> Rig:
             f"must be > 0 s, got {sample_time} s; give the controller's sampling period",
             key="sample_time",
         )
-    rated = max(abs(actuator.lower), abs(actuator.upper))
     params, effects = _effects(
-        plant, params, root.child("effects", default={}), rated, sample_time, unknowns
+        plant, params, root.child("effects", default={}), actuator.rated, sample_time, unknowns
     )
     measured = _measured(root.child("measured")) if root.has("measured") else None
 
@@ -194,7 +193,7 @@ def _effects(
     unknowns: dict[str, tuple[float, float]],
 ) -> tuple[Any, tuple[str, ...]]:
     """The ``effects:`` section: each declared effect's parameters written into ``params``."""
-    from fuzzyservo.components.effects import LIBRARY
+    from fuzzyservo.components.effects import LIBRARY, fixed_defaults
 
     if not isinstance(node.data, dict):
         node.fail(
@@ -203,19 +202,16 @@ def _effects(
     for name in node.data:
         if name not in LIBRARY:
             node.fail(f"unknown effect {name!r}; choose one of {sorted(LIBRARY)}", key=name)
-        if name not in plant.effects:
-            node.fail(
-                f"effect {name!r} is not modelled for plant type {plant.type_name!r}; "
-                f"it models {list(plant.effects)}",
-                key=name,
-            )
+        refusal = plant.refusal(name)
+        if refusal:
+            node.fail(refusal, key=name)
     values: dict[str, float] = {}
-    declared: list[str] = []
+    declared: dict[str, list[str]] = {}  # effect -> the parameter keys the file gives
     for name, effect_node in _effect_nodes(node):
         effect = LIBRARY[name]
         effect_node.only((*(p.key for p in effect.params), "source", "note"))
         for param in effect.params:
-            si_unit = _effect_unit(plant, param.unit)
+            si_unit = plant.effect_unit(param.unit)
             if effect_node.has(param.key):
                 values[param.field] = _quantity(
                     effect_node, param.key, si_unit, param.field, unknowns
@@ -225,16 +221,14 @@ def _effects(
                     f"missing key {param.key!r} (a value in {si_unit}); give it, or "
                     f"`{{value: ..., unit: {si_unit}, fit: [lower, upper]}}` to have it fitted",
                 )
-        declared.append(name)
+        declared[name] = [p.key for p in effect.params if effect_node.has(p.key)]
     if not declared:
         return params, ()
     params = _build_params(plant, {**dataclasses.asdict(params), **values}, node)
-    scales = plant.effect_scales(params, rated_input, sample_time) if plant.effect_scales else None
+    scales = plant.scales(params, rated_input, sample_time)
     defaults = {}
-    for name in declared:
-        for param in LIBRARY[name].params:
-            if param.field not in values and param.default is not None and scales is not None:
-                defaults[param.field] = param.default(scales)
+    for name, given in declared.items():
+        defaults.update(fixed_defaults(name, params, scales, given))
     if defaults:
         params = dataclasses.replace(params, **defaults)
     return params, tuple(declared)
@@ -245,13 +239,6 @@ def _effect_nodes(node: Node) -> list[tuple[str, Node]]:
         (name, Node(data if data is not None else {}, node.file, node.path(name)))
         for name, data in node.data.items()
     ]
-
-
-def _effect_unit(plant: PlantModel, token: str) -> str:
-    """SI unit of an effect parameter on ``plant``: "force", "velocity", "input" resolved."""
-    if token == "input":
-        return plant.input[1]
-    return plant.mechanics.get(token, token)
 
 
 def _measured(node: Node) -> MeasuredFormat:

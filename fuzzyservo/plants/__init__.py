@@ -12,6 +12,7 @@ from typing import Any
 
 import numpy as np
 
+from fuzzyservo.components.effects import INPUT_EFFECTS, Scales
 from fuzzyservo.plants import ahc_cylinder, ahc_motor, cylinder, hydroprax, motor
 from fuzzyservo.plants.kernels import (
     KIND_AHC_CYLINDER,
@@ -63,11 +64,40 @@ class PlantModel:
             state_scale=module.state_scale,
             typical_state=module.typical_state,
             description=description,
-            effects=module.EFFECTS,
+            # a plant whose kernels read no plant-side effect takes only the input effects
+            effects=getattr(module, "EFFECTS", INPUT_EFFECTS),
             mechanics=getattr(module, "MECHANICS", {"force": "N", "velocity": "m/s"}),
-            null_input=module.null_input,
+            null_input=getattr(module, "null_input", _zero_null),
             effect_scales=getattr(module, "effect_scales", None),
         )
+
+    def scales(self, params: Any, rated_input: float, sample_time_s: float) -> Scales:
+        """Sizes effect bounds scale with (components/effects.py); a plant without
+        ``effect_scales`` knows only its input and period (NaN elsewhere)."""
+        if self.effect_scales is None:
+            nan = float("nan")
+            return Scales(nan, nan, nan, nan, rated_input, nan, sample_time_s)
+        return self.effect_scales(params, rated_input, sample_time_s)
+
+    def effect_unit(self, token: str) -> str:
+        """SI unit of an effect parameter here: "force", "velocity", "input" resolved."""
+        if token == "input":
+            return self.input[1]
+        return self.mechanics.get(token, token)
+
+    def refusal(self, effect: str) -> str | None:
+        """Why this plant cannot take ``effect``, or None when it models it."""
+        if effect in self.effects:
+            return None
+        return (
+            f"effect {effect!r} is not modelled for plant type {self.type_name!r}; "
+            f"it models {list(self.effects)}"
+        )
+
+
+def _zero_null(params: Any) -> float:
+    """The plant input of hydraulic null: zero."""
+    return 0.0
 
 
 PLANTS: dict[str, PlantModel] = {

@@ -27,7 +27,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from fuzzyservo._jit import njit
-from fuzzyservo.components.effects import INPUT_EFFECTS, EffectParams
+from fuzzyservo.components.effects import EffectParams
 from fuzzyservo.components.geometry import circle_area
 from fuzzyservo.components.servo_valve import port_flow, return_flow, supply_flow
 from fuzzyservo.params import index_of, quantity
@@ -236,13 +236,3 @@ def initial_state(
     return np.array(
         [0.0, y_m, 0.0, null if pa_pa is None else pa_pa, null if pb_pa is None else pb_pa]
     )
-
-
-# Only the input effects (applied by the simulation loop) act on this plant; its
-# kernels do not read the plant-side effect parameters (components/effects.py).
-EFFECTS = INPUT_EFFECTS
-
-
-def null_input(params: object) -> float:
-    """The plant input of hydraulic null: zero."""
-    return 0.0

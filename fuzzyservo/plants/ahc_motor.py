@@ -34,7 +34,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from fuzzyservo._jit import njit
-from fuzzyservo.components.effects import INPUT_EFFECTS, EffectParams
+from fuzzyservo.components.effects import EffectParams
 from fuzzyservo.components.servo_valve import port_flow, return_flow, supply_flow
 from fuzzyservo.params import index_of, quantity
 
@@ -214,13 +214,3 @@ def initial_state(params: AhcMotorParams, *, theta_rad: float = 0.0) -> np.ndarr
     """At rest at ``theta_rad``, spool centred, port pressures holding the load."""
     pa, pb = holding_pressures(params)
     return np.array([0.0, 0.0, theta_rad, pa, pb])
-
-
-# Only the input effects (applied by the simulation loop) act on this plant; its
-# kernels do not read the plant-side effect parameters (components/effects.py).
-EFFECTS = INPUT_EFFECTS
-
-
-def null_input(params: object) -> float:
-    """The plant input of hydraulic null: zero."""
-    return 0.0

@@ -39,7 +39,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from fuzzyservo._jit import njit
-from fuzzyservo.components.effects import INPUT_EFFECTS, EffectParams
+from fuzzyservo.components.effects import EffectParams
 from fuzzyservo.components.geometry import circle_area
 from fuzzyservo.components.valves import NN_SIZE, four_way_flows, nn_forward, polynomial_flow
 from fuzzyservo.params import index_of, pack, quantity, vector, vector_offset
@@ -368,13 +368,3 @@ def generate_valve_data(params: HydropraxParams, n: int, seed: int) -> np.ndarra
     pa = pt + rng.uniform(0.0, 1.0, n) * (ps - pt)
     pb = pt + rng.uniform(0.0, 1.0, n) * (ps - pt)
     return np.column_stack([ps, u, pa, pb, valve_flows(poly, ps, u, pa, pb)])
-
-
-# Only the input effects (applied by the simulation loop) act on this plant; its
-# kernels do not read the plant-side effect parameters (components/effects.py).
-EFFECTS = INPUT_EFFECTS
-
-
-def null_input(params: object) -> float:
-    """The plant input of hydraulic null: zero."""
-    return 0.0

@@ -71,7 +71,7 @@ def prepare(
     null = float(plant.null_input(params))
     if params.valve_lag_s > 0:
         # valve_lag: the spool state, in plant-input units (the loop sets its start)
-        rated = max(abs(rig.actuator.lower), abs(rig.actuator.upper))
+        rated = rig.actuator.rated
         x0 = np.append(x0, null)
         scale = np.append(scale, 1e-5 * rated)
         typical = np.append(typical, rated)

@@ -12,7 +12,7 @@ from collections.abc import Sequence
 from pathlib import Path
 
 from fuzzyservo.errors import ConfigError, FuzzyservoError
-from fuzzyservo.io.jsonfile import write_json
+from fuzzyservo.io.jsonfile import json_ready, write_json
 
 DEFAULT_RIG = "dinca_cylinder"
 DEFAULT_STUDY = "dinca_flc"
@@ -400,10 +400,8 @@ def cmd_calibrate(args: argparse.Namespace) -> int:
     out = (
         Path(args.out) if args.out else Path("out") / f"calibrate_{rig.name}_{Path(args.data).stem}"
     )
-    paths = write_outputs(outcome, replay, args.data, out)
-    import json
-
-    summary = json.loads(paths["summary"].read_text(encoding="utf-8"))
+    paths, summary = write_outputs(outcome, replay, args.data, out)
+    summary = json_ready(summary)  # as in summary.json: non-finite numbers are null
     print(f"effects added: {summary['decision']}")
     for c in outcome.added:
         print(f"  {c.name}: " + ", ".join(f"{k} = {v:.4g}" for k, v in c.params.items()))
@@ -419,7 +417,9 @@ def cmd_calibrate(args: argparse.Namespace) -> int:
     if "rig" in paths:
         print(f"calibrated rig: {paths['rig']}")
     if args.json:
-        write_json(args.json, summary)
+        import shutil
+
+        shutil.copyfile(paths["summary"], args.json)
         print(f"JSON written to {args.json}")
     return 0
 

@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import dataclasses
 from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
 
@@ -27,6 +28,7 @@ from fuzzyservo.io.measured import Measured
 from fuzzyservo.rig import Rig, Scenario
 from fuzzyservo.signals import Sampled
 from fuzzyservo.simulation import simulate
+from fuzzyservo.simulation.result import SimResult
 
 VALIDATION_FRACTION = 0.3
 INPUT_SIGNALS = ("t", "ref", "u", "i")  # what drives a replay; never a compared channel
@@ -62,10 +64,14 @@ class Replay:
     def measured(self, channel: str) -> np.ndarray:
         return self.data.signals[channel]
 
+    def simulate(self, rig: Rig) -> SimResult:
+        """The replayed run on ``rig``: the data's input, sample time and initial state."""
+        replay_rig = dataclasses.replace(rig, sample_time_s=self.sample_time_s, initial={})
+        return simulate(replay_rig, self.controller, self.scenario)
+
     def run(self, rig: Rig) -> tuple[dict[str, np.ndarray], str]:
         """Model channels on the data grid (NaN where the run failed) and the run's status."""
-        replay_rig = dataclasses.replace(rig, sample_time_s=self.sample_time_s, initial={})
-        result = simulate(replay_rig, self.controller, self.scenario)
+        result = self.simulate(rig)
         t = self.t
         out = {}
         for channel, signal in self.channels.items():
@@ -76,19 +82,15 @@ class Replay:
                 out[channel] = np.full(t.size, np.nan)
         return out, result.status
 
-    @property
+    @cached_property
     def sigma(self) -> dict[str, float]:
         """Noise level of each channel, estimated from the data (residuals.noise_floor)."""
-        cached = self.__dict__.get("_sigma")
-        if cached is None:
-            cached = {}
-            for channel in self.channels:
-                y = self.measured(channel)
-                spread = float(np.std(y))
-                # quantised or noise-free data: never weigh a channel infinitely
-                cached[channel] = max(noise_floor(y), 1e-6 * spread, 1e-300)
-            self.__dict__["_sigma"] = cached
-        return cached
+        sigma = {}
+        for channel in self.channels:
+            y = self.measured(channel)
+            # quantised or noise-free data: never weigh a channel infinitely
+            sigma[channel] = max(noise_floor(y), 1e-6 * float(np.std(y)), 1e-300)
+        return sigma
 
     def costs(self, model: dict[str, np.ndarray]) -> tuple[float, float]:
         """:meth:`cost` on (training, held-out)."""

@@ -19,7 +19,7 @@ from fuzzyservo.calibration.residuals import (
 )
 from fuzzyservo.calibration.search import Outcome, fit_table
 from fuzzyservo.calibration.signatures import mean_share, signatures
-from fuzzyservo.components.effects import LIBRARY
+from fuzzyservo.components.effects import LIBRARY, owner
 from fuzzyservo.rig import Rig
 
 # SI unit -> (display unit, factor) for plots and tables
@@ -56,7 +56,7 @@ def residual_analysis(replay: Replay, model: dict[str, np.ndarray]) -> dict[str,
 
 def signature_table(replay: Replay, rig: Rig, model: dict[str, np.ndarray]) -> dict[str, float]:
     """R² of the held-out residual regressed on each effect's signature."""
-    result = replay_result(replay, rig)
+    result = replay.simulate(rig)
     regs = signatures(result, rig)
     part = slice(replay.split, None)
     t = replay.t
@@ -69,13 +69,6 @@ def signature_table(replay: Replay, rig: Rig, model: dict[str, np.ndarray]) -> d
     delay_u = table.pop("transport_delay_u", 0.0)
     table["transport_delay"] = max(table.get("transport_delay", 0.0), delay_u)
     return table
-
-
-def replay_result(replay: Replay, rig: Rig):
-    from fuzzyservo.simulation import simulate
-
-    replay_rig = dataclasses.replace(rig, sample_time_s=replay.sample_time_s, initial={})
-    return simulate(replay_rig, replay.controller, replay.scenario)
 
 
 def summary_data(outcome: Outcome, replay: Replay) -> dict[str, Any]:
@@ -93,7 +86,7 @@ def summary_data(outcome: Outcome, replay: Replay) -> dict[str, Any]:
         data["fitted_parameters"] = {
             f: float(getattr(outcome.calibrated.params, f))
             for f in outcome.declared.unknowns
-            if not any(p.field == f for e in LIBRARY.values() for p in e.params)
+            if owner(f) is None
         }
     data["decision"] = "none" if not outcome.added else ", ".join(c.name for c in outcome.added)
     data["rounds"] = [
@@ -137,8 +130,9 @@ def summary_data(outcome: Outcome, replay: Replay) -> dict[str, Any]:
 
 def write_outputs(
     outcome: Outcome, replay: Replay, data_path: str | Path, out_dir: Path
-) -> dict[str, Path]:
-    """Write the calibrated rig, figures, report and summary into ``out_dir``."""
+) -> tuple[dict[str, Path], dict[str, Any]]:
+    """Write the calibrated rig, figures, report and summary into ``out_dir``; return
+    the paths and the summary (as written to ``summary.json``)."""
     from fuzzyservo.io.jsonfile import write_json
     from fuzzyservo.io.rigs import write_calibrated_rig
     from fuzzyservo.plots import candidates_figure, overlay_figure, residual_figure, save
@@ -239,7 +233,7 @@ def write_outputs(
     paths["report"].write_text(
         _report(outcome, replay, summary, paths, data_path), encoding="utf-8"
     )
-    return paths
+    return paths, summary
 
 
 def _pct(value: float | None) -> str:

@@ -25,7 +25,7 @@ from scipy.optimize import least_squares, minimize_scalar
 
 from fuzzyservo.calibration.replay import DIVERGED_COST, Replay
 from fuzzyservo.calibration.residuals import fit_percent
-from fuzzyservo.components.effects import LIBRARY, EffectParam
+from fuzzyservo.components.effects import LIBRARY, EffectParam, owner
 from fuzzyservo.rig import Rig
 
 # An effect is added when its held-out cost is below the current model's by this many
@@ -53,6 +53,9 @@ class Candidate:
     status: str
     evaluations: int
     seconds: float
+    model: dict[str, np.ndarray] = field(
+        default_factory=dict, repr=False
+    )  # channels on the data grid
 
 
 @dataclass(frozen=True)
@@ -157,8 +160,7 @@ def _space(rig: Rig, effect: str | None) -> _Space:
     for fieldname, (lo, hi) in rig.unknowns.items():
         if any(f == fieldname for _, f in names):
             continue
-        owner = _owner(fieldname)
-        names.append((owner or "", fieldname))
+        names.append((owner(fieldname) or "", fieldname))
         bounds.append((lo, hi))
         log.append(False)
     return _Space(names, bounds, log)
@@ -168,13 +170,6 @@ def _bounds(rig: Rig, param: EffectParam, scales) -> tuple[float, float]:
     if param.field in rig.unknowns:
         return rig.unknowns[param.field]
     return param.value_bounds(scales)
-
-
-def _owner(fieldname: str) -> str | None:
-    for name, effect in LIBRARY.items():
-        if any(p.field == fieldname for p in effect.params):
-            return name
-    return None
 
 
 def fit(
@@ -214,6 +209,7 @@ def fit(
         status=status,
         evaluations=len(objective.cache),
         seconds=time.perf_counter() - start,
+        model=model,
     )
     return rig, candidate
 
@@ -291,14 +287,14 @@ def calibrate(
         if e in rig.plant.effects and e not in rig.effects
     ]
     noise = replay.noise_cost()
+    held_out = slice(replay.split, None)
     declared_model, _ = replay.run(rig)
-    cost_declared = replay.cost(declared_model, slice(replay.split, None))
-    nominal = rig
+    cost_declared = replay.cost(declared_model, held_out)
+    nominal, current_model, cost_nominal = rig, declared_model, cost_declared
     if rig.unknowns:
-        nominal, _ = fit(replay, rig, None, max_evaluations=120)
+        nominal, fitted = fit(replay, rig, None, max_evaluations=120)
+        current_model, cost_nominal = fitted.model, fitted.cost_val
     current = nominal
-    current_model, _ = replay.run(current)
-    cost_nominal = replay.cost(current_model, slice(replay.split, None))
     cost = cost_nominal
     models = {"declared": declared_model, "nominal": current_model}
     added: list[Candidate] = []
@@ -318,13 +314,11 @@ def calibrate(
         if not accept:
             break
         added.append(best)
-        current = best_rig
-        current_model, _ = replay.run(current)
-        cost = replay.cost(current_model, slice(replay.split, None))
+        current, current_model, cost = best_rig, best.model, best.cost_val
     if len(added) > 1:
-        current, added = _refit_jointly(replay, current, added)
-        current_model, _ = replay.run(current)
-        cost = replay.cost(current_model, slice(replay.split, None))
+        current, added, current_model, cost = _refit_jointly(
+            replay, current, added, current_model, cost
+        )
     models["calibrated"] = current_model
     return Outcome(
         declared=rig,
@@ -347,10 +341,17 @@ def _clearly_better(candidate: Candidate, cost: float, noise: float) -> bool:
     return gain > MARGIN_NOISE_FLOORS * noise and gain > MARGIN_RELATIVE * cost
 
 
-def _refit_jointly(replay: Replay, rig: Rig, added: list[Candidate]) -> tuple[Rig, list[Candidate]]:
+def _refit_jointly(
+    replay: Replay,
+    rig: Rig,
+    added: list[Candidate],
+    model: dict[str, np.ndarray],
+    cost: float,
+) -> tuple[Rig, list[Candidate], dict[str, np.ndarray], float]:
     """Refit the parameters of all added effects together, starting where each was found.
 
-    Kept only if the held-out cost does not get worse (the training fit always improves).
+    Kept only if the held-out cost (``cost`` for ``rig``, whose channels are ``model``)
+    does not get worse; the training fit always improves.
     """
     unknowns = dict(rig.unknowns)
     for candidate in added:
@@ -358,11 +359,9 @@ def _refit_jointly(replay: Replay, rig: Rig, added: list[Candidate]) -> tuple[Ri
         for param in LIBRARY[candidate.name].fitted:
             unknowns.setdefault(param.field, _bounds(rig, param, scales))
     joint = dataclasses.replace(rig, unknowns=unknowns)
-    refit, _ = fit(replay, joint, None, max_evaluations=80)
-    before = replay.cost(replay.run(rig)[0], slice(replay.split, None))
-    after = replay.cost(replay.run(refit)[0], slice(replay.split, None))
-    if after > before:
-        return rig, added
+    refit, joint_fit = fit(replay, joint, None, max_evaluations=80)
+    if joint_fit.cost_val > cost:
+        return rig, added, model, cost
     refit = dataclasses.replace(refit, unknowns=rig.unknowns)
     updated = [dataclasses.replace(c, params=refit.effect_values(c.name)) for c in added]
-    return refit, updated
+    return refit, updated, joint_fit.model, joint_fit.cost_val

@@ -13,7 +13,7 @@ import numpy as np
 from matplotlib.axes import Axes
 from matplotlib.figure import Figure
 
-from fuzzyservo.plots._display import axis_label
+from fuzzyservo.plots._display import axis_label, label_span
 
 _MEASURED = "black"
 _BEFORE = "tab:blue"
@@ -125,16 +125,7 @@ def _mark_validation(ax: Axes, split_s: float, t_start: float, t_end: float) -> 
     ax.axvspan(left, t_end, color=_VALIDATION, zorder=0, lw=0)
     if split_s > t_start:
         ax.axvline(split_s, color="0.5", ls=":", lw=1.0)
-    ax.text(
-        0.5 * (left + t_end),
-        0.98,
-        "validation",
-        transform=ax.get_xaxis_transform(),
-        ha="center",
-        va="top",
-        fontsize=8,
-        color="0.45",
-    )
+    label_span(ax, left, t_end, "validation")
 
 
 def residual_figure(

@@ -5,6 +5,7 @@ from __future__ import annotations
 from pathlib import Path
 
 import numpy as np
+from matplotlib.axes import Axes
 from matplotlib.figure import Figure
 
 from fuzzyservo.plants import PLANTS
@@ -79,6 +80,20 @@ def axis_label(name: str, unit: str) -> str:
     quantity = _QUANTITY.get(name)
     text = f"{quantity} {name}" if quantity else name
     return f"{text} [{unit}]" if unit else text
+
+
+def label_span(ax: Axes, start: float, end: float, text: str) -> None:
+    """A small grey label at the top of a shaded time span (warm-up, validation)."""
+    ax.text(
+        0.5 * (start + end),
+        0.98,
+        text,
+        transform=ax.get_xaxis_transform(),
+        ha="center",
+        va="top",
+        fontsize=8,
+        color="0.45",
+    )
 
 
 def save(fig: Figure, path: str | Path) -> Path:

@@ -8,7 +8,7 @@ import numpy as np
 from matplotlib.axes import Axes
 from matplotlib.figure import Figure
 
-from fuzzyservo.plots._display import axis_label, controller_colour, to_display
+from fuzzyservo.plots._display import axis_label, controller_colour, label_span, to_display
 from fuzzyservo.simulation.result import SimResult
 
 # Seed 002 Fig. 6.c: p1 green, p2 blue, p3 magenta, p4 red; other rigs' pressures
@@ -61,16 +61,7 @@ def response_figure(results: Sequence[SimResult]) -> Figure:
         ax.set_xlim(t_start, t_end)
     ax_p.set_xlabel("time [s]")
     if warmup > t_start:
-        ax_out.text(
-            0.5 * (t_start + warmup),
-            0.98,
-            "warm-up",
-            transform=ax_out.get_xaxis_transform(),
-            ha="center",
-            va="top",
-            fontsize=8,
-            color="0.45",
-        )
+        label_span(ax_out, t_start, warmup, "warm-up")
     fig.suptitle(f"{first.rig} — {first.scenario}")
     return fig
 

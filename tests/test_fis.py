@@ -172,40 +172,48 @@ def edit(old: str, new: str) -> str:
 
 
 BAD = {
-    "sugeno": (edit("Type='mamdani'", "Type='sugeno'"), "[System].Type", "sugeno"),
-    "type2": (edit("Type='mamdani'", "Type='mamdanitype2'"), "[System].Type", "mamdani"),
-    **{
-        mf: (edit("'gaussmf',[1.5 10]", f"'{mf}',[1 2 3 4]"), "[Input1].MF3", mf)
-        for mf in (
-            "sigmf",
-            "pimf",
-            "zmf",
-            "smf",
-            "dsigmf",
-            "psigmf",
-            "gauss2mf",
-            "linsmf",
-            "my_custom_mf",
-        )
-    },
-    "three inputs": (
-        edit(
-            "[Output1]", "[Input3]\nName='x'\nRange=[0 1]\nMF1='a':'trimf',[0 0.5 1]\n\n[Output1]"
-        ),
-        "line",
-        "two inputs",
+    "sugeno terms in mamdani": (
+        edit("'trimf',[0 5 10]", "'constant',[5]"),
+        "[Output1].MF1",
+        "Sugeno output term",
     ),
-    "NumInputs=3": (edit("NumInputs=2", "NumInputs=3"), "[System].NumInputs", "3 inputs"),
+    "mamdani terms in sugeno": (
+        edit("Type='mamdani'", "Type='sugeno'").replace("'centroid'", "'wtaver'"),
+        "[Output1].MF1",
+        "'constant' or 'linear'",
+    ),
+    "sugeno defuzz": (edit("Type='mamdani'", "Type='sugeno'"), "[System].DefuzzMethod", "wtaver"),
+    "type2": (edit("Type='mamdani'", "Type='mamdanitype2'"), "[System].Type", "type-2"),
+    "hybrid": (edit("Type='mamdani'", "Type='hybrid'"), "[System].Type", "mamdani, sugeno"),
+    "fuzzylite shape": (
+        edit("'gaussmf',[1.5 10]", "'rampmf',[1 2]"),
+        "[Input1].MF3",
+        "fuzzylite shape",
+    ),
+    "custom shape": (
+        edit("'gaussmf',[1.5 10]", "'my_custom_mf',[1 2]"),
+        "[Input1].MF3",
+        "my_custom_mf",
+    ),
+    "too few params": (
+        edit("'gaussmf',[1.5 10]", "'pimf',[1 2 3]"),
+        "[Input1].MF3",
+        "pimf takes 4",
+    ),
+    "decimal MF number": (
+        edit("3 2, 3 (1) : 2", "2.5 2, 3 (1) : 2"),
+        "[Rules]",
+        "not a whole number",
+    ),
+    "NumInputs=3": (edit("NumInputs=2", "NumInputs=3"), "[System].NumInputs", "2 input"),
     "two outputs": (
         BASE.replace("[Rules]", "[Output2]\nName='y'\nRange=[0 1]\n\n[Rules]"),
-        "line",
-        "one output",
+        "[System].NumOutputs",
+        "2 output sections",
     ),
-    "NumOutputs=2": (edit("NumOutputs=1", "NumOutputs=2"), "[System].NumOutputs", "2 outputs"),
+    "NumOutputs=2": (edit("NumOutputs=1", "NumOutputs=2"), "[System].NumOutputs", "1 output"),
     "missing MF in rule": (edit("3 2, 3 (1) : 2", "4 2, 3 (1) : 2"), "[Rules]", "MF4"),
     "missing output MF": (edit("3 2, 3 (1) : 2", "3 2, 4 (1) : 2"), "[Rules]", "MF4"),
-    "negated output": (edit("3 2, 3 (1) : 2", "3 2, -3 (1) : 2"), "[Rules]", "negated"),
-    "no consequent": (edit("3 2, 3 (1) : 2", "3 2, 0 (1) : 2"), "[Rules]", "output MF 0"),
     "no condition": (edit("3 2, 3 (1) : 2", "0 0, 3 (1) : 2"), "[Rules]", "no condition"),
     "one antecedent": (edit("3 2, 3 (1) : 2", "3, 3 (1) : 2"), "[Rules]", "2 input(s)"),
     "two consequents": (edit("3 2, 3 (1) : 2", "3 2, 3 1 (1) : 2"), "[Rules]", "2 output"),
@@ -222,7 +230,6 @@ BAD = {
     "MF param text": (edit("[0 5 10]", "[0 five 10]"), "[Output1].MF1", "'five'"),
     "MF param inf": (edit("[0 5 10]", "[0 5 Inf]"), "[Output1].MF1", "finite"),
     "MF gap": (edit("MF3='excellent'", "MF4='excellent'"), "[Input1].MF4", "MF3"),
-    "duplicate MF name": (edit("'excellent'", "'good'"), "[Input1]", "unique"),
     "range reversed": (edit("Range=[0 30]", "Range=[30 0]"), "[Output1].Range", "low"),
     "range empty": (edit("Range=[0 30]", "Range=[5 5]"), "[Output1].Range", "low"),
     "range one number": (edit("Range=[0 30]", "Range=[30]"), "[Output1].Range", "two numbers"),
@@ -257,7 +264,7 @@ BAD = {
         "[System]",
         "no [Output1]",
     ),
-    "input9": (edit("[Output1]", "[Input9]"), "line", "two inputs"),
+    "input9": (edit("[Output1]", "[Input9]"), "line", "without [Input3]"),
     "input2 only": (
         BASE.split("[Input1]")[0] + "[Input2]" + BASE.split("[Input2]")[1],
         "line",
@@ -291,8 +298,8 @@ def test_bad_fis_is_one_located_config_error(tmp_path, case):
 
 def test_errors_carry_line_numbers(tmp_path):
     path = tmp_path / "bad.fis"
-    path.write_text(BAD["sigmf"][0], encoding="utf-8")
-    assert "[Input1].MF3 (line 25): unsupported membership function 'sigmf'" in (
+    path.write_text(BAD["custom shape"][0], encoding="utf-8")
+    assert "[Input1].MF3 (line 25): unsupported membership function 'my_custom_mf'" in (
         expect_fis_error(path, "[Input1].MF3", "replace it")
     )
 
@@ -316,7 +323,7 @@ def test_missing_file_and_uncovered_rule_base(tmp_path):
 
 def test_cli_turns_a_bad_fis_into_one_line(tmp_path, capsys):
     bad = tmp_path / "bad.fis"
-    bad.write_text(BAD["sigmf"][0], encoding="utf-8")
+    bad.write_text(BAD["custom shape"][0], encoding="utf-8")
     assert main(["compare", "dinca_cylinder", str(bad), "--out", str(tmp_path / "o")]) == 2
     err = capsys.readouterr().err.strip().splitlines()
-    assert len(err) == 1 and str(bad) in err[0] and "sigmf" in err[0]
+    assert len(err) == 1 and str(bad) in err[0] and "my_custom_mf" in err[0]

@@ -31,15 +31,22 @@ a ``Version=2.0`` line)::
     1 1, 1 (1) : 2
 
 A rule line is: one MF number per input (1-based, ``0`` no condition, ``-k`` NOT MF
-k), a comma, the output MF number, the weight in parentheses, a colon and the
-connective (``1`` AND, ``2`` OR).
+k), a comma, one MF number per output (``0`` none, ``-k`` NOT MF k), the weight in
+parentheses, a colon and the connective (``1`` AND, ``2`` OR). Numbers may be written
+with decimals (``1.000 1.000, 1.000 (1.000) : 2``, as fuzzylite writes them).
 
-Supported: Mamdani systems with one or two inputs and one output; MF types trimf,
-trapmf, gaussmf ``[sigma c]``, gbellmf ``[a b c]``; the methods of
-:mod:`fuzzyservo.controllers.fuzzy.system`. Anything else is a :class:`ConfigError`
-naming the file, the line and section, the problem and the fix. The format has no
-universe resolution: systems read get ``points`` samples per variable (201 unless
-given), and :func:`fis_text` does not store it.
+Supported: everything the Fuzzy Logic Toolbox writes for type-1 systems — Mamdani and
+Sugeno (``constant`` and ``linear`` output terms, ``wtaver``/``wtsum``), any number of
+inputs and outputs, every built-in membership function (:mod:`.shapes`; extra
+parameters are kept and ignored, as MATLAB does), rule weights, NOT, negated
+consequents, empty method names (MATLAB's defaults). Anything else (type-2 systems,
+custom method functions, fuzzylite-only shapes) is a :class:`ConfigError` naming the
+file, the line and section, the problem and the fix.
+
+The format has no evaluation settings; fuzzyservo writes its own in a comment line
+MATLAB skips, ``% fuzzyservo: semantics=skfuzzy sample_points=101 points=201``
+(``points``: universe samples of the ``skfuzzy`` semantics, per variable when they
+differ), so a round trip is lossless. Files without it get the defaults.
 """
 
 from __future__ import annotations
@@ -51,13 +58,17 @@ from pathlib import Path
 from typing import NoReturn
 
 from fuzzyservo.controllers.fuzzy.controller import FuzzyController
+from fuzzyservo.controllers.fuzzy.shapes import SUGENO_SHAPES
 from fuzzyservo.controllers.fuzzy.system import (
     AGGREGATIONS,
     AND_METHODS,
-    DEFUZZIFICATIONS,
     IMPLICATIONS,
+    MAMDANI_DEFUZZIFICATIONS,
+    MATLAB_SAMPLE_POINTS,
     OR_METHODS,
+    SEMANTICS,
     SHAPES,
+    SUGENO_DEFUZZIFICATIONS,
     FuzzySystem,
     Rule,
     Term,
@@ -70,28 +81,65 @@ __all__ = ["controller_from_fis", "fis_text", "parse_fis", "read_fis", "write_fi
 #: the ``Version`` written by :func:`fis_text` (MATLAB R2018b and later)
 VERSION = "2.0"
 _SHAPE_LIST = ", ".join(SHAPES)
+#: shapes fuzzylite writes into .fis files that MATLAB has no function for
+FUZZYLITE_SHAPES = (
+    "binarymf", "concavemf", "cosinemf", "discretemf", "function", "rampmf", "rectmf",
+    "spikemf", "trianglemf", "trapezoidmf",
+)  # fmt: skip
 _METHODS = {
     "AndMethod": ("and_method", AND_METHODS),
     "OrMethod": ("or_method", OR_METHODS),
     "ImpMethod": ("implication", IMPLICATIONS),
     "AggMethod": ("aggregation", AGGREGATIONS),
-    "DefuzzMethod": ("defuzzification", DEFUZZIFICATIONS),
+    "DefuzzMethod": ("defuzzification", MAMDANI_DEFUZZIFICATIONS),
 }
+_TAG = "% fuzzyservo:"
 _SYSTEM_KEYS = ("Name", "Type", "Version", "NumInputs", "NumOutputs", "NumRules", *_METHODS)
 _VARIABLE_KEYS = ("Name", "Range", "NumMFs", "MF<n>")
 _SECTION = re.compile(r"^\[\s*(?P<name>[^\]]*?)\s*\]$")
 _NUMBERED = re.compile(r"^(?P<kind>Input|Output)(?P<n>\d+)$")
 _MF_KEY = re.compile(r"^MF(?P<n>\d+)$")
 _MF = re.compile(r"^'(?P<name>[^']*)'\s*:\s*'(?P<shape>[^']*)'\s*,\s*\[(?P<params>[^\[\]]*)\]$")
-_INDICES = r"[-+]?\d+(?:[\s,]+[-+]?\d+)*"
+_NUMBER = r"[-+]?\d+(?:\.\d*)?"
+_INDICES = rf"{_NUMBER}(?:[\s,]+{_NUMBER})*"
 _RULE = re.compile(
     rf"^(?P<ante>{_INDICES})\s*,\s*(?P<cons>{_INDICES})\s*"
-    r"\(\s*(?P<weight>[^()]*?)\s*\)\s*:\s*(?P<conn>[-+]?\d+)$"
+    rf"\(\s*(?P<weight>[^()]*?)\s*\)\s*:\s*(?P<conn>{_NUMBER})$"
 )
 _RULE_HINT = "write it like '1 2, 3 (1) : 1' (input MF numbers, output MF, (weight) : 1 AND / 2 OR)"
 
 
 # --------------------------------------------------------------------------- parsing
+def _number(text: str) -> float:
+    """A number, or an arithmetic expression of numbers and ``pi`` (MATLAB's readfis
+    evaluates ``Range=[-pi/4 pi/4]``, as its sltbu.fis demo has)."""
+    try:
+        return float(text)
+    except ValueError:
+        pass
+    import ast
+    import operator
+
+    ops = {ast.Add: operator.add, ast.Sub: operator.sub, ast.Mult: operator.mul,
+           ast.Div: operator.truediv, ast.USub: operator.neg, ast.UAdd: operator.pos}  # fmt: skip
+
+    def value(node: ast.AST) -> float:
+        if isinstance(node, ast.Constant) and isinstance(node.value, int | float):
+            return float(node.value)
+        if isinstance(node, ast.Name) and node.id == "pi":
+            return math.pi
+        if isinstance(node, ast.BinOp) and type(node.op) in ops:
+            return ops[type(node.op)](value(node.left), value(node.right))
+        if isinstance(node, ast.UnaryOp) and type(node.op) in ops:
+            return ops[type(node.op)](value(node.operand))
+        raise ValueError(text)
+
+    try:
+        return value(ast.parse(text, mode="eval").body)
+    except (SyntaxError, ZeroDivisionError, RecursionError):
+        raise ValueError(text) from None
+
+
 @dataclass
 class _Line:
     value: str
@@ -111,6 +159,7 @@ class _Reader:
 
     def __init__(self, file: str):
         self.file = file
+        self.settings: dict[str, tuple[str, int]] = {}  # key -> (value, line) from _TAG
 
     def fail(self, message: str, where: str | None = None, line: int | None = None) -> NoReturn:
         if where and line:
@@ -124,6 +173,9 @@ class _Reader:
         current: _Section | None = None
         for number, raw in enumerate(text.splitlines(), start=1):
             line = raw.strip()
+            if line.startswith(_TAG):
+                self._settings(line[len(_TAG) :], current, number)
+                continue
             if not line or line[0] in "%#":
                 continue
             head = _SECTION.match(line)
@@ -164,29 +216,38 @@ class _Reader:
             current.entries[key] = _Line(value, number)
         return sections
 
+    def _settings(self, text: str, current: _Section | None, number: int) -> None:
+        """``key=value`` pairs of a ``% fuzzyservo:`` line; ``points`` per section."""
+        prefix = f"{current.name}." if current is not None and current.name != "System" else ""
+        for item in text.split():
+            key, eq, value = item.partition("=")
+            if not eq or key not in ("semantics", "sample_points", "points"):
+                self.fail(
+                    f"cannot read {item!r} in a '{_TAG}' line; write semantics=skfuzzy|matlab, "
+                    "sample_points=N or points=N",
+                    line=number,
+                )
+            self.settings[prefix + key] = (value, number)
+
+    def setting_int(self, key: str, default: int) -> int:
+        if key not in self.settings:
+            return default
+        value, line = self.settings[key]
+        if not (value.isdigit() and int(value) >= 3):
+            self.fail(f"{key} must be a whole number >= 3, got {value!r}; fix it", line=line)
+        return int(value)
+
     def _check_section_name(self, name: str, number: int) -> None:
         if name in ("System", "Rules"):
             return
         m = _NUMBERED.match(name)
         if not m:
             self.fail(
-                f"unknown section [{name}]; a .fis file has [System], [Input1], [Input2], "
-                "[Output1] and [Rules]",
+                f"unknown section [{name}]; a .fis file has [System], [Input1] … [InputN], "
+                "[Output1] … [OutputM] and [Rules]",
                 line=number,
             )
         n = int(m["n"])
-        if m["kind"] == "Input" and n > 2:
-            self.fail(
-                f"[{name}]: only systems with one or two inputs (error, error rate) are "
-                "supported; reduce the system to two inputs",
-                line=number,
-            )
-        if m["kind"] == "Output" and n > 1:
-            self.fail(
-                f"[{name}]: only systems with one output (the command) are supported; "
-                "split the system into one system per output",
-                line=number,
-            )
         if n < 1:
             self.fail(f"sections are numbered from 1, got [{name}]; renumber it", line=number)
 
@@ -221,7 +282,7 @@ class _Reader:
         values = []
         for p in parts:
             try:
-                x = float(p)
+                x = _number(p)
             except ValueError:
                 self.fail(f"{p!r} is not a number; {example}", where, line)
             if not math.isfinite(x):
@@ -237,11 +298,15 @@ class _Reader:
             self.fail(f"expected numbers in brackets, got {v!r}; {example}", where, entry.number)
         return self.numbers(v[1:-1], where, entry.number, example)
 
-    def method(self, system: _Section, key: str) -> str:
+    def method(self, system: _Section, key: str, sugeno: bool = False) -> str:
         _, allowed = _METHODS[key]
+        if key == "DefuzzMethod" and sugeno:
+            allowed = SUGENO_DEFUZZIFICATIONS
         if key not in system.entries:
             return allowed[0]  # MATLAB's defaults (mamfis): min, max, min, max, centroid
         value = self.text(system, key).strip()
+        if not value:  # fuzzylite writes '' for an operator it does not need
+            return allowed[0]
         if value.lower() not in allowed:
             self.fail(
                 f"unsupported {key} {value!r} (supported: {', '.join(allowed)}); "
@@ -268,7 +333,9 @@ def _count(reader: _Reader, section: _Section, key: str, found: int, what: str) 
         )
 
 
-def _variable(reader: _Reader, section: _Section, default_name: str, points: int) -> Variable:
+def _variable(
+    reader: _Reader, section: _Section, default_name: str, points: int, sugeno: bool
+) -> Variable:
     where = f"[{section.name}]"
     for key, entry in section.entries.items():
         if key not in ("Name", "Range", "NumMFs") and not _MF_KEY.match(key):
@@ -287,14 +354,14 @@ def _variable(reader: _Reader, section: _Section, default_name: str, points: int
         reader.fail(
             f"needs two numbers [low high], got {list(lo_hi)}; {example}", f"{where}.Range", line
         )
-    if not lo_hi[0] < lo_hi[1]:
+    if not (lo_hi[0] < lo_hi[1] or (sugeno and section.name.startswith("Output"))):
         reader.fail(
             f"low must be below high, got [{lo_hi[0]:g} {lo_hi[1]:g}]; swap or widen the range",
             f"{where}.Range",
             line,
         )
     numbered = sorted((int(m["n"]), key) for key in section.entries if (m := _MF_KEY.match(key)))
-    if not numbered:
+    if not numbered and section.name.startswith("Output"):
         reader.fail(
             "has no membership functions; add MF1='name':'trimf',[a b c] lines",
             where,
@@ -309,14 +376,15 @@ def _variable(reader: _Reader, section: _Section, default_name: str, points: int
                 section.entries[key].number,
             )
     _count(reader, section, "NumMFs", len(numbered), "membership functions")
-    terms = [_term(reader, section, key) for _, key in numbered]
+    sugeno_output = sugeno and section.name.startswith("Output")
+    terms = [_term(reader, section, key, sugeno_output) for _, key in numbered]
     try:
         return Variable(name, lo_hi[0], lo_hi[1], tuple(terms), points)
     except ValueError as exc:
         reader.fail(_with_fix(exc, "fix the section"), where, section.number)
 
 
-def _term(reader: _Reader, section: _Section, key: str) -> Term:
+def _term(reader: _Reader, section: _Section, key: str, sugeno_output: bool) -> Term:
     entry = section.entries[key]
     where = f"[{section.name}].{key}"
     m = _MF.match(entry.value)
@@ -328,20 +396,28 @@ def _term(reader: _Reader, section: _Section, key: str) -> Term:
             entry.number,
         )
     shape = m["shape"].strip()
-    if shape not in SHAPES:
+    allowed = SUGENO_SHAPES if sugeno_output else tuple(SHAPES)
+    if shape not in allowed:
+        if shape in FUZZYLITE_SHAPES:
+            problem = f"{shape!r} is a fuzzylite shape that MATLAB has no function for"
+        elif sugeno_output and shape in SHAPES:
+            problem = f"a Sugeno output term is 'constant' or 'linear', not {shape!r}"
+        elif shape in SUGENO_SHAPES:
+            problem = f"{shape!r} is a Sugeno output term, here in a Mamdani system or an input"
+        else:
+            problem = f"unsupported membership function {shape!r}"
         reader.fail(
-            f"unsupported membership function {shape!r} (supported: {_SHAPE_LIST}); "
-            "replace it with one of them",
+            f"{problem} (supported: {', '.join(allowed)}); replace it with one of them",
             where,
             entry.number,
         )
     params = reader.numbers(
         m["params"], where, entry.number, f"write it like {key}='NB':'trimf',[-1 -0.5 0]"
     )
-    if len(params) != SHAPES[shape]:
+    need = SHAPES.get(shape, 1)
+    if len(params) < need or (shape == "constant" and len(params) != 1):
         reader.fail(
-            f"{shape} takes {SHAPES[shape]} parameters, got {len(params)} {list(params)}; "
-            f"give {SHAPES[shape]}",
+            f"{shape} takes {need} parameters, got {len(params)} {list(params)}; give {need}",
             where,
             entry.number,
         )
@@ -351,13 +427,34 @@ def _term(reader: _Reader, section: _Section, key: str) -> Term:
         reader.fail(_with_fix(exc, "fix the parameters"), where, entry.number)
 
 
-def _rule(reader: _Reader, line: _Line, inputs: list[Variable], output: Variable) -> Rule:
+def _indices(reader: _Reader, text: str, line: _Line) -> list[int]:
+    values = []
+    for v in re.split(r"[\s,]+", text.strip()):
+        x = float(v)
+        if x != int(x):
+            reader.fail(
+                f"rule {line.value!r}: MF number {v} is not a whole number; {_RULE_HINT}",
+                "[Rules]",
+                line.number,
+            )
+        values.append(int(x))
+    return values
+
+
+def _decode(v: int) -> int:
+    """MATLAB's k > 0 MF k, 0 none, -k NOT MF k as ours: k-1, -1, -(k-1)-2."""
+    return v - 1 if v > 0 else (-1 if v == 0 else v - 1)
+
+
+def _rule(
+    reader: _Reader, line: _Line, inputs: list[Variable], outputs: list[Variable], sugeno: bool
+) -> Rule:
     where = "[Rules]"
     m = _RULE.match(line.value)
     if not m:
         reader.fail(f"cannot read rule {line.value!r}; {_RULE_HINT}", where, line.number)
-    ante = [int(v) for v in re.split(r"[\s,]+", m["ante"].strip())]
-    cons = [int(v) for v in re.split(r"[\s,]+", m["cons"].strip())]
+    ante = _indices(reader, m["ante"], line)
+    cons = _indices(reader, m["cons"], line)
     if len(ante) != len(inputs):
         reader.fail(
             f"rule {line.value!r} gives {len(ante)} input MF number(s) for {len(inputs)} "
@@ -365,24 +462,22 @@ def _rule(reader: _Reader, line: _Line, inputs: list[Variable], output: Variable
             where,
             line.number,
         )
-    if len(cons) != 1:
+    if len(cons) != len(outputs):
         reader.fail(
-            f"rule {line.value!r} gives {len(cons)} output MF numbers for one output; "
-            "give one output MF number",
+            f"rule {line.value!r} gives {len(cons)} output MF number(s) for {len(outputs)} "
+            f"output(s); give one output MF number per output (0: none)",
             where,
             line.number,
         )
-    antecedent = []
-    for var, v in zip(inputs, ante, strict=True):
-        if abs(v) > len(var.terms):
-            reader.fail(
-                f"rule {line.value!r} refers to MF{abs(v)} of input {var.name!r}, which has "
-                f"{len(var.terms)}; use 1..{len(var.terms)} (0 for no condition)",
-                where,
-                line.number,
-            )
-        # MATLAB: k > 0 MF k, 0 none, -k NOT MF k; ours: k-1, -1, -(k-1)-2
-        antecedent.append(v - 1 if v > 0 else (-1 if v == 0 else v - 1))
+    for kind, variables, values in (("input", inputs, ante), ("output", outputs, cons)):
+        for var, v in zip(variables, values, strict=True):
+            if abs(v) > len(var.terms):
+                reader.fail(
+                    f"rule {line.value!r} refers to MF{abs(v)} of {kind} {var.name!r}, which "
+                    f"has {len(var.terms)}; use 1..{len(var.terms)} (0 for none)",
+                    where,
+                    line.number,
+                )
     if all(v == 0 for v in ante):
         reader.fail(
             f"rule {line.value!r} has no condition on any input; give an input MF number or "
@@ -390,17 +485,10 @@ def _rule(reader: _Reader, line: _Line, inputs: list[Variable], output: Variable
             where,
             line.number,
         )
-    c = cons[0]
-    if not 1 <= c <= len(output.terms):
-        problem = (
-            "a negated output MF is unsupported"
-            if c < 0
-            else "output MF 0 (no consequent) is unsupported"
-            if c == 0
-            else f"refers to MF{c} of output {output.name!r}, which has {len(output.terms)}"
-        )
+    if sugeno and any(c < 0 for c in cons):
         reader.fail(
-            f"rule {line.value!r}: {problem}; use an output MF number 1..{len(output.terms)}",
+            f"rule {line.value!r}: a negated output MF has no meaning in a Sugeno system; "
+            "use an output MF number",
             where,
             line.number,
         )
@@ -416,20 +504,44 @@ def _rule(reader: _Reader, line: _Line, inputs: list[Variable], output: Variable
             where,
             line.number,
         )
-    conn = int(m["conn"])
+    conn = float(m["conn"])
     if conn not in (1, 2):
         reader.fail(
-            f"rule {line.value!r}: connective must be 1 (AND) or 2 (OR), got {conn}; fix it",
+            f"rule {line.value!r}: connective must be 1 (AND) or 2 (OR), got {m['conn']}; fix it",
             where,
             line.number,
         )
-    return Rule(tuple(antecedent), c - 1, weight, "and" if conn == 1 else "or")
+    decoded = [_decode(c) for c in cons]
+    return Rule(
+        tuple(_decode(v) for v in ante),
+        decoded[0],
+        weight,
+        "and" if conn == 1 else "or",
+        tuple(decoded[1:]),
+    )
+
+
+def _numbered(reader: _Reader, sections: dict[str, _Section], kind: str) -> list[str]:
+    found = sorted(
+        (int(m["n"]), name)
+        for name in sections
+        if (m := _NUMBERED.match(name)) and m["kind"] == kind
+    )
+    for expected, (n, name) in enumerate(found, start=1):
+        if n != expected:
+            reader.fail(
+                f"[{name}] without [{kind}{expected}]; number the sections {kind}1, {kind}2, … "
+                "without gaps",
+                line=sections[name].number,
+            )
+    return [name for _, name in found]
 
 
 def parse_fis(text: str, file: str = "<fis text>", points: int = 201) -> FuzzySystem:
     """The :class:`FuzzySystem` in ``.fis`` text (module docstring); errors name ``file``.
 
-    Universes get ``points`` evenly spaced samples (the format does not store them).
+    Universes get ``points`` evenly spaced samples unless the file's ``% fuzzyservo:``
+    line says otherwise.
     """
     reader = _Reader(file)
     sections = reader.sections(text)
@@ -448,14 +560,16 @@ def parse_fis(text: str, file: str = "<fis text>", points: int = 201) -> FuzzySy
             )
     if "Type" not in system.entries:
         reader.fail("missing Type; add Type='mamdani'", "[System]", system.number)
-    fis_type = reader.text(system, "Type").strip()
-    if fis_type.lower() != "mamdani":
+    fis_type = reader.text(system, "Type").strip().lower()
+    if fis_type not in ("mamdani", "sugeno"):
         reader.fail(
-            f"unsupported FIS type {fis_type!r} (supported: mamdani); convert the system to "
-            "a Mamdani system (type-1, fuzzy output terms)",
+            f"unsupported FIS type {fis_type!r} (supported: mamdani, sugeno — type-1 systems; "
+            f"{'type-2 systems' if 'type2' in fis_type else 'this type'} cannot be read); "
+            "convert it to a type-1 Mamdani or Sugeno system",
             "[System].Type",
             system.entries["Type"].number,
         )
+    sugeno = fis_type == "sugeno"
     if "Version" in system.entries:
         reader.numbers(
             system.entries["Version"].value,
@@ -463,39 +577,62 @@ def parse_fis(text: str, file: str = "<fis text>", points: int = 201) -> FuzzySy
             system.entries["Version"].number,
             "write it like Version=2.0",
         )
-    for key, limit, what in (("NumInputs", 2, "inputs"), ("NumOutputs", 1, "outputs")):
-        if key in system.entries and reader.integer(system, key) > limit:
-            reader.fail(
-                f"{reader.integer(system, key)} {what} are unsupported (at most {limit}: a "
-                f"controller maps error [and error rate] to one command); reduce the {what}",
-                f"[System].{key}",
-                system.entries[key].number,
-            )
-    inputs_found = [n for n in ("Input1", "Input2") if n in sections]
-    if "Input2" in sections and "Input1" not in sections:
-        reader.fail("[Input2] without [Input1]; rename it [Input1]", line=sections["Input2"].number)
-    if not inputs_found:
+    input_names = _numbered(reader, sections, "Input")
+    output_names = _numbered(reader, sections, "Output")
+    if not input_names:
         reader.fail("no [Input1] section; add the input variable", "[System]", system.number)
-    if "Output1" not in sections:
+    if not output_names:
         reader.fail("no [Output1] section; add the output variable", "[System]", system.number)
     if "Rules" not in sections:
         reader.fail("no [Rules] section; add the rule base", "[System]", system.number)
-    _count(reader, system, "NumInputs", len(inputs_found), "input sections")
-    _count(reader, system, "NumOutputs", 1, "output sections")
-    methods = {attr: reader.method(system, key) for key, (attr, _) in _METHODS.items()}
-    default_names = ("e", "de")
+    _count(reader, system, "NumInputs", len(input_names), "input sections")
+    _count(reader, system, "NumOutputs", len(output_names), "output sections")
+    methods = {attr: reader.method(system, key, sugeno) for key, (attr, _) in _METHODS.items()}
+    points = reader.setting_int("points", points)
+    in_defaults = ("e", "de") if len(input_names) <= 2 else ()
     inputs = [
-        _variable(reader, sections[n], default_names[k], points) for k, n in enumerate(inputs_found)
+        _variable(
+            reader,
+            sections[n],
+            in_defaults[k] if k < len(in_defaults) else f"input{k + 1}",
+            reader.setting_int(f"{n}.points", points),
+            False,
+        )
+        for k, n in enumerate(input_names)
     ]
-    output = _variable(reader, sections["Output1"], "u", points)
+    outputs = [
+        _variable(
+            reader,
+            sections[n],
+            "u" if len(output_names) == 1 else f"output{k + 1}",
+            reader.setting_int(f"{n}.points", points),
+            sugeno,
+        )
+        for k, n in enumerate(output_names)
+    ]
     rule_lines = sections["Rules"].lines
     if not rule_lines:
         reader.fail("the rule base is empty; add rule lines", "[Rules]", sections["Rules"].number)
     _count(reader, system, "NumRules", len(rule_lines), "rule lines")
-    rules = tuple(_rule(reader, line, inputs, output) for line in rule_lines)
+    rules = tuple(_rule(reader, line, inputs, outputs, sugeno) for line in rule_lines)
     name = reader.text(system, "Name") if "Name" in system.entries else Path(file).stem
+    semantics = "skfuzzy"
+    if "semantics" in reader.settings:
+        semantics, line = reader.settings["semantics"]
+        if semantics not in SEMANTICS:
+            reader.fail(f"semantics must be one of {list(SEMANTICS)}, got {semantics!r}", line=line)
     try:
-        return FuzzySystem(name=name, inputs=tuple(inputs), output=output, rules=rules, **methods)
+        return FuzzySystem(
+            name=name,
+            inputs=tuple(inputs),
+            output=outputs[0],
+            other_outputs=tuple(outputs[1:]),
+            rules=rules,
+            type=fis_type,
+            semantics=semantics,
+            sample_points=reader.setting_int("sample_points", MATLAB_SAMPLE_POINTS),
+            **methods,
+        )
     except ValueError as exc:
         reader.fail(_with_fix(exc, "fix the file"), "[System]", system.number)
 
@@ -558,9 +695,11 @@ def _quoted(name: str, what: str) -> str:
     return f"'{name}'"
 
 
-def _variable_text(section: str, var: Variable) -> list[str]:
-    lines = [
-        f"[{section}]",
+def _variable_text(section: str, var: Variable, points: int) -> list[str]:
+    lines = [f"[{section}]"]
+    if var.points != points:
+        lines.append(f"{_TAG} points={var.points}")
+    lines += [
         f"Name={_quoted(var.name, 'variable name')}",
         f"Range=[{_num(var.low)} {_num(var.high)}]",
         f"NumMFs={len(var.terms)}",
@@ -572,35 +711,42 @@ def _variable_text(section: str, var: Variable) -> list[str]:
 
 
 def _matlab_index(idx: int) -> int:
-    """Our antecedent index (k, -1 none, -(k+2) NOT k) as MATLAB's (k+1, 0, -(k+1))."""
+    """Our term index (k, -1 none, -(k+2) NOT k) as MATLAB's (k+1, 0, -(k+1))."""
     return idx + 1 if idx >= 0 else (0 if idx == -1 else idx + 1)
 
 
 def fis_text(system: FuzzySystem) -> str:
     """``system`` as MATLAB ``.fis`` text (R2018b+ layout, ``Version=2.0``).
 
-    Numbers are written with ``repr`` precision, so :func:`parse_fis` gives back an
-    equal system (universe resolution aside: the format does not store it).
+    Numbers are written with ``repr`` precision and the evaluation settings in a
+    ``% fuzzyservo:`` comment, so :func:`parse_fis` gives back an equal system.
     """
+    variables = [*system.inputs, *system.outputs]
+    points = max({v.points for v in variables}, key=[v.points for v in variables].count)
     lines = [
         "[System]",
         f"Name={_quoted(system.name, 'system name')}",
-        "Type='mamdani'",
+        f"Type='{system.type}'",
         f"Version={VERSION}",
         f"NumInputs={len(system.inputs)}",
-        "NumOutputs=1",
+        f"NumOutputs={len(system.outputs)}",
         f"NumRules={len(system.rules)}",
     ]
     lines += [f"{key}='{getattr(system, attr)}'" for key, (attr, _) in _METHODS.items()]
+    lines.append(
+        f"{_TAG} semantics={system.semantics} sample_points={system.sample_points} points={points}"
+    )
     lines.append("")
     for k, var in enumerate(system.inputs, start=1):
-        lines += _variable_text(f"Input{k}", var)
-    lines += _variable_text("Output1", system.output)
+        lines += _variable_text(f"Input{k}", var, points)
+    for k, var in enumerate(system.outputs, start=1):
+        lines += _variable_text(f"Output{k}", var, points)
     lines.append("[Rules]")
     for rule in system.rules:
         ante = " ".join(str(_matlab_index(i)) for i in rule.antecedent)
+        cons = " ".join(str(_matlab_index(i)) for i in rule.consequents)
         conn = 1 if rule.connective == "and" else 2
-        lines.append(f"{ante}, {rule.consequent + 1} ({_num(rule.weight)}) : {conn}")
+        lines.append(f"{ante}, {cons} ({_num(rule.weight)}) : {conn}")
     return "\n".join(lines) + "\n"
 
 

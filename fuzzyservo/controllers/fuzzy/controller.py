@@ -54,7 +54,7 @@ def fuzzy_step(cp: np.ndarray, cs: np.ndarray, r: float, y: float) -> float:
 
 @dataclass(frozen=True)
 class FuzzyController(Controller):
-    """A Mamdani controller: system, form, scaling gains and output limits [V]."""
+    """A fuzzy controller (Mamdani or Sugeno): system, form, scaling gains and output limits [V]."""
 
     system: FuzzySystem
     form: str = "p"
@@ -75,6 +75,12 @@ class FuzzyController(Controller):
         if self.form not in FORMS:
             raise ValueError(f"form must be one of {list(FORMS)}, got {self.form!r}")
         n_in = len(self.system.inputs)
+        if len(self.system.outputs) != 1 or n_in > 2:
+            raise ValueError(
+                f"a controller maps the error (and its rate) to one command: the system has "
+                f"{n_in} inputs and {len(self.system.outputs)} outputs; use a system with one "
+                "or two inputs and one output (`fuzzyservo evaluate` runs any system)"
+            )
         if self.form == "pd" and n_in != 2:
             raise ValueError(
                 f"form 'pd' needs two inputs (error and error rate), the system has {n_in}"

@@ -26,6 +26,7 @@ import math
 import numpy as np
 
 from fuzzyservo._jit import njit
+from fuzzyservo.controllers.fuzzy.exact import evaluate_exact
 from fuzzyservo.controllers.fuzzy.system import (
     AGGREGATIONS,
     AND_METHODS,
@@ -33,13 +34,16 @@ from fuzzyservo.controllers.fuzzy.system import (
     IMPLICATIONS,
     OR_METHODS,
     FuzzySystem,
+    term_index,
 )
 
-# block header (offsets from the block start)
+# one output's block header (offsets from the block start)
 _H_NIN, _H_NRULES, _H_AND, _H_OR, _H_IMP, _H_AGG, _H_DEFUZZ = 0, 1, 2, 3, 4, 5, 6
-_H_IN0, _H_IN1, _H_OUT, _H_RULES, _H_NOUT = 7, 8, 9, 10, 11
+_H_INS, _H_TSTRIDE, _H_OUT, _H_RULES, _H_NOUT = 7, 8, 9, 10, 11
 _HEADER = 12
-_RULE_WIDTH = 5
+# top block: [semantics, n_inputs, n_outputs, block offset of each output | exact block]
+_T_SEM, _T_NIN, _T_NOUT, _T_BLOCKS = 0, 1, 2, 3
+SAMPLED, EXACT = 0, 1
 
 
 def _interp_np(universe: np.ndarray, table: np.ndarray, x: np.ndarray) -> np.ndarray:
@@ -74,7 +78,39 @@ def reference_firing(system: FuzzySystem, points: np.ndarray) -> np.ndarray:
 
 
 def pack_system(system: FuzzySystem) -> tuple[np.ndarray, int]:
-    """Flatten a system into a float64 vector for :func:`evaluate`; also the scratch size needed."""
+    """Flatten a system into a float64 vector for :func:`evaluate`; also the scratch size needed.
+
+    Mamdani systems in the ``skfuzzy`` semantics get one block per output
+    (:func:`_pack_output`); the ``matlab`` semantics, and Sugeno systems in both (scikit-fuzzy
+    has none, so there is nothing to sample after), the exact block of :mod:`.exact`.
+    """
+    from fuzzyservo.controllers.fuzzy.exact import pack_exact
+
+    n_in, n_out = len(system.inputs), len(system.outputs)
+    head = np.zeros(_T_BLOCKS + n_out)
+    head[_T_NIN] = n_in
+    head[_T_NOUT] = n_out
+    if system.semantics == "matlab" or system.type == "sugeno":
+        head[_T_SEM] = EXACT
+        block, scratch = pack_exact(system)
+        head[_T_BLOCKS] = head.size
+        return np.concatenate([head, block]), scratch + n_in + n_out
+    head[_T_SEM] = SAMPLED
+    blocks = []
+    scratch = 0
+    for o in range(n_out):
+        block, need = _pack_output(system, o)
+        head[_T_BLOCKS + o] = head.size + sum(b.size for b in blocks)
+        blocks.append(block)
+        scratch = max(scratch, need)
+    return np.concatenate([head, *blocks]), scratch + n_in + n_out
+
+
+def _pack_output(system: FuzzySystem, output: int) -> tuple[np.ndarray, int]:
+    """One output's block. Its terms are virtual: each consequent the rules name (NOT k:
+    the complement of term k); with sum or probor aggregation one per rule, so that the
+    evaluator's per-term accumulation is an implication per rule followed by the
+    aggregation (max aggregation commutes with min and product implication)."""
     parts: list[np.ndarray] = []
     size = _HEADER
 
@@ -86,20 +122,33 @@ def pack_system(system: FuzzySystem) -> tuple[np.ndarray, int]:
         size += a.size
         return start
 
-    offsets = [0, 0]
+    n_in = len(system.inputs)
+    ins_at = add(np.zeros(n_in))
+    offsets = []
     t_max = 0
-    for i, var in enumerate(system.inputs):
+    for var in system.inputs:
         u, table = var.table()
         t_max = max(t_max, len(var.terms))
-        offsets[i] = add([var.low, var.high, u.size, len(var.terms)])
+        offsets.append(add([var.low, var.high, u.size, len(var.terms)]))
         add(u)
         add(table)
-    out = system.output
-    u, table = out.table()
-    n_t = len(out.terms)
-    referenced = np.zeros(n_t)
-    for rule in system.rules:
-        referenced[rule.consequent] = 1.0
+    out = system.outputs[output]
+    u, term_table = out.table()
+    rules = [r for r in system.rules if r.consequents[output] != -1]
+    per_rule = system.aggregation != "max"
+    virtual: dict[object, int] = {}  # (term, negated) or rule number -> virtual term
+    rows = []
+    rule_terms = []
+    for n, rule in enumerate(rules):
+        k, negated = term_index(rule.consequents[output])
+        key = n if per_rule else (k, negated)
+        if key not in virtual:
+            virtual[key] = len(rows)
+            rows.append(1.0 - term_table[k] if negated else term_table[k])
+        rule_terms.append(virtual[key])
+    table = np.array(rows).reshape(len(rows), u.size)
+    n_t = len(rows)
+    referenced = np.ones(n_t)
     support_lo = np.empty(n_t)
     support_hi = np.empty(n_t)
     zero_crossings: list[np.ndarray] = []
@@ -127,31 +176,27 @@ def pack_system(system: FuzzySystem) -> tuple[np.ndarray, int]:
     off_rules = add(
         [
             v
-            for rule in system.rules
-            for v in (
-                *(list(rule.antecedent) + [-1] * (2 - len(rule.antecedent))),
-                rule.consequent,
-                rule.weight,
-                0.0 if rule.connective == "and" else 1.0,
-            )
+            for rule, t in zip(rules, rule_terms, strict=True)
+            for v in (*rule.antecedent, t, rule.weight, 0.0 if rule.connective == "and" else 1.0)
         ]
     )
     block = np.concatenate([np.zeros(_HEADER), *parts])
     block[zc_offsets_at : zc_offsets_at + n_t] = zc_starts
-    block[_H_NIN] = len(system.inputs)
-    block[_H_NRULES] = len(system.rules)
+    block[ins_at : ins_at + n_in] = offsets
+    block[_H_NIN] = n_in
+    block[_H_NRULES] = len(rules)
     block[_H_AND] = AND_METHODS.index(system.and_method)
     block[_H_OR] = OR_METHODS.index(system.or_method)
     block[_H_IMP] = IMPLICATIONS.index(system.implication)
     block[_H_AGG] = AGGREGATIONS.index(system.aggregation)
     block[_H_DEFUZZ] = DEFUZZIFICATIONS.index(system.defuzzification)
-    block[_H_IN0] = offsets[0]
-    block[_H_IN1] = offsets[1]
+    block[_H_INS] = ins_at
+    block[_H_TSTRIDE] = t_max
     block[_H_OUT] = off_out
     block[_H_RULES] = off_rules
     block[_H_NOUT] = n_t
     extra = 4 * n_t + 2 * u.size  # cut-level points: at most 2 per unimodal term, with margin
-    scratch = 2 * t_max + n_t + extra + 2 * (u.size + extra)
+    scratch = n_in * t_max + n_t + extra + 2 * (u.size + extra)
     return block, scratch
 
 
@@ -185,11 +230,49 @@ def _locate(cp: np.ndarray, u0: int, n: int, x: float) -> int:
 
 @njit(cache=True)
 def evaluate(cp: np.ndarray, b: int, scratch: np.ndarray, x0: float, x1: float) -> float:
-    """Crisp output of the system packed at ``cp[b:]`` for inputs ``x0`` (and ``x1``).
+    """First output of the system packed at ``cp[b:]`` for inputs ``x0`` (and ``x1``): the
+    controller's call. NaN when no rule fires in the ``skfuzzy`` semantics (cannot happen
+    for a system that passed the coverage check at build time)."""
+    n_in = int(cp[b + _T_NIN])
+    n_out = int(cp[b + _T_NOUT])
+    xs = scratch[:n_in]
+    xs[0] = x0
+    if n_in > 1:
+        xs[1] = x1
+    out = scratch[n_in : n_in + n_out]
+    evaluate_point(cp, b, scratch[n_in + n_out :], xs, out)
+    return out[0]
 
-    Returns NaN when no rule fires (cannot happen for a system that passed the
-    coverage check at build time).
-    """
+
+@njit(cache=True)
+def evaluate_point(
+    cp: np.ndarray, b: int, scratch: np.ndarray, xs: np.ndarray, out: np.ndarray
+) -> int:
+    """All outputs for the inputs ``xs`` into ``out``; returns how many outputs fired no rule
+    (``matlab``: those are mid-range, ``skfuzzy``: NaN)."""
+    if cp[b + _T_SEM] == EXACT:
+        return evaluate_exact(cp, b + int(cp[b + _T_BLOCKS]), scratch, xs, out)
+    silent = 0
+    for o in range(int(cp[b + _T_NOUT])):
+        out[o] = _evaluate_output(cp, b + int(cp[b + _T_BLOCKS + o]), scratch, xs)
+        if np.isnan(out[o]):
+            silent += 1
+    return silent
+
+
+@njit(cache=True)
+def evaluate_many(cp: np.ndarray, scratch: np.ndarray, xs: np.ndarray, out: np.ndarray) -> int:
+    """:func:`evaluate_point` for each row of ``xs`` (m, n_in) into ``out`` (m, n_out); the
+    number of (row, output) pairs where no rule fired."""
+    silent = 0
+    for k in range(xs.shape[0]):
+        silent += evaluate_point(cp, 0, scratch, xs[k], out[k])
+    return silent
+
+
+@njit(cache=True)
+def _evaluate_output(cp: np.ndarray, b: int, scratch: np.ndarray, xs: np.ndarray) -> float:
+    """One output in the ``skfuzzy`` semantics (module docstring); NaN when no rule fires."""
     n_in = int(cp[b + _H_NIN])
     n_rules = int(cp[b + _H_NRULES])
     and_m = int(cp[b + _H_AND])
@@ -198,33 +281,31 @@ def evaluate(cp: np.ndarray, b: int, scratch: np.ndarray, x0: float, x1: float) 
     agg_m = int(cp[b + _H_AGG])
     defuzz_m = int(cp[b + _H_DEFUZZ])
     n_t = int(cp[b + _H_NOUT])
+    rule_width = n_in + 3
+    ins = b + int(cp[b + _H_INS])
 
     # 1. fuzzification: mu[i*t_stride + k]
-    t_stride = 0
+    t_stride = int(cp[b + _H_TSTRIDE])
+    mu = scratch[: n_in * t_stride]
     for i in range(n_in):
-        o = b + int(cp[b + _H_IN0 + i])
-        t_stride = max(t_stride, int(cp[o + 3]))
-    mu = scratch[: 2 * t_stride]
-    for i in range(n_in):
-        o = b + int(cp[b + _H_IN0 + i])
+        o = b + int(cp[ins + i])
         lo = cp[o]
         hi = cp[o + 1]
         n = int(cp[o + 2])
         nt = int(cp[o + 3])
-        x = x0 if i == 0 else x1
-        x = min(max(x, lo), hi)
+        x = min(max(xs[i], lo), hi)
         u0 = o + 4
         j = _locate(cp, u0, n, x)
         for k in range(nt):
             mu[i * t_stride + k] = _interp_at(cp, u0, u0 + n + k * n, n, j, x)
 
     # 2. rule firing, accumulated per output term (-1: term not referenced by any rule)
-    cut = scratch[2 * t_stride : 2 * t_stride + n_t]
+    cut = scratch[n_in * t_stride : n_in * t_stride + n_t]
     for t in range(n_t):
         cut[t] = -1.0
     ro = b + int(cp[b + _H_RULES])
     for r in range(n_rules):
-        q = ro + r * _RULE_WIDTH
+        q = ro + r * rule_width
         acc = -1.0
         for i in range(n_in):
             a = int(cp[q + i])
@@ -233,12 +314,12 @@ def evaluate(cp: np.ndarray, b: int, scratch: np.ndarray, x0: float, x1: float) 
             m = mu[i * t_stride + a] if a >= 0 else 1.0 - mu[i * t_stride + (-a - 2)]
             if acc < 0.0:
                 acc = m
-            elif cp[q + 4] == 0.0:
+            elif cp[q + n_in + 2] == 0.0:
                 acc = min(acc, m) if and_m == 0 else acc * m
             else:
                 acc = max(acc, m) if or_m == 0 else acc + m - acc * m
-        f = acc * cp[q + 3]
-        t = int(cp[q + 2])
+        f = acc * cp[q + n_in + 1]
+        t = int(cp[q + n_in])
         if cut[t] < 0.0:
             cut[t] = f
         elif agg_m == 0:
@@ -269,7 +350,7 @@ def evaluate(cp: np.ndarray, b: int, scratch: np.ndarray, x0: float, x1: float) 
     x_hi = cp[u0 + j_hi]
 
     # 4. extra points at the cut levels (min implication), kept inside the span, sorted
-    base = 2 * t_stride + n_t
+    base = n_in * t_stride + n_t
     extra = scratch[base : base + 4 * n_t + 2 * n]
     n_extra = 0
     if imp_m == 0:
@@ -418,3 +499,18 @@ def _defuzzify(x: np.ndarray, y: np.ndarray, method: int) -> float:
             return x1 - (y1 - math.sqrt(y1 * y1 + 2.0 * slope * sub)) / slope
         acc += area
     return x[n - 1]
+
+
+def evaluate_inputs(system: FuzzySystem, inputs: np.ndarray) -> tuple[np.ndarray, int]:
+    """What ``evalfis`` does for a table: outputs (m, n_outputs) for inputs (m, n_inputs),
+    in the system's semantics; also how many (row, output) pairs fired no rule (``matlab``:
+    mid-range there, ``skfuzzy``: NaN)."""
+    xs = np.ascontiguousarray(inputs, dtype=np.float64)
+    if xs.ndim != 2 or xs.shape[1] != len(system.inputs):
+        raise ValueError(
+            f"inputs must have shape (m, {len(system.inputs)}): one column per input, got {xs.shape}"
+        )
+    cp, scratch = pack_system(system)
+    out = np.empty((xs.shape[0], len(system.outputs)))
+    silent = evaluate_many(cp, np.zeros(scratch), xs, out)
+    return out, int(silent)

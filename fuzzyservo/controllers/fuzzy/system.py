@@ -1,4 +1,14 @@
-"""A Mamdani fuzzy inference system as typed, frozen data (what a MATLAB ``.fis`` holds).
+"""A type-1 fuzzy inference system as typed, frozen data (what a MATLAB ``.fis`` holds).
+
+Mamdani or Sugeno (constant or linear output terms, ``wtaver``/``wtsum``), any number
+of inputs and outputs, rule weights, NOT in antecedents and consequents. Two
+evaluation semantics (``semantics``):
+
+* ``skfuzzy`` (the default), described below;
+* ``matlab``: what ``evalfis`` computes — exact input membership, implication per rule,
+  aggregation over the rules, the output sampled at ``sample_points`` (101) evenly
+  spaced points and defuzzified there; mid-range output when no rule fires
+  (:mod:`.exact`).
 
 The semantics are scikit-fuzzy's (``skfuzzy.control``), which this package uses as the
 reference: membership functions sampled on each variable's universe and linearly
@@ -14,40 +24,52 @@ are evaluated by the compiled evaluator only, with the same sampled universes.
 
 from __future__ import annotations
 
+import itertools
 import math
 from dataclasses import dataclass, field
 
 import numpy as np
 
-#: number of parameters of each membership-function shape (MATLAB names)
-SHAPES = {"trimf": 3, "trapmf": 4, "gaussmf": 2, "gbellmf": 3}
+from fuzzyservo.controllers.fuzzy.shapes import MF_SHAPES, PIECEWISE_LINEAR, SUGENO_SHAPES, mf_array
+
+#: number of parameters each membership-function shape reads (MATLAB names)
+SHAPES = MF_SHAPES
+TYPES = ("mamdani", "sugeno")
+SEMANTICS = ("skfuzzy", "matlab")
 AND_METHODS = ("min", "prod")
 OR_METHODS = ("max", "probor")
 IMPLICATIONS = ("min", "prod")
 AGGREGATIONS = ("max", "sum", "probor")
-DEFUZZIFICATIONS = ("centroid", "bisector", "mom", "som", "lom")
+MAMDANI_DEFUZZIFICATIONS = ("centroid", "bisector", "mom", "som", "lom")
+SUGENO_DEFUZZIFICATIONS = ("wtaver", "wtsum")
+DEFUZZIFICATIONS = (*MAMDANI_DEFUZZIFICATIONS, *SUGENO_DEFUZZIFICATIONS)
+#: MATLAB's evalfis default number of output sample points
+MATLAB_SAMPLE_POINTS = 101
 
 
 def membership(shape: str, params: tuple[float, ...], x: np.ndarray) -> np.ndarray:
-    """Membership of ``x`` in a term, with scikit-fuzzy's shape functions (MATLAB's definitions).
+    """Membership of ``x`` in a term, sampled for the ``skfuzzy`` semantics.
 
-    ``trimf [a b c]``, ``trapmf [a b c d]``, ``gaussmf [sigma c]`` (MATLAB order),
-    ``gbellmf [a b c]``: 1/(1 + |(x − c)/a|^(2b)).
+    trimf, trapmf, gaussmf ``[sigma c]`` and gbellmf use scikit-fuzzy's functions (the
+    reference of that semantics); the other shapes MATLAB's definitions (:mod:`.shapes`).
     """
     import skfuzzy as fuzz
 
     x = np.asarray(x, dtype=float)
+    if shape not in SHAPES:
+        raise ValueError(f"unknown membership shape {shape!r}; use one of {sorted(SHAPES)}")
+    p = params[: SHAPES[shape]]
     if shape == "trimf":
-        return fuzz.trimf(x, list(params))
+        return fuzz.trimf(x, list(p))
     if shape == "trapmf":
-        return fuzz.trapmf(x, list(params))
+        return fuzz.trapmf(x, list(p))
     if shape == "gaussmf":
-        sigma, c = params
+        sigma, c = p
         return fuzz.gaussmf(x, c, sigma)
     if shape == "gbellmf":
-        a, b, c = params
+        a, b, c = p
         return fuzz.gbellmf(x, a, b, c)
-    raise ValueError(f"unknown membership shape {shape!r}; use one of {sorted(SHAPES)}")
+    return mf_array(shape, p, x)
 
 
 @dataclass(frozen=True)
@@ -59,21 +81,22 @@ class Term:
     params: tuple[float, ...]
 
     def __post_init__(self) -> None:
-        if self.shape not in SHAPES:
+        if self.shape not in SHAPES and self.shape not in SUGENO_SHAPES:
             raise ValueError(
-                f"term {self.name!r}: unknown shape {self.shape!r}; use one of {sorted(SHAPES)}"
+                f"term {self.name!r}: unknown shape {self.shape!r}; use one of "
+                f"{sorted(SHAPES)} (Sugeno outputs: {list(SUGENO_SHAPES)})"
             )
-        if len(self.params) != SHAPES[self.shape]:
+        need = SHAPES.get(self.shape, 1)
+        if len(self.params) < need or (self.shape == "constant" and len(self.params) != 1):
             raise ValueError(
-                f"term {self.name!r}: {self.shape} takes {SHAPES[self.shape]} parameters, got {len(self.params)}"
+                f"term {self.name!r}: {self.shape} takes {need} parameters, got {len(self.params)}"
             )
         if not all(math.isfinite(p) for p in self.params):
             raise ValueError(
                 f"term {self.name!r}: parameters must be finite, got {list(self.params)}"
             )
-        if self.shape in ("trimf", "trapmf") and any(
-            b < a for a, b in zip(self.params, self.params[1:], strict=False)
-        ):
+        p = self.params[:need]
+        if self.shape in ("trimf", "trapmf") and any(b < a for a, b in itertools.pairwise(p)):
             raise ValueError(
                 f"term {self.name!r}: {self.shape} breakpoints must be in order, got {list(self.params)}; sort them"
             )
@@ -81,6 +104,8 @@ class Term:
             raise ValueError(f"term {self.name!r}: trimf of zero width {list(self.params)}")
         if self.shape == "gaussmf" and not self.params[0] > 0:
             raise ValueError(f"term {self.name!r}: gaussmf sigma must be > 0, got {self.params[0]}")
+        if self.shape == "gauss2mf" and not (p[0] > 0 and p[2] > 0):
+            raise ValueError(f"term {self.name!r}: gauss2mf sigmas must be > 0, got {list(p)}")
         if self.shape == "gbellmf" and not (self.params[0] != 0 and self.params[1] > 0):
             raise ValueError(
                 f"term {self.name!r}: gbellmf needs a != 0 and b > 0, got {list(self.params)}"
@@ -89,7 +114,11 @@ class Term:
     @property
     def breakpoints(self) -> tuple[float, ...]:
         """Corners of a piecewise-linear shape (none for smooth shapes)."""
-        return self.params if self.shape in ("trimf", "trapmf") else ()
+        return self.params[: SHAPES[self.shape]] if self.shape in PIECEWISE_LINEAR else ()
+
+    @property
+    def is_sugeno(self) -> bool:
+        return self.shape in SUGENO_SHAPES
 
 
 @dataclass(frozen=True)
@@ -103,15 +132,18 @@ class Variable:
     points: int = 201
 
     def __post_init__(self) -> None:
-        if not (math.isfinite(self.low) and math.isfinite(self.high) and self.low < self.high):
+        # a Sugeno output's range is only its no-rule-fired value (MATLAB's juggler.fis has [0 0])
+        sugeno = bool(self.terms) and all(t.is_sugeno for t in self.terms)
+        if not (
+            math.isfinite(self.low)
+            and math.isfinite(self.high)
+            and (self.low < self.high or (sugeno and self.low == self.high))
+        ):
             raise ValueError(
                 f"variable {self.name!r}: range must satisfy low < high, got [{self.low}, {self.high}]"
             )
-        if not self.terms:
-            raise ValueError(f"variable {self.name!r}: needs at least one term")
-        names = [t.name for t in self.terms]
-        if len(set(names)) != len(names):
-            raise ValueError(f"variable {self.name!r}: term names must be unique, got {names}")
+        # term names may repeat (MATLAB refers to terms by number: its juggler.fis names all
+        # nine output terms 'out1mf'); formats that refer by name check uniqueness
         if self.points < 3:
             raise ValueError(f"variable {self.name!r}: points must be >= 3, got {self.points}")
 
@@ -135,19 +167,29 @@ class Variable:
         return u, np.array([membership(t.shape, t.params, u) for t in self.terms])
 
 
+def term_index(idx: int) -> tuple[int, bool]:
+    """A rule index decoded: ``(term, negated)``; ``-1`` (no term) gives ``(-1, False)``."""
+    if idx == -1:
+        return -1, False
+    return (idx, False) if idx >= 0 else (-idx - 2, True)
+
+
 @dataclass(frozen=True)
 class Rule:
-    """``IF in1 is A AND/OR in2 is B THEN out is C (weight)``.
+    """``IF in1 is A AND/OR in2 is B … THEN out1 is C, out2 is D … (weight)``.
 
     ``antecedent`` holds one term index per input: ``k >= 0`` the term, ``-1`` no
     condition on that input, ``-(k + 2)`` NOT term k (MATLAB writes NOT as a negative
-    index). ``consequent`` is the output term index.
+    index). ``consequent`` is the first output's term index in the same code (``-1``: the
+    rule says nothing about that output, ``-(k + 2)``: NOT term k); ``other_consequents``
+    those of the second, third … outputs.
     """
 
     antecedent: tuple[int, ...]
     consequent: int
     weight: float = 1.0
     connective: str = "and"
+    other_consequents: tuple[int, ...] = ()
 
     def __post_init__(self) -> None:
         if self.connective not in ("and", "or"):
@@ -155,10 +197,14 @@ class Rule:
         if not 0.0 <= self.weight <= 1.0:
             raise ValueError(f"rule weight must lie in [0, 1], got {self.weight}")
 
+    @property
+    def consequents(self) -> tuple[int, ...]:
+        return (self.consequent, *self.other_consequents)
+
 
 @dataclass(frozen=True)
 class FuzzySystem:
-    """A Mamdani system with one or two inputs and one output."""
+    """A Mamdani or Sugeno system: inputs, outputs (``output`` and ``other_outputs``), rules."""
 
     name: str
     inputs: tuple[Variable, ...]
@@ -170,36 +216,79 @@ class FuzzySystem:
     aggregation: str = "max"
     defuzzification: str = "centroid"
     description: str = field(default="", compare=False)
+    other_outputs: tuple[Variable, ...] = ()
+    type: str = "mamdani"
+    semantics: str = "skfuzzy"
+    sample_points: int = MATLAB_SAMPLE_POINTS
+
+    @property
+    def outputs(self) -> tuple[Variable, ...]:
+        return (self.output, *self.other_outputs)
 
     def __post_init__(self) -> None:
         for attr, allowed in (
+            ("type", TYPES),
+            ("semantics", SEMANTICS),
             ("and_method", AND_METHODS),
             ("or_method", OR_METHODS),
             ("implication", IMPLICATIONS),
             ("aggregation", AGGREGATIONS),
-            ("defuzzification", DEFUZZIFICATIONS),
+            (
+                "defuzzification",
+                MAMDANI_DEFUZZIFICATIONS if self.type == "mamdani" else SUGENO_DEFUZZIFICATIONS,
+            ),
         ):
             if getattr(self, attr) not in allowed:
                 raise ValueError(
                     f"{attr} must be one of {list(allowed)}, got {getattr(self, attr)!r}"
                 )
-        if len(self.inputs) not in (1, 2):
-            raise ValueError(f"a controller takes one or two inputs, got {len(self.inputs)}")
+        if not self.inputs:
+            raise ValueError("a system needs at least one input")
+        if self.sample_points < 3:
+            raise ValueError(f"sample_points must be >= 3, got {self.sample_points}")
+        n_in = len(self.inputs)
+        for var in self.outputs:
+            for t in var.terms:
+                if self.type == "mamdani" and t.is_sugeno:
+                    raise ValueError(
+                        f"output {var.name!r}: term {t.name!r} is a Sugeno term ({t.shape}) in a "
+                        "Mamdani system; give it a membership function or make the system Sugeno"
+                    )
+                if self.type == "sugeno" and not t.is_sugeno:
+                    raise ValueError(
+                        f"output {var.name!r}: term {t.name!r} is a {t.shape} in a Sugeno system; "
+                        "Sugeno output terms are 'constant' or 'linear'"
+                    )
+                if t.shape == "linear" and len(t.params) != n_in + 1:
+                    raise ValueError(
+                        f"output {var.name!r}: linear term {t.name!r} needs {n_in + 1} "
+                        f"coefficients (one per input and a constant), got {len(t.params)}"
+                    )
         if not self.rules:
             raise ValueError("the rule base is empty; add rules")
         for n, rule in enumerate(self.rules, start=1):
-            if len(rule.antecedent) != len(self.inputs):
+            if len(rule.antecedent) != n_in:
                 raise ValueError(
-                    f"rule {n}: has {len(rule.antecedent)} antecedents for {len(self.inputs)} inputs"
+                    f"rule {n}: has {len(rule.antecedent)} antecedents for {n_in} inputs"
+                )
+            if len(rule.consequents) != len(self.outputs):
+                raise ValueError(
+                    f"rule {n}: has {len(rule.consequents)} consequents for "
+                    f"{len(self.outputs)} outputs"
                 )
             for var, idx in zip(self.inputs, rule.antecedent, strict=True):
-                k = idx if idx >= 0 else -idx - 2
+                k, _ = term_index(idx)
                 if idx != -1 and not 0 <= k < len(var.terms):
                     raise ValueError(f"rule {n}: input {var.name!r} has no term number {k + 1}")
-            if not 0 <= rule.consequent < len(self.output.terms):
-                raise ValueError(
-                    f"rule {n}: output {self.output.name!r} has no term number {rule.consequent + 1}"
-                )
+            for var, idx in zip(self.outputs, rule.consequents, strict=True):
+                k, negated = term_index(idx)
+                if idx != -1 and not 0 <= k < len(var.terms):
+                    raise ValueError(f"rule {n}: output {var.name!r} has no term number {k + 1}")
+                if negated and self.type == "sugeno":
+                    raise ValueError(
+                        f"rule {n}: a negated consequent (NOT {var.terms[k].name}) has no "
+                        "meaning in a Sugeno system; use a term"
+                    )
             if all(i == -1 for i in rule.antecedent):
                 raise ValueError(f"rule {n}: has no condition on any input")
 
@@ -208,11 +297,8 @@ class FuzzySystem:
         from fuzzyservo.controllers.fuzzy.evaluate import reference_firing
 
         grids = [v.universe() for v in self.inputs]
-        if len(grids) == 1:
-            pts = grids[0][:, None]
-        else:
-            a, b = np.meshgrid(grids[0], grids[1], indexing="ij")
-            pts = np.column_stack([a.ravel(), b.ravel()])
+        mesh = np.meshgrid(*grids, indexing="ij")
+        pts = np.column_stack([m.ravel() for m in mesh])
         firing = reference_firing(self, pts)
         return pts[firing.max(axis=1) <= 0.0]
 

@@ -1,0 +1,236 @@
+"""The ``matlab`` semantics: what the Fuzzy Logic Toolbox's ``evalfis`` computes, compiled.
+
+For inputs x (each clipped to its range, as the controller saturates its error):
+
+1. membership of each input in each term, exact (:func:`.shapes.mf_value`);
+2. rule firing w_r = weight_r · (AND: min or product / OR: max or probabilistic OR of
+   the antecedent memberships, 1 − μ for NOT);
+3. Mamdani: each output sampled at ``sample_points`` evenly spaced points x_k of its
+   range (MATLAB's ``linspace``); implication per rule (min(w_r, μ_c(x_k)) or
+   w_r·μ_c(x_k), μ_c replaced by 1 − μ_c for a negated consequent), aggregation over
+   the rules (max, sum, probor), then MATLAB's ``defuzz`` on the samples: centroid
+   Σx·μ/Σμ; bisector the first sample where the running sum of μ reaches half its
+   total; mom the mean, som/lom the smallest/largest in magnitude of the samples where
+   μ is largest;
+4. Sugeno: z_r = c (constant) or c_1·x_1 + … + c_n·x_n + c_0 (linear), output
+   Σw_r·z_r/Σw_r (wtaver) or Σw_r·z_r (wtsum).
+
+When no rule fires for an output (Σw_r = 0 or the aggregate is zero everywhere) that
+output is the middle of its range, as in MATLAB, and the call reports it so the caller
+can warn.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from fuzzyservo._jit import njit
+from fuzzyservo.controllers.fuzzy.shapes import SHAPE_CODES, mf_value
+from fuzzyservo.controllers.fuzzy.system import (
+    AGGREGATIONS,
+    AND_METHODS,
+    DEFUZZIFICATIONS,
+    IMPLICATIONS,
+    OR_METHODS,
+    FuzzySystem,
+    Variable,
+)
+
+# header
+_NIN, _NOUT, _NRULES, _SUGENO, _AND, _OR, _IMP, _AGG, _DEFUZZ, _SAMPLES, _VARS, _RULES = range(12)
+_HEADER = 12
+_LINEAR = SHAPE_CODES["linear"]
+_CONSTANT = SHAPE_CODES["constant"]
+
+
+def pack_exact(system: FuzzySystem) -> tuple[np.ndarray, int]:
+    """Flatten ``system`` for :func:`evaluate_exact`; also the scratch size it needs.
+
+    Layout: header; a table of variable offsets (inputs, then outputs); each variable
+    ``[low, high, n_terms, term offsets…]`` and each term ``[shape code, n, params…]``;
+    the rules, ``n_in + n_out + 2`` numbers each (MATLAB-style indices decoded as in
+    :class:`.Rule`, then weight and connective 0 AND / 1 OR).
+    """
+    block: list[float] = [0.0] * _HEADER
+    variables: list[Variable] = [*system.inputs, *system.outputs]
+    table_at = len(block)
+    block += [0.0] * len(variables)
+    for v, var in enumerate(variables):
+        block[table_at + v] = len(block)
+        head = len(block)
+        block += [var.low, var.high, len(var.terms)] + [0.0] * len(var.terms)
+        for k, term in enumerate(var.terms):
+            block[head + 3 + k] = len(block)
+            block += [SHAPE_CODES[term.shape], len(term.params), *term.params]
+    rules_at = len(block)
+    for rule in system.rules:
+        block += [*rule.antecedent, *rule.consequents, rule.weight]
+        block.append(0.0 if rule.connective == "and" else 1.0)
+    n_in, n_out = len(system.inputs), len(system.outputs)
+    block[_NIN], block[_NOUT], block[_NRULES] = n_in, n_out, len(system.rules)
+    block[_SUGENO] = 1.0 if system.type == "sugeno" else 0.0
+    block[_AND] = AND_METHODS.index(system.and_method)
+    block[_OR] = OR_METHODS.index(system.or_method)
+    block[_IMP] = IMPLICATIONS.index(system.implication)
+    block[_AGG] = AGGREGATIONS.index(system.aggregation)
+    block[_DEFUZZ] = DEFUZZIFICATIONS.index(system.defuzzification)
+    block[_SAMPLES] = system.sample_points
+    block[_VARS], block[_RULES] = table_at, rules_at
+    t_max = max(len(v.terms) for v in system.inputs)
+    scratch = n_in * t_max + len(system.rules) + n_in + system.sample_points
+    return np.asarray(block, dtype=np.float64), scratch
+
+
+@njit(cache=True, inline="always")
+def _term_mu(cp: np.ndarray, t: int, x: float) -> float:
+    return mf_value(int(cp[t]), cp, t + 2, x)
+
+
+@njit(cache=True)
+def evaluate_exact(
+    cp: np.ndarray, b: int, scratch: np.ndarray, xs: np.ndarray, out: np.ndarray
+) -> int:
+    """All outputs of the system packed at ``cp[b:]`` for inputs ``xs`` into ``out``.
+
+    Returns the number of outputs for which no rule fired (set to mid-range).
+    """
+    n_in = int(cp[b + _NIN])
+    n_out = int(cp[b + _NOUT])
+    n_rules = int(cp[b + _NRULES])
+    and_m = int(cp[b + _AND])
+    or_m = int(cp[b + _OR])
+    imp_m = int(cp[b + _IMP])
+    agg_m = int(cp[b + _AGG])
+    defuzz_m = int(cp[b + _DEFUZZ])
+    n_s = int(cp[b + _SAMPLES])
+    vt = b + int(cp[b + _VARS])
+    ro = b + int(cp[b + _RULES])
+    width = n_in + n_out + 2
+
+    # 1. inputs clipped, membership in every term
+    t_max = 0
+    for i in range(n_in):
+        t_max = max(t_max, int(cp[b + int(cp[vt + i]) + 2]))
+    mu = scratch[: n_in * t_max]
+    x = scratch[n_in * t_max : n_in * t_max + n_in]
+    for i in range(n_in):
+        v = b + int(cp[vt + i])
+        x[i] = min(max(xs[i], cp[v]), cp[v + 1])
+        for k in range(int(cp[v + 2])):
+            mu[i * t_max + k] = _term_mu(cp, b + int(cp[v + 3 + k]), x[i])
+
+    # 2. firing strengths
+    w = scratch[n_in * t_max + n_in : n_in * t_max + n_in + n_rules]
+    for r in range(n_rules):
+        q = ro + r * width
+        acc = -1.0
+        for i in range(n_in):
+            a = int(cp[q + i])
+            if a == -1:
+                continue
+            m = mu[i * t_max + a] if a >= 0 else 1.0 - mu[i * t_max + (-a - 2)]
+            if acc < 0.0:
+                acc = m
+            elif cp[q + n_in + n_out + 1] == 0.0:
+                acc = min(acc, m) if and_m == 0 else acc * m
+            else:
+                acc = max(acc, m) if or_m == 0 else acc + m - acc * m
+        w[r] = acc * cp[q + n_in + n_out]
+
+    # 3./4. each output
+    ys = scratch[n_in * t_max + n_in + n_rules : n_in * t_max + n_in + n_rules + n_s]
+    silent = 0
+    for o in range(n_out):
+        v = b + int(cp[vt + n_in + o])
+        lo = cp[v]
+        hi = cp[v + 1]
+        if cp[b + _SUGENO] == 1.0:
+            num = 0.0
+            den = 0.0
+            for r in range(n_rules):
+                c = int(cp[ro + r * width + n_in + o])
+                if c < 0 or w[r] == 0.0:
+                    continue
+                t = b + int(cp[v + 3 + c])
+                if int(cp[t]) == _CONSTANT:
+                    z = cp[t + 2]
+                else:
+                    z = cp[t + 2 + n_in]
+                    for i in range(n_in):
+                        z += cp[t + 2 + i] * x[i]
+                num += w[r] * z
+                den += w[r]
+            if den == 0.0:
+                out[o] = 0.5 * (lo + hi)
+                silent += 1
+            elif defuzz_m == 6:  # wtsum
+                out[o] = num
+            else:
+                out[o] = num / den
+            continue
+        step = (hi - lo) / (n_s - 1)
+        for k in range(n_s):
+            ys[k] = 0.0
+        for r in range(n_rules):
+            c = int(cp[ro + r * width + n_in + o])
+            if c == -1 or w[r] == 0.0:
+                continue
+            neg = c < -1
+            t = b + int(cp[v + 3 + (-c - 2 if neg else c)])
+            for k in range(n_s):
+                xk = hi if k == n_s - 1 else lo + k * step
+                m = _term_mu(cp, t, xk)
+                if neg:
+                    m = 1.0 - m
+                m = min(w[r], m) if imp_m == 0 else w[r] * m
+                if agg_m == 0:
+                    ys[k] = max(ys[k], m)
+                elif agg_m == 1:
+                    ys[k] = ys[k] + m
+                else:
+                    ys[k] = ys[k] + m - ys[k] * m
+        value = _defuzz(ys, lo, hi, step, n_s, defuzz_m)
+        if np.isnan(value):
+            out[o] = 0.5 * (lo + hi)
+            silent += 1
+        else:
+            out[o] = value
+    return silent
+
+
+@njit(cache=True)
+def _defuzz(ys: np.ndarray, lo: float, hi: float, step: float, n: int, method: int) -> float:
+    """MATLAB's ``defuzz`` on the samples ``ys`` at ``linspace(lo, hi, n)``; NaN if all zero."""
+    total = 0.0
+    top = 0.0
+    for k in range(n):
+        total += ys[k]
+        top = max(top, ys[k])
+    if total <= 0.0:
+        return np.nan
+    if method == 0:
+        moment = 0.0
+        for k in range(n):
+            xk = hi if k == n - 1 else lo + k * step
+            moment += xk * ys[k]
+        return moment / total
+    if method == 1:
+        acc = 0.0
+        for k in range(n):
+            acc += ys[k]
+            if acc >= 0.5 * total:
+                return hi if k == n - 1 else lo + k * step
+        return hi
+    s = 0.0
+    cnt = 0
+    best = np.nan
+    for k in range(n):
+        if ys[k] == top:
+            xk = hi if k == n - 1 else lo + k * step
+            s += xk
+            cnt += 1
+            if np.isnan(best) or (abs(xk) < abs(best) if method == 3 else abs(xk) > abs(best)):
+                best = xk
+    if method == 2:
+        return s / cnt
+    return best

@@ -1,0 +1,286 @@
+"""Code generation: a fuzzy controller as self-contained C99 or IEC 61131-3 Structured Text.
+
+The generated code computes the controller step exactly as the compiled evaluator does:
+it embeds the packed parameter vector (:meth:`FuzzyController.pack`) and ports the
+evaluator that reads it (:mod:`._c_runtime`, :mod:`._st`), so one evaluator exists in
+three languages rather than a second design per target. No library, no allocation:
+the state (previous error, previous command, scratch space) is a struct the caller owns.
+
+``lut``: a lookup-table variant — the static map F sampled on an n (× n) grid over the
+input universes (inputs are clipped to them, so the table covers every input) and
+interpolated linearly (bilinearly); :func:`lut_error` measures how far it is from F.
+"""
+
+from __future__ import annotations
+
+import math
+import re
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from fuzzyservo.codegen._c_runtime import RUNTIME
+from fuzzyservo.controllers.fuzzy.controller import FuzzyController
+from fuzzyservo.controllers.fuzzy.evaluate import EXACT, SAMPLED
+from fuzzyservo.controllers.fuzzy.shapes import SHAPE_CODES
+
+__all__ = ["LutError", "c_sources", "identifier", "lut_error", "lut_table", "write_c"]
+
+REALS = ("double", "float")
+#: cs header of the controller state (e_prev, u_prev, started): see controller.py
+_CS_HEADER = 3
+
+
+def identifier(name: str) -> str:
+    """A C / Structured Text identifier made from a controller name."""
+    ident = re.sub(r"\W", "_", name, flags=re.ASCII).strip("_") or "controller"
+    return ident if not ident[0].isdigit() else f"c_{ident}"
+
+
+def _literal(x: float, real: str) -> str:
+    if math.isinf(x):
+        return ("-" if x < 0 else "") + f"({real})HUGE_VAL"
+    text = repr(float(x))
+    return text + ("f" if real == "float" and "inf" not in text else "")
+
+
+def _array(values: np.ndarray, real: str, per_line: int = 6) -> str:
+    items = [_literal(v, real) for v in values]
+    return ",\n".join(
+        "    " + ", ".join(items[k : k + per_line]) for k in range(0, len(items), per_line)
+    )
+
+
+@dataclass(frozen=True)
+class LutError:
+    """How far the table is from the map: the largest error found on a grid ``refine``
+    times finer, and a bound that adds the Lipschitz estimate of the error over half a
+    fine-grid step (in output units, before the output gain)."""
+
+    found: float
+    bound: float
+    span: float
+    refine: int
+
+
+def lut_table(controller: FuzzyController, n: int) -> tuple[list[np.ndarray], np.ndarray]:
+    """Grids over the input universes and the static map F on them, shape (n,) or (n, n)."""
+    if n < 2:
+        raise ValueError(f"a lookup table needs n >= 2 points per input, got {n}")
+    grids = [np.linspace(v.low, v.high, n) for v in controller.system.inputs]
+    return grids, _map(controller, np.meshgrid(*grids, indexing="ij"))
+
+
+def _map(controller: FuzzyController, mesh: list[np.ndarray]) -> np.ndarray:
+    """F on raw universe inputs (the evaluator behind ``curve``, gains taken out)."""
+    from fuzzyservo.controllers.fuzzy.evaluate import evaluate_inputs
+
+    xs = np.column_stack([m.ravel() for m in mesh])
+    out, _ = evaluate_inputs(controller.system, xs)
+    return out[:, 0].reshape(mesh[0].shape)
+
+
+def lut_interp(grids: list[np.ndarray], table: np.ndarray, points: list[np.ndarray]) -> np.ndarray:
+    """The table read as the generated code reads it (uniform grid, clipped, (bi)linear)."""
+    idx, frac = [], []
+    for g, x in zip(grids, points, strict=True):
+        n = g.size
+        h = (g[-1] - g[0]) / (n - 1)
+        t = (np.clip(x, g[0], g[-1]) - g[0]) / h
+        k = np.minimum(np.floor(t).astype(int), n - 2)
+        idx.append(k)
+        frac.append(t - k)
+    if len(grids) == 1:
+        (k,), (f,) = idx, frac
+        return table[k] + f * (table[k + 1] - table[k])
+    (k, l), (f, g) = idx, frac
+    a = table[k, l] + g * (table[k, l + 1] - table[k, l])
+    b = table[k + 1, l] + g * (table[k + 1, l + 1] - table[k + 1, l])
+    return a + f * (b - a)
+
+
+def lut_error(controller: FuzzyController, n: int, refine: int | None = None) -> LutError:
+    """Largest |table − F| over the input range, on a grid ``refine`` times finer than the
+    table (16 for one input, 6 for two), and a bound from the error's slope there."""
+    grids, table = lut_table(controller, n)
+    refine = refine or (16 if len(grids) == 1 else 6)
+    fine = [np.linspace(g[0], g[-1], (g.size - 1) * refine + 1) for g in grids]
+    mesh = np.meshgrid(*fine, indexing="ij")
+    err = lut_interp(grids, table, mesh) - _map(controller, mesh)
+    slope = max(
+        float(np.max(np.abs(np.diff(err, axis=a)))) / (f[1] - f[0]) for a, f in enumerate(fine)
+    )
+    steps = [f[1] - f[0] for f in fine]
+    found = float(np.max(np.abs(err)))
+    out = controller.system.output
+    return LutError(found, found + slope * 0.5 * math.hypot(*steps), out.high - out.low, refine)
+
+
+def c_sources(
+    controller: FuzzyController,
+    sample_time_s: float,
+    real: str = "double",
+    lut: int | None = None,
+) -> dict[str, str]:
+    """``{name}.h`` and ``{name}.c``: the controller step in C99 (module docstring)."""
+    if real not in REALS:
+        raise ValueError(f"real must be one of {list(REALS)}, got {real!r}")
+    if not (math.isfinite(sample_time_s) and sample_time_s > 0):
+        raise ValueError(f"the sample time must be > 0 s, got {sample_time_s}")
+    name = identifier(controller.name)
+    cp, cs = controller.pack(sample_time_s)
+    n_in = len(controller.system.inputs)
+    semantics = int(cp[8])  # the system block starts after the control-law header
+    body = [
+        f"/* {name}: fuzzy controller step generated by fuzzyservo (do not edit).",
+        f"   form {controller.form}, {controller.system.type}, {controller.system.semantics} "
+        f"semantics, sample time {sample_time_s!r} s, {real}"
+        + (f", lookup table {lut} points per input" if lut else "")
+        + ". */",
+        "#include <math.h>",
+        f'#include "{name}.h"',
+        "",
+    ]
+    if lut:
+        grids, table = lut_table(controller, lut)
+        head = cp[:8]
+        body += [
+            f"static const {real} CP[8] = {{\n{_array(head, real)}\n}};",
+            f"static const {real} LUT_LO[{n_in}] = {{ {', '.join(_literal(g[0], real) for g in grids)} }};",
+            f"static const {real} LUT_HI[{n_in}] = {{ {', '.join(_literal(g[-1], real) for g in grids)} }};",
+            f"static const {real} LUT[{table.size}] = {{\n{_array(table.ravel(), real)}\n}};",
+            f"#define LUT_N {lut}L",
+            "",
+            _LUT_MAP.replace("@R@", real),
+        ]
+    else:
+        body += [
+            f"#define FS_SAMPLED {int(semantics == SAMPLED)}",
+            f"#define FS_EXACT {int(semantics == EXACT)}",
+            f"static const {real} CP[{cp.size}] = {{\n{_array(cp, real)}\n}};",
+            RUNTIME.replace("@R@", real).replace("@CONSTANT@", str(SHAPE_CODES["constant"])),
+            _MAP.replace("@R@", real)
+            .replace("@NIN@", str(n_in))
+            .replace("@SECOND@", "xs[1] = x1;" if n_in > 1 else "(void)x1;"),
+        ]
+    body.append(_STEP.replace("@R@", real).replace("@P@", name))
+    scratch = 1 if lut else cs.size - _CS_HEADER
+    header = _HEADER.replace("@R@", real).replace("@P@", name).replace("@NS@", str(scratch))
+    header = header.replace("@PU@", name.upper()).replace("@NIN@", str(n_in))
+    return {f"{name}.h": header, f"{name}.c": "\n".join(body) + "\n"}
+
+
+def write_c(
+    controller: FuzzyController,
+    folder: str | Path,
+    sample_time_s: float,
+    real: str = "double",
+    lut: int | None = None,
+) -> list[Path]:
+    """Write :func:`c_sources` into ``folder`` (created); returns the paths."""
+    out = Path(folder)
+    out.mkdir(parents=True, exist_ok=True)
+    paths = []
+    for file, text in c_sources(controller, sample_time_s, real, lut).items():
+        path = out / file
+        path.write_text(text, encoding="utf-8")
+        paths.append(path)
+    return paths
+
+
+_HEADER = """/* @P@: fuzzy controller step generated by fuzzyservo. C99, no library, no allocation.
+
+   @P@_state s;
+   @P@_init(&s);
+   every sample:  u = @P@_step(&s, reference, measurement);
+*/
+#ifndef @PU@_H
+#define @PU@_H
+
+#define @PU@_INPUTS @NIN@
+
+typedef struct {
+    @R@ e_prev;   /* previous error */
+    @R@ u_prev;   /* previous command (the integrator of form pi) */
+    int started;  /* 0 before the first sample: the error rate is 0 there */
+    @R@ scratch[@NS@];
+} @P@_state;
+
+void @P@_init(@P@_state *s);
+/* one sample of the control law: the command for reference r and measurement y */
+@R@ @P@_step(@P@_state *s, @R@ r, @R@ y);
+/* the static map F(x0 [, x1]) on the scaled inputs (gains applied by the caller) */
+@R@ @P@_map(@P@_state *s, @R@ x0, @R@ x1);
+
+#endif
+"""
+
+_MAP = """
+static @R@ fs_map(@R@ *scratch, @R@ x0, @R@ x1)
+{
+    @R@ *xs = scratch, *out = scratch + @NIN@;
+    long n_out = ix(CP[8 + 2]);
+    xs[0] = x0;
+    @SECOND@
+    evaluate_point(8, scratch + @NIN@ + n_out, xs, out);
+    return out[0];
+}
+"""
+
+_LUT_MAP = """static @R@ lut_min(@R@ a, @R@ b) { return b < a ? b : a; }
+static @R@ lut_max(@R@ a, @R@ b) { return b > a ? b : a; }
+
+/* cell index and fraction of x on the uniform grid of input i (clipped to the grid) */
+static long lut_cell(int i, @R@ x, @R@ *frac)
+{
+    @R@ h = (LUT_HI[i] - LUT_LO[i]) / (@R@)(LUT_N - 1);
+    @R@ t = (lut_min(lut_max(x, LUT_LO[i]), LUT_HI[i]) - LUT_LO[i]) / h;
+    long k = (long)floor(t);
+    if (k > LUT_N - 2) k = LUT_N - 2;
+    *frac = t - (@R@)k;
+    return k;
+}
+
+static @R@ fs_map(@R@ *scratch, @R@ x0, @R@ x1)
+{
+    @R@ f, g, a, b;
+    long k, l;
+    (void)scratch;
+    k = lut_cell(0, x0, &f);
+    if (sizeof(LUT_LO) / sizeof(LUT_LO[0]) == 1) {
+        (void)x1;
+        return LUT[k] + f * (LUT[k + 1] - LUT[k]);
+    }
+    l = lut_cell(1 % (int)(sizeof(LUT_LO) / sizeof(LUT_LO[0])), x1, &g);
+    a = LUT[k * LUT_N + l] + g * (LUT[k * LUT_N + l + 1] - LUT[k * LUT_N + l]);
+    b = LUT[(k + 1) * LUT_N + l] + g * (LUT[(k + 1) * LUT_N + l + 1] - LUT[(k + 1) * LUT_N + l]);
+    return a + f * (b - a);
+}
+"""
+
+_STEP = """
+void @P@_init(@P@_state *s)
+{
+    s->e_prev = 0;
+    s->u_prev = 0;
+    s->started = 0;
+}
+
+@R@ @P@_map(@P@_state *s, @R@ x0, @R@ x1) { return fs_map(s->scratch, x0, x1); }
+
+/* u = G_u F(G_e e [, G_de de]) (form p, pd) or u_k = u_(k-1) + T_s G_u F(...) (form pi),
+   clipped to [u_min, u_max]; de = (e - e_prev) / T_s, 0 at the first sample */
+@R@ @P@_step(@P@_state *s, @R@ r, @R@ y)
+{
+    @R@ e = r - y, ts = CP[6], de, f, u;
+    de = s->started ? (e - s->e_prev) / ts : 0;
+    f = fs_map(s->scratch, CP[1] * e, CP[2] * de);
+    u = (long)CP[0] == 2 ? s->u_prev + ts * CP[3] * f : CP[3] * f;
+    u = (CP[5] < (CP[4] > u ? CP[4] : u)) ? CP[5] : (CP[4] > u ? CP[4] : u);
+    s->e_prev = e;
+    s->u_prev = u;
+    s->started = 1;
+    return u;
+}
+"""

@@ -241,18 +241,99 @@ def cmd_show(args: argparse.Namespace) -> int:
 
 
 def cmd_export(args: argparse.Namespace) -> int:
-    from fuzzyservo.io.fis import write_fis
-
+    targets = [args.fis, args.fcl, args.c, args.st]
+    if not any(targets):
+        raise ConfigError("give at least one of --fis FILE, --fcl FILE, --c DIR, --st FILE")
+    if (args.lut is not None and not (args.c or args.st)) or (args.float and not args.c):
+        raise ConfigError("--lut shapes the code of --c DIR or --st FILE, --float that of --c")
+    if args.lut is not None and args.lut < 2:
+        raise ConfigError(f"--lut needs at least 2 points per input, got {args.lut}")
+    if not (math.isfinite(args.sample_time) and args.sample_time > 0):
+        raise ConfigError(f"--sample-time must be > 0 s, got {args.sample_time}")
     controller = _load_fuzzy(args.controller)
     gains = (controller.input_gain, controller.rate_gain, controller.output_gain)
-    if any(g != 1.0 for g in gains) or controller.form == "pi":
+    if (args.fis or args.fcl) and (any(g != 1.0 for g in gains) or controller.form == "pi"):
         print(
-            f"note: a .fis holds the inference system only; form {controller.form!r} and gains "
-            f"(input, rate, output) = {gains} stay in the YAML file",
+            f"note: a .fis/.fcl holds the inference system only; form {controller.form!r} and "
+            f"gains (input, rate, output) = {gains} stay in the YAML file",
             file=sys.stderr,
         )
-    write_fis(controller.system, args.fis)
-    print(f"{controller.name} written to {args.fis}")
+    if args.fis:
+        from fuzzyservo.io.fis import write_fis
+
+        write_fis(controller.system, args.fis)
+        print(f"{controller.name} written to {args.fis}")
+    if args.fcl:
+        from fuzzyservo.io.fcl import write_fcl
+
+        write_fcl(controller.system, args.fcl)
+        print(f"{controller.name} written to {args.fcl} (IEC 61131-7 FCL)")
+    real = "float" if args.float else "double"
+
+    def report_table(n: int) -> None:
+        from fuzzyservo.codegen import lut_error
+
+        err = lut_error(controller, n)
+        print(
+            f"lookup table {n} point(s) per input: largest error {err.found:.3g} "
+            f"({err.found / err.span:.2e} of the output range {err.span:g}; bound "
+            f"{err.bound:.3g}), found on a grid {err.refine}x finer, before the output gain"
+        )
+
+    if args.lut is not None and args.c:
+        report_table(args.lut)
+    if args.c:
+        from fuzzyservo.codegen import write_c
+
+        paths = write_c(controller, args.c, args.sample_time, real, args.lut)
+        print(
+            f"{controller.name}: C99 ({real}, sample time {args.sample_time:g} s"
+            f"{', lookup table' if args.lut else ''}) written to "
+            + ", ".join(str(p) for p in paths)
+        )
+    if args.st:
+        from fuzzyservo.codegen import write_st
+
+        path, n = write_st(controller, args.st, args.sample_time, args.lut)
+        if not args.c or args.lut is None:
+            report_table(n)
+        print(f"{controller.name}: IEC 61131-3 Structured Text written to {path}")
+    return 0
+
+
+def cmd_evaluate(args: argparse.Namespace) -> int:
+    from fuzzyservo.controllers.fuzzy.evaluate import evaluate_inputs
+    from fuzzyservo.io.evaluation import load_system, read_input_table, write_output_table
+
+    system = load_system(resolve(args.controller, "studies/controllers", "controller"))
+    if args.semantics:
+        import dataclasses
+
+        system = dataclasses.replace(system, semantics=args.semantics)
+    names = [v.name for v in system.inputs]
+    inputs, ignored = read_input_table(args.inputs, names)
+    if ignored:
+        print(
+            f"note: column(s) {ignored} are not inputs of {system.name!r}; ignored", file=sys.stderr
+        )
+    outputs, silent = evaluate_inputs(system, inputs)
+    if silent:
+        fallback = "the middle of its range" if system.semantics == "matlab" else "NaN"
+        print(
+            f"warning: no rule fired for {silent} output value(s); each is {fallback} "
+            f"({system.semantics} semantics)",
+            file=sys.stderr,
+        )
+    out_names = [v.name for v in system.outputs]
+    if args.out:
+        write_output_table(args.out, out_names, outputs)
+        print(
+            f"{len(inputs)} row(s) of {system.name!r} ({system.semantics} semantics) written to {args.out}"
+        )
+    else:
+        print(",".join(out_names))
+        for row in outputs:
+            print(",".join(repr(float(v)) for v in row))
     return 0
 
 
@@ -561,12 +642,47 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--out", default="out", help="folder for the PNG figures (default: out)")
     p.set_defaults(func=cmd_show)
 
-    p = sub.add_parser("export", help="write a fuzzy controller as a MATLAB .fis file")
+    p = sub.add_parser(
+        "export",
+        help="write a fuzzy controller as MATLAB .fis, IEC 61131-7 FCL, C99 or Structured Text",
+    )
     p.add_argument(
         "controller", help="fuzzy controller file (YAML or .fis) or name under studies/controllers/"
     )
-    p.add_argument("--fis", required=True, metavar="FILE", help="the .fis file to write")
+    p.add_argument("--fis", metavar="FILE", help="the .fis file to write")
+    p.add_argument("--fcl", metavar="FILE", help="the IEC 61131-7 FCL file to write")
+    p.add_argument("--c", metavar="DIR", help="write <name>.c and <name>.h (C99) into DIR")
+    p.add_argument("--st", metavar="FILE", help="the IEC 61131-3 Structured Text file to write")
+    p.add_argument(
+        "--lut",
+        type=int,
+        metavar="N",
+        help="code with a lookup table of N points per input instead of the evaluator; "
+        "prints its largest error",
+    )
+    p.add_argument("--float", action="store_true", help="single precision (default: double)")
+    p.add_argument(
+        "--sample-time",
+        type=float,
+        default=0.01,
+        metavar="S",
+        help="controller sample time [s] for the error rate and form pi (default: 0.01)",
+    )
     p.set_defaults(func=cmd_export)
+
+    p = sub.add_parser(
+        "evaluate", help="evaluate a fuzzy system on a table of inputs (what evalfis does)"
+    )
+    p.add_argument("controller", help=".fis, .fcl or fuzzy controller file, or a name")
+    p.add_argument("inputs", help="CSV with one column per input variable, named like it")
+    p.add_argument(
+        "--semantics",
+        choices=("skfuzzy", "matlab"),
+        help="skfuzzy (sampled universes) or matlab (evalfis: exact membership, 101 output "
+        "points); default: the file's (skfuzzy unless it says otherwise)",
+    )
+    p.add_argument("--out", metavar="OUT.csv", help="write the outputs here (default: print)")
+    p.set_defaults(func=cmd_evaluate)
 
     p = sub.add_parser("bench", help="speed of the compiled loop against the scipy reference path")
     p.add_argument("--json", metavar="FILE", help="write the figures as JSON")

@@ -202,3 +202,73 @@ def test_lookup_table_within_its_reported_error(tmp_path, case, n):
     got = np.abs(run(exe, "m", a, b) - python_map(controller, a, b))
     assert got.max() <= error.bound + 1e-12 * span(controller)
     assert error.found <= error.bound < 0.05 * span(controller)
+
+
+# --------------------------------------------------------------------------- Structured Text
+def st_to_python(text: str) -> str:
+    """The exported function block as a Python function ``step(state, r, y, reset)``: a
+    literal translation of the IEC 61131-3 subset it uses (assignments, IF/ELSIF/ELSE,
+    MIN/MAX/TRUNC and the DINT/LREAL conversions), so the test runs the ST text itself."""
+    import re
+
+    body = re.sub(r"\(\*.*?\*\)", "", text, flags=re.S)
+    decls, code = body.split("END_VAR\n\n", 1) if "END_VAR\n\n" in body else (body, "")
+    decls = body[: body.rindex("END_VAR") + len("END_VAR")]
+    code = body[body.rindex("END_VAR") + len("END_VAR") :].replace("END_FUNCTION_BLOCK", "")
+    consts = []
+    for m in re.finditer(r"(\w+)\s*:\s*[^:;]*?:=\s*(\[[^\]]*\]|[^;]+);", decls, flags=re.S):
+        value = m[2].replace("TRUE", "True").replace("FALSE", "False")
+        consts.append(f"    {m[1]} = {value.strip()}")
+    out = ["def step(state, r, y, reset):", *consts]
+    out.append("    e_prev, u_prev, started = state")
+    indent = 1
+    for raw in code.splitlines():
+        line = raw.strip().rstrip(";")
+        if not line:
+            continue
+        line = re.sub(r"LREAL_TO_DINT\(TRUNC\(", "int((", line)
+        line = line.replace("DINT_TO_LREAL(", "float(").replace("<>", "!=")
+        line = line.replace(":=", "\0")
+        line = re.sub(r"(?<![<>!=])=(?!=)", "==", line).replace("\0", "=")
+        line = line.replace("TRUE", "True").replace("FALSE", "False")
+        line = line.replace("MIN(", "min(").replace("MAX(", "max(")
+        if line.startswith("IF ") and line.endswith(" THEN"):
+            out.append("    " * indent + f"if {line[3:-5]}:")
+            indent += 1
+        elif line.startswith("ELSIF "):
+            out.append("    " * (indent - 1) + f"elif {line[6:-5]}:")
+        elif line == "ELSE":
+            out.append("    " * (indent - 1) + "else:")
+        elif line == "END_IF":
+            indent -= 1
+        else:
+            out.append("    " * indent + line)
+    out.append("    return u, (e_prev, u_prev, started)")
+    return "\n".join(out)
+
+
+@pytest.mark.parametrize(("case", "n"), [("tuned (p, skfuzzy)", 33), ("fpi_ehs160 (pi, 7x7)", 7)])
+def test_structured_text_parses_and_computes_the_table_law(tmp_path, case, n):
+    """blark (an IEC 61131-3 parser) accepts the text; run literally, it gives the
+    lookup-table law: the C table variant's numbers (Debian has no IEC 61131-3 compiler)."""
+    blark = pytest.importorskip("blark.parse", reason="blark (IEC 61131-3 parser) not installed")
+    from fuzzyservo.codegen import write_st
+
+    controller = CASES[case]()
+    path, size = write_st(controller, tmp_path / "fb.st", 0.01, n)
+    text = path.read_text(encoding="utf-8")
+    parsed = blark.parse_source_code(text)
+    assert parsed.exception is None, parsed.exception
+    namespace: dict = {}
+    exec(st_to_python(text), namespace)  # the test's own translation of the generated text
+    exe = build(controller, tmp_path / "c", "double", lut=n)
+    rng = np.random.default_rng(3)
+    r = rng.uniform(-2, 2, 500)
+    y = r + rng.normal(0, 0.3, r.size)
+    state = (0.0, 0.0, False)
+    got = []
+    for rk, yk in zip(r, y, strict=True):
+        u, state = namespace["step"](state, rk, yk, False)
+        got.append(u)
+    np.testing.assert_allclose(got, run(exe, "s", r, y), rtol=0, atol=1e-9 * span(controller))
+    assert size == n

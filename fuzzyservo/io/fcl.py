@@ -76,6 +76,10 @@ _METHOD = {
     "COGS": "wtaver",
     "WTSUM": "wtsum",
 }
+_BLOCK_WORDS = re.compile(
+    r"(?=\b(?:VAR_INPUT|VAR_OUTPUT|END_VAR|END_FUZZIFY|END_DEFUZZIFY|END_RULEBLOCK|"
+    r"END_FUNCTION_BLOCK)\b)|(?<=\bVAR_INPUT)|(?<=\bVAR_OUTPUT)"
+)
 _IDENT = re.compile(r"^[A-Za-z_][A-Za-z0-9_]*$")
 _TAG = "fuzzyservo:"
 _KEYWORDS = {"IS", "NOT", "AND", "OR", "IF", "THEN", "WITH", "RULE", "TERM", "RANGE"}
@@ -106,10 +110,12 @@ def parse_fcl(text: str, file: str = "<fcl text>", points: int = 201) -> FuzzySy
     body, settings = _strip_comments(text)
     statements: list[tuple[int, str]] = []  # (line, statement) split at ';' and block keywords
     for number, raw in enumerate(body.splitlines(), start=1):
-        for part in re.split(r";", raw):
-            part = part.strip()
-            if part:
-                statements.append((number, part))
+        for piece in raw.split(";"):
+            # block keywords may share a line with what they open or close
+            for part in re.split(_BLOCK_WORDS, piece):
+                part = part.strip()
+                if part:
+                    statements.append((number, part))
     # glue statements continued over several lines (a rule over two lines)
     merged: list[tuple[int, str]] = []
     for number, part in statements:

@@ -15,6 +15,8 @@
     rules: identity               # | macvicar_whelan | 7x7 table of output terms | list of rule lines
     methods: {and: min, or: max, implication: min, aggregation: max, defuzzification: centroid}
     points: 201                   # universe samples (breakpoints are added)
+    semantics: skfuzzy            # | matlab: evalfis (exact membership, sample_points output samples)
+    sample_points: 101
     gains: {input: 1, rate: 1, output: 1}
     output_limits: [-10, 10]
 
@@ -38,9 +40,11 @@ from fuzzyservo.controllers.fuzzy.design import (
 from fuzzyservo.controllers.fuzzy.system import (
     AGGREGATIONS,
     AND_METHODS,
-    DEFUZZIFICATIONS,
     IMPLICATIONS,
+    MAMDANI_DEFUZZIFICATIONS,
+    MATLAB_SAMPLE_POINTS,
     OR_METHODS,
+    SEMANTICS,
     SHAPES,
     FuzzySystem,
     Rule,
@@ -50,14 +54,17 @@ from fuzzyservo.controllers.fuzzy.system import (
 from fuzzyservo.errors import ConfigError
 from fuzzyservo.io._yaml import Node
 
-KEYS = ("form", "input", "rate", "output", "rules", "methods", "points", "gains")
+KEYS = (
+    "form", "input", "rate", "output", "rules", "methods", "points", "gains", "semantics",
+    "sample_points",
+)  # fmt: skip
 _VAR_KEYS = ("name", "range", "increments", "reshape", "translate", "terms")
 _METHODS = {
     "and": AND_METHODS,
     "or": OR_METHODS,
     "implication": IMPLICATIONS,
     "aggregation": AGGREGATIONS,
-    "defuzzification": DEFUZZIFICATIONS,
+    "defuzzification": MAMDANI_DEFUZZIFICATIONS,
 }
 
 
@@ -89,6 +96,14 @@ def fuzzy_from_node(
         if value not in allowed:
             methods.fail(f"unknown method {value!r}; choose one of {list(allowed)}", key=key)
         chosen[key] = value
+    semantics = root.str("semantics", default="skfuzzy")
+    if semantics not in SEMANTICS:
+        root.fail(
+            f"unknown semantics {semantics!r}; choose one of {list(SEMANTICS)}", key="semantics"
+        )
+    sample_points = root.number("sample_points", default=MATLAB_SAMPLE_POINTS)
+    if not (sample_points == int(sample_points) and sample_points >= 3):
+        root.fail(f"must be a whole number >= 3, got {sample_points}", key="sample_points")
     gains = root.child("gains", default={})
     gains.only(("input", "rate", "output"))
     gain_values = {k: gains.number(k, default=1.0) for k in ("input", "rate", "output")}
@@ -107,6 +122,8 @@ def fuzzy_from_node(
             aggregation=chosen["aggregation"],
             defuzzification=chosen["defuzzification"],
             description=description,
+            semantics=semantics,
+            sample_points=int(sample_points),
         )
         return FuzzyController(
             system=system,

@@ -2,7 +2,10 @@
 
 :func:`pack_system` turns a system into one float64 vector (sampled universes and
 membership tables, rules, methods); :func:`evaluate` computes the crisp output for one
-or two inputs inside compiled code, allocating nothing (scratch space is passed in).
+or two inputs inside compiled code, allocating nothing (scratch space is passed in);
+:func:`evaluate_point` / :func:`evaluate_inputs` every output for any number of inputs.
+The ``matlab`` semantics and Sugeno systems are evaluated by :mod:`.exact`, dispatched
+from the same packed vector.
 
 It reproduces ``skfuzzy.control.ControlSystemSimulation.compute`` step by step:
 memberships by linear interpolation on the sampled universes (``np.interp``), rule
@@ -14,9 +17,11 @@ set can be non-zero is visited, which is what makes it fast.
 
 Inputs outside a universe are clipped to it (scikit-fuzzy would give them zero
 membership everywhere and fail): a controller saturates its error, as an analog one
-would. With sum or probor aggregation the firings of rules sharing a consequent term
-are combined with that operator before implication (exact when each term is the
-consequent of one rule, as in the identity rule base).
+would. Implication is per rule, then aggregation: with max aggregation the rules sharing
+a consequent term are merged first (max commutes with min and product implication);
+with sum or probor each rule keeps its own implied set (:func:`_pack_output`). A
+negated consequent implies the complement of its term; multi-output systems get one
+block per output.
 """
 
 from __future__ import annotations

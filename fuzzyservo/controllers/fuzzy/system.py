@@ -18,8 +18,10 @@ of the aggregated set on the universe upsampled at the cut levels. A universe ho
 ``points`` evenly spaced samples plus every breakpoint of its piecewise-linear
 membership functions, so triangles and trapezoids are represented exactly.
 
-Methods scikit-fuzzy does not offer (product implication, sum or probor aggregation)
-are evaluated by the compiled evaluator only, with the same sampled universes.
+Methods scikit-fuzzy does not offer (product implication, sum or probor aggregation,
+negated consequents) are evaluated by the compiled evaluator only, with the same
+sampled universes and implication per rule before aggregation. scikit-fuzzy has no
+Sugeno systems: those are evaluated with exact input membership in both semantics.
 """
 
 from __future__ import annotations

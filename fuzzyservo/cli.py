@@ -194,9 +194,12 @@ def _load_fuzzy(name: str):
 
 def describe_fuzzy(controller) -> str:
     """Terms and rules in words (what MATLAB's showrule and the MF editor show)."""
+    from fuzzyservo.controllers.fuzzy.system import term_index
+
     system = controller.system
     lines = [
-        f"{controller.name}: Mamdani, form {controller.form}, {len(system.rules)} rules; "
+        f"{controller.name}: {system.type.capitalize()}, form {controller.form}, "
+        f"{len(system.rules)} rules, {system.semantics} semantics; "
         f"and {system.and_method}, or {system.or_method}, implication {system.implication}, "
         f"aggregation {system.aggregation}, defuzzification {system.defuzzification}; "
         f"gains input {controller.input_gain:g}, rate {controller.rate_gain:g}, output {controller.output_gain:g}"
@@ -215,9 +218,9 @@ def describe_fuzzy(controller) -> str:
             parts.append(f"{name} is {'not ' if idx < -1 else ''}{term}")
         joined = f" {rule.connective} ".join(parts)
         weight = f" ({rule.weight:g})" if rule.weight != 1 else ""
-        lines.append(
-            f"  {n}. if {joined} then {system.output.name} is {system.output.terms[rule.consequent].name}{weight}"
-        )
+        k, negated = term_index(rule.consequent)
+        then = f"{'not ' if negated else ''}{system.output.terms[k].name}" if k >= 0 else "(none)"
+        lines.append(f"  {n}. if {joined} then {system.output.name} is {then}{weight}")
     return "\n".join(lines)
 
 
@@ -226,6 +229,12 @@ def cmd_show(args: argparse.Namespace) -> int:
 
     controller = _load_fuzzy(args.controller)
     print(describe_fuzzy(controller))
+    if controller.system.type == "sugeno":
+        raise ConfigError(
+            "is a Sugeno system: its output terms are functions, not sets, so there are no "
+            "membership plots to draw; use `fuzzyservo evaluate` for its values",
+            file=args.controller,
+        )
     out = Path(args.out)
     figures = {
         "overview": plots.fuzzy_overview_figure(controller),

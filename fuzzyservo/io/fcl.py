@@ -60,6 +60,7 @@ from fuzzyservo.controllers.fuzzy.system import (
     term_index,
 )
 from fuzzyservo.errors import ConfigError
+from fuzzyservo.io.fis import number_text as _num
 
 __all__ = ["fcl_text", "parse_fcl", "read_fcl", "write_fcl"]
 
@@ -369,11 +370,6 @@ def _name(name: str, what: str) -> str:
             f"{what} {name!r} is not an FCL identifier (letters, digits, _; not a keyword); rename it"
         )
     return name
-
-
-def _num(x: float) -> str:
-    text = repr(float(x))
-    return text[:-2] if text.endswith(".0") else text
 
 
 def _term_text(t: Term) -> str:

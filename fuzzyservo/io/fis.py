@@ -680,7 +680,7 @@ def controller_from_fis(path: str | Path) -> FuzzyController:
 
 
 # --------------------------------------------------------------------------- writing
-def _num(x: float) -> str:
+def number_text(x: float) -> str:
     """Shortest text that reads back as the same float (``repr``), ``1.0`` written ``1``."""
     text = repr(float(x))
     return text[:-2] if text.endswith(".0") else text
@@ -701,11 +701,11 @@ def _variable_text(section: str, var: Variable, points: int) -> list[str]:
         lines.append(f"{_TAG} points={var.points}")
     lines += [
         f"Name={_quoted(var.name, 'variable name')}",
-        f"Range=[{_num(var.low)} {_num(var.high)}]",
+        f"Range=[{number_text(var.low)} {number_text(var.high)}]",
         f"NumMFs={len(var.terms)}",
     ]
     for k, t in enumerate(var.terms, start=1):
-        params = " ".join(_num(p) for p in t.params)
+        params = " ".join(number_text(p) for p in t.params)
         lines.append(f"MF{k}={_quoted(t.name, 'term name')}:'{t.shape}',[{params}]")
     return [*lines, ""]
 
@@ -746,7 +746,7 @@ def fis_text(system: FuzzySystem) -> str:
         ante = " ".join(str(_matlab_index(i)) for i in rule.antecedent)
         cons = " ".join(str(_matlab_index(i)) for i in rule.consequents)
         conn = 1 if rule.connective == "and" else 2
-        lines.append(f"{ante}, {cons} ({_num(rule.weight)}) : {conn}")
+        lines.append(f"{ante}, {cons} ({number_text(rule.weight)}) : {conn}")
     return "\n".join(lines) + "\n"
 
 

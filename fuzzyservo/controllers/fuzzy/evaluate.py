@@ -31,7 +31,7 @@ import math
 import numpy as np
 
 from fuzzyservo._jit import njit
-from fuzzyservo.controllers.fuzzy.exact import evaluate_exact
+from fuzzyservo.controllers.fuzzy.exact import antecedent, evaluate_exact
 from fuzzyservo.controllers.fuzzy.system import (
     AGGREGATIONS,
     AND_METHODS,
@@ -311,18 +311,7 @@ def _evaluate_output(cp: np.ndarray, b: int, scratch: np.ndarray, xs: np.ndarray
     ro = b + int(cp[b + _H_RULES])
     for r in range(n_rules):
         q = ro + r * rule_width
-        acc = -1.0
-        for i in range(n_in):
-            a = int(cp[q + i])
-            if a == -1:
-                continue
-            m = mu[i * t_stride + a] if a >= 0 else 1.0 - mu[i * t_stride + (-a - 2)]
-            if acc < 0.0:
-                acc = m
-            elif cp[q + n_in + 2] == 0.0:
-                acc = min(acc, m) if and_m == 0 else acc * m
-            else:
-                acc = max(acc, m) if or_m == 0 else acc + m - acc * m
+        acc = antecedent(cp, q, n_in, cp[q + n_in + 2], mu, t_stride, and_m, or_m)
         f = acc * cp[q + n_in + 1]
         t = int(cp[q + n_in])
         if cut[t] < 0.0:

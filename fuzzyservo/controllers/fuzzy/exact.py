@@ -82,6 +82,35 @@ def pack_exact(system: FuzzySystem) -> tuple[np.ndarray, int]:
 
 
 @njit(cache=True, inline="always")
+def antecedent(
+    cp: np.ndarray,
+    q: int,
+    n_in: int,
+    conn: float,
+    mu: np.ndarray,
+    t_stride: int,
+    and_m: int,
+    or_m: int,
+) -> float:
+    """A rule's antecedent: its term codes at ``cp[q:q + n_in]`` (k, −1 none, −(k+2) NOT k)
+    combined by AND (``conn`` 0: min or product) or OR (1: max or probabilistic OR) over the
+    memberships ``mu[i*t_stride + k]``. Shared by both semantics."""
+    acc = -1.0
+    for i in range(n_in):
+        a = int(cp[q + i])
+        if a == -1:
+            continue
+        m = mu[i * t_stride + a] if a >= 0 else 1.0 - mu[i * t_stride + (-a - 2)]
+        if acc < 0.0:
+            acc = m
+        elif conn == 0.0:
+            acc = min(acc, m) if and_m == 0 else acc * m
+        else:
+            acc = max(acc, m) if or_m == 0 else acc + m - acc * m
+    return acc
+
+
+@njit(cache=True, inline="always")
 def _term_mu(cp: np.ndarray, t: int, x: float) -> float:
     return mf_value(int(cp[t]), cp, t + 2, x)
 
@@ -123,19 +152,8 @@ def evaluate_exact(
     w = scratch[n_in * t_max + n_in : n_in * t_max + n_in + n_rules]
     for r in range(n_rules):
         q = ro + r * width
-        acc = -1.0
-        for i in range(n_in):
-            a = int(cp[q + i])
-            if a == -1:
-                continue
-            m = mu[i * t_max + a] if a >= 0 else 1.0 - mu[i * t_max + (-a - 2)]
-            if acc < 0.0:
-                acc = m
-            elif cp[q + n_in + n_out + 1] == 0.0:
-                acc = min(acc, m) if and_m == 0 else acc * m
-            else:
-                acc = max(acc, m) if or_m == 0 else acc + m - acc * m
-        w[r] = acc * cp[q + n_in + n_out]
+        w[r] = antecedent(cp, q, n_in, cp[q + n_in + n_out + 1], mu, t_max, and_m, or_m)
+        w[r] *= cp[q + n_in + n_out]
 
     # 3./4. each output
     ys = scratch[n_in * t_max + n_in + n_rules : n_in * t_max + n_in + n_rules + n_s]

@@ -86,7 +86,7 @@ CASES = [
     (lambda d: d.update(form="pid"), "form", "unknown form"),
     (lambda d: d.update(gains={"output": 0}), "gains.output", "must not be zero"),
     (
-        lambda d: _explicit(d, {**EXPLICIT_TERMS, "Z": ["sigmf", [1, 0]]}),
+        lambda d: _explicit(d, {**EXPLICIT_TERMS, "Z": ["rampmf", [1, 0]]}),
         "input.terms.Z",
         "unknown shape",
     ),

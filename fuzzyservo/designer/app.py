@@ -8,6 +8,7 @@ scenario.
 
 from __future__ import annotations
 
+import os
 import sys
 import threading
 import time
@@ -16,6 +17,7 @@ from pathlib import Path
 import numpy as np
 import panel as pn
 from bokeh.models import (
+    ColorBar,
     ColumnDataSource,
     FactorRange,
     HoverTool,
@@ -38,6 +40,7 @@ TERM_COLOURS = ("#1f77b4", "#ff7f0e", "#2ca02c", "#d62728", "#9467bd", "#8c564b"
                 "#7f7f7f", "#bcbd22", "#17becf")  # fmt: skip
 REFERENCE_COLOUR = to_hex("tab:green")
 MAX_COMPARED = 5
+_PROFILE = bool(os.environ.get("FUZZYSERVO_DESIGNER_PROFILE"))
 WIDTH = 820
 CSS = """
 .fs-metrics table {border-collapse: collapse; font: 13px monospace;}
@@ -133,40 +136,62 @@ class Designer:
         for span in self.limit_spans:
             self.fig_i.add_layout(span)
         self.src_p = ColumnDataSource({"t": []})
+        self._drawn_key: tuple | None = None
+        self._labels: dict[int, str] = {}
         self.pressure_renderers: dict[str, object] = {}
         self.response_pane = pn.pane.Bokeh(_column(self.fig_y, self.fig_i, self.fig_p))
 
     def _draw_runs(self) -> None:
+        """Simulate the edited controller and redraw it; the others only when they change."""
         s = self.s
-        t0 = time.perf_counter()
         edited = s.run(name=f"{s.controller.name} (edited)")
-        runs = [edited, *s.baseline_runs(), *s.compared_runs()[:MAX_COMPARED]]
+        others = [*s.baseline_runs(), *s.compared_runs()[:MAX_COMPARED]]
+        runs = [edited, *others]
         first = edited.result
         out_name = first.output_name
-        ref, unit = to_display(first, out_name, first.reference_output)
-        self.src_ref.data = {"t": first.t, "r": ref}
+        key = (str(s.rig_path), s.scenario, tuple(r.name for r in others))
+        fixed = key == self._drawn_key
         for k, (src, (ry, ri)) in enumerate(zip(self.src_runs, self.run_renderers, strict=True)):
+            if fixed and k > 0:
+                break
             if k < len(runs):
                 r = runs[k].result
                 y, _ = to_display(r, out_name, r.output)
-                i, i_unit = to_display(r, r.actuator_name, r.actuator)
+                i, _ = to_display(r, r.actuator_name, r.actuator)
                 src.data = {"t": r.t, "y": y, "i": i}
                 ry.visible = ri.visible = True
                 label = runs[k].name if r.ok else f"{runs[k].name} ({r.status})"
-                _set_legend(self.fig_y, ry, label)
+                if label != self._labels.get(k):
+                    _set_legend(self.fig_y, ry, label)
+                    self._labels[k] = label
             else:
                 ry.visible = ri.visible = False
-        self.fig_y.yaxis.axis_label = axis_label(out_name, unit)
-        limits, i_unit = to_display(first, first.actuator_name, np.asarray(first.actuator_limits))
-        self.fig_i.yaxis.axis_label = axis_label(first.actuator_name, i_unit)
-        for span, limit in zip(self.limit_spans, limits, strict=True):
-            span.location = float(limit) if np.isfinite(limit) else None
         pressures = [n for n in first.signals if first.units.get(n) == "Pa"]
         data = {"t": first.t}
         p_unit = ""
         for name in pressures:
             data[name], p_unit = to_display(first, name, first.signals[name])
         self.src_p.data = data
+        if not fixed:
+            self._draw_fixed(first, pressures, p_unit)
+            self._drawn_key = key
+        self._draw_metrics(runs)
+        status = f" · status {first.status}: {first.message}" if first.status != "ok" else ""
+        self.sim_note = (
+            f"simulated {first.t[-1] + first.sample_time_s:.3g} s in "
+            f"{edited.seconds * 1e3:.0f} ms{status}"
+        )
+
+    def _draw_fixed(self, first, pressures: list[str], p_unit: str) -> None:
+        """What changes with the rig and scenario only: reference, limits, axes, pressure lines."""
+        out_name = first.output_name
+        ref, unit = to_display(first, out_name, first.reference_output)
+        self.src_ref.data = {"t": first.t, "r": ref}
+        self.fig_y.yaxis.axis_label = axis_label(out_name, unit)
+        limits, i_unit = to_display(first, first.actuator_name, np.asarray(first.actuator_limits))
+        self.fig_i.yaxis.axis_label = axis_label(first.actuator_name, i_unit)
+        for span, limit in zip(self.limit_spans, limits, strict=True):
+            span.location = float(limit) if np.isfinite(limit) else None
         for k, name in enumerate(pressures):
             if name not in self.pressure_renderers:
                 colour = to_hex(_PRESSURE_COLOURS.get(name, TERM_COLOURS[k % len(TERM_COLOURS)]))
@@ -180,10 +205,6 @@ class Designer:
             fig.legend.location = "top_right"
             fig.legend.label_text_font_size = "8pt"
             fig.legend.click_policy = "hide"
-        self._draw_metrics(runs)
-        self.last_ms = (time.perf_counter() - t0) * 1e3
-        status = f" · status {first.status}: {first.message}" if first.status != "ok" else ""
-        self.sim_note = f"simulated {first.t[-1] + first.sample_time_s:.3g} s in {edited.seconds * 1e3:.0f} ms{status}"
 
     def _draw_metrics(self, runs) -> None:
         unit = runs[0].result.output_unit
@@ -227,6 +248,9 @@ class Designer:
     def _draw_mf(self) -> None:
         for role, (fig, lines, points, labels, _) in self.mf_figs.items():
             var = self.s.variable(role)
+            if self._drawn_vars.get(role) == var:
+                continue
+            self._drawn_vars[role] = var
             u, table = var.table()
             colours = [TERM_COLOURS[k % len(TERM_COLOURS)] for k in range(len(var.terms))]
             lines.data = {"xs": [u] * len(var.terms), "ys": list(table), "colour": colours,
@@ -258,29 +282,48 @@ class Designer:
 
     def _build_curve(self) -> None:
         self.curve_fig_pane = pn.Column()
+        self.src_curve = ColumnDataSource({"e": [], "u": []})
+        self.src_pick = ColumnDataSource({"x": [], "y": []})
+        self.src_surface = ColumnDataSource({"image": [], "x": [], "y": [], "dw": [], "dh": []})
+        self.curve_inputs = 0
+
+    def _curve_figure(self, n_inputs: int):
+        """The control curve (one input) or surface (two), built once per structure."""
+        tools = "pan,wheel_zoom,box_zoom,reset,save"
+        if n_inputs == 1:
+            fig = figure(title="control curve u = G_u·F(G_e·e) (before limits)", width=WIDTH,
+                         height=330, tools=tools)  # fmt: skip
+            fig.line("e", "u", source=self.src_curve, line_width=2, color=_colour(0))
+            fig.xaxis.axis_label, fig.yaxis.axis_label = "error e [V]", "command u [V]"
+        else:
+            fig = figure(title="control surface u(e, ė) (before limits)", width=WIDTH, height=420,
+                         tools=tools)  # fmt: skip
+            self.surface_mapper = LinearColorMapper(palette="Viridis256")
+            fig.image("image", x="x", y="y", dw="dw", dh="dh", source=self.src_surface,
+                      color_mapper=self.surface_mapper)  # fmt: skip
+            fig.add_layout(ColorBar(color_mapper=self.surface_mapper, title="u [V]"), "right")
+            fig.xaxis.axis_label, fig.yaxis.axis_label = "error e [V]", "error rate ė [V/s]"
+        fig.scatter("x", "y", source=self.src_pick, size=10, color="#b00020")
+        self.curve_fig_pane.objects = [pn.pane.Bokeh(fig)]
+        self.curve_inputs = n_inputs
 
     def _draw_curve(self) -> None:
         s = self.s
+        n_inputs = len(s.controller.system.inputs)
+        if n_inputs != self.curve_inputs:
+            self._curve_figure(n_inputs)
         out = s.curve()
         e_pick, de_pick = self.pick_e.value, self.pick_de.value
-        if len(out) == 2:
+        if n_inputs == 1:
             e, u = out
-            fig = figure(title="control curve u = G_u·F(G_e·e) (before limits)", width=WIDTH,
-                         height=330, tools="pan,wheel_zoom,box_zoom,reset,save")  # fmt: skip
-            fig.line(e, u, line_width=2, color=_colour(0))
-            fig.scatter([e_pick], [s.firing(e_pick)[2]], size=10, color="#b00020")
-            fig.xaxis.axis_label, fig.yaxis.axis_label = "error e [V]", "command u [V]"
+            self.src_curve.data = {"e": e, "u": u}
+            self.src_pick.data = {"x": [e_pick], "y": [s.firing(e_pick)[2]]}
         else:
             e, de, U = out
-            fig = figure(title="control surface u(e, ė) (before limits)", width=WIDTH, height=420,
-                         x_range=(e[0], e[-1]), y_range=(de[0], de[-1]))  # fmt: skip
-            mapper = LinearColorMapper(
-                palette="Viridis256", low=float(U.min()), high=float(U.max())
-            )
-            fig.image([U], x=e[0], y=de[0], dw=e[-1] - e[0], dh=de[-1] - de[0], color_mapper=mapper)
-            fig.scatter([e_pick], [de_pick], size=10, color="#b00020")
-            fig.xaxis.axis_label, fig.yaxis.axis_label = "error e [V]", "error rate ė [V/s]"
-        self.curve_fig_pane.objects = [pn.pane.Bokeh(fig)]
+            self.surface_mapper.low, self.surface_mapper.high = float(U.min()), float(U.max())
+            self.src_surface.data = {"image": [U], "x": [e[0]], "y": [de[0]],
+                                     "dw": [e[-1] - e[0]], "dh": [de[-1] - de[0]]}  # fmt: skip
+            self.src_pick.data = {"x": [e_pick], "y": [de_pick]}
 
     def _build_firing(self) -> None:
         self.pick_e = pn.widgets.FloatInput(name="error e [V]", value=0.1, step=0.01, width=150)
@@ -305,7 +348,8 @@ class Designer:
         s = self.s
         labels, w, u = s.firing(self.pick_e.value, self.pick_de.value)
         labels = [f"{k + 1}. {text}" for k, text in enumerate(labels)]
-        self.fig_fire.x_range.factors = labels
+        if list(self.fig_fire.x_range.factors) != labels:
+            self.fig_fire.x_range.factors = labels
         self.src_fire.data = {"rule": labels, "w": list(w)}
         self.pick_out.object = f"command u = <b>{u:.4g} V</b> at e = {self.pick_e.value:g} V" + (
             f", ė = {self.pick_de.value:g} V/s" if len(s.controller.system.inputs) == 2 else ""
@@ -368,7 +412,7 @@ class Designer:
 
     def _on_rule_cell(self, ev, rows, cols) -> None:
         self.s.set_rule_cell(int(ev.row), cols.index(ev.column), ev.value or "")
-        self.refresh()
+        self.refresh(rules=True)
 
     def _on_rule_lines(self, text: str) -> None:
         self.s.set_rules(text.splitlines())
@@ -480,7 +524,10 @@ class Designer:
 
         upload.param.watch(lambda ev: self._guard(on_upload, ev), "value")
         self.save_name = pn.widgets.TextInput(
-            name=f"save as (in {f.output})", value="designed.yaml", width=250
+            name=f"save as (in {f.output})",
+            value="designed.yaml",
+            width=250,
+            css_classes=["fs-save-name"],
         )
         save_yaml = pn.widgets.Button(name="Save YAML", width=100, css_classes=["fs-save-yaml"])
         save_fis = pn.widgets.Button(name="Save .fis", width=100)
@@ -597,6 +644,7 @@ class Designer:
     def rebuild(self) -> None:
         """Rebuild everything that depends on the controller's structure (variables, rules)."""
         self.mf_figs = {role: self._mf_figure(role) for role in self.s.roles()}
+        self._drawn_vars: dict[str, object] = {}
         import pandas as pd
 
         self.bp_tables = {}
@@ -617,18 +665,25 @@ class Designer:
         self.pick_de.visible = len(self.s.controller.system.inputs) == 2
         self.refresh(structure=True, rebuilt=True)
 
-    def refresh(self, structure: bool = False, rebuilt: bool = False) -> None:
-        """Redraw after a change: the fuzzy views, the loop and the metrics, in one patch."""
+    def refresh(self, structure: bool = False, rebuilt: bool = False, rules: bool = False) -> None:
+        """Redraw after a change: the fuzzy views, the loop and the metrics, in one patch.
+
+        ``structure``: variables or their kind changed (sliders and tables are rebuilt);
+        ``rules``: the rule base changed (the rule table is rebuilt). A slider move needs
+        neither, so it only sends new data for the figures that exist.
+        """
         if structure and not rebuilt and [*self.mf_figs] != self.s.roles():
             self.rebuild()
             return
         t0 = time.perf_counter()
+        t_epoch = time.time()
         self.updates += 1
         with pn.io.hold():
             if structure:
                 self._draw_design()
             self._draw_mf()
-            self._draw_rules()
+            if structure or rules:
+                self._draw_rules()
             self._draw_firing()
             self._draw_curve()
             self._draw_runs()
@@ -640,6 +695,12 @@ class Designer:
             )
             self._say(f"update {self.updates}: {self.sim_note}; redrawn in "
                       f"{(time.perf_counter() - t0) * 1e3:.0f} ms")  # fmt: skip
+        if _PROFILE:
+            print(
+                f"refresh {self.updates} at {time.time():.3f} (started {t_epoch:.3f}): {(time.perf_counter() - t0) * 1e3:.0f} ms with the patch",
+                file=sys.stderr,
+                flush=True,
+            )
 
     def _on_breakpoint(self, role: str, table, ev) -> None:
         frame = table.value
@@ -689,10 +750,10 @@ class Designer:
             self.rebuild_soft()
 
     def rebuild_soft(self) -> None:
-        """Put the tables back to the last good controller after a refused edit."""
-        for role in self.mf_figs:
-            if role in self.s.roles():
-                self.bp_tables[role].value = _breakpoint_frame(self.s.variable(role))
+        """Put the tables and dragged points back to the last good controller after a refused edit."""
+        if [*self.mf_figs] == self.s.roles():
+            self._drawn_vars = {}
+            self._draw_mf()
 
     def _say(self, text: str, error: bool = False) -> None:
         cls = "fs-error" if error else "fs-ok"

@@ -77,6 +77,7 @@ class Session:
     baselines: dict[str, FuzzyController] = field(default_factory=dict)
     compared: dict[str, Any] = field(default_factory=dict)
     _baseline_runs: dict[tuple[str, str], list[Run]] = field(default_factory=dict)
+    _compared_runs: dict[tuple, list[Run]] = field(default_factory=dict)
 
     # ------------------------------------------------------------------ building
     @classmethod
@@ -276,7 +277,11 @@ class Session:
         return self._baseline_runs[key]
 
     def compared_runs(self) -> list[Run]:
-        return [self.run(c, label) for label, c in self.compared.items()]
+        """The study trials shown next to the edited controller (run once per rig and scenario)."""
+        key = (str(self.rig_path), self.scenario, *((k, id(c)) for k, c in self.compared.items()))
+        if key not in self._compared_runs:
+            self._compared_runs = {key: [self.run(c, label) for label, c in self.compared.items()]}
+        return self._compared_runs[key]
 
     # ------------------------------------------------------------------ files
     def open_file(self, name: str) -> None:

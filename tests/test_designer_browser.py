@@ -1,0 +1,192 @@
+"""The designer in a real headless browser: Debian's Chromium driven by Playwright.
+
+Starts ``fuzzyservo designer`` as a process (the default rig and controller), loads the
+page, moves a slider, waits for the metrics table to change, and measures the time from
+a key press on a slider to the redrawn page (the metrics table of the new update in the
+DOM; all figures and the table arrive in one patch) over 20 changes. Screenshots and the
+measured times go to ``out/designer_test/`` in the checkout (``FUZZYSERVO_SCREENSHOTS``
+overrides it). Times are written, never asserted.
+
+Skips when Chromium (``/usr/bin/chromium``, ``apt-get install chromium``) or the
+``playwright`` package is missing. The test never runs ``playwright install``.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import socket
+import statistics
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+CHROMIUM = Path(os.environ.get("FUZZYSERVO_CHROMIUM", "/usr/bin/chromium"))
+ARGS = [
+    "--headless",
+    "--no-sandbox",
+    "--disable-gpu",
+    "--disable-background-networking",
+    "--disable-component-update",
+    "--disable-sync",
+    "--no-first-run",
+]
+ROOT = Path(__file__).resolve().parent.parent
+SHOTS = Path(os.environ.get("FUZZYSERVO_SCREENSHOTS", ROOT / "out" / "designer_test"))
+CHANGES = 20
+
+pytestmark = pytest.mark.skipif(
+    not CHROMIUM.is_file(), reason=f"no Chromium at {CHROMIUM} (apt-get install chromium)"
+)
+
+
+def _free_port() -> int:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+@pytest.fixture(scope="module")
+def server(tmp_path_factory):
+    out = tmp_path_factory.mktemp("designer_out")
+    log = out.parent / "designer.log"
+    port = _free_port()
+    with open(log, "w") as sink:
+        proc = subprocess.Popen(
+            [
+                sys.executable,
+                "-m",
+                "fuzzyservo",
+                "designer",
+                "--port",
+                str(port),
+                "--out",
+                str(out),
+            ],
+            cwd=ROOT,
+            stdout=sink,
+            stderr=subprocess.STDOUT,
+            text=True,
+        )
+    deadline = time.monotonic() + 120
+    while "designer on" not in log.read_text():  # printed once the server listens
+        if proc.poll() is not None or time.monotonic() > deadline:
+            proc.kill()
+            pytest.fail(f"the designer did not start:\n{log.read_text()}")
+        time.sleep(0.2)
+    yield f"http://127.0.0.1:{port}/", out
+    proc.terminate()
+    try:
+        proc.wait(timeout=10)
+    except subprocess.TimeoutExpired:
+        proc.kill()
+
+
+@pytest.fixture(scope="module")
+def page(server):
+    sync_api = pytest.importorskip("playwright.sync_api", reason="pip install playwright")
+    with sync_api.sync_playwright() as p:
+        browser = p.chromium.launch(executable_path=str(CHROMIUM), args=ARGS)
+        pg = browser.new_page(viewport={"width": 1420, "height": 1250})
+        pg.goto(server[0])
+        pg.wait_for_selector("#fs-metrics", timeout=120_000)
+        yield pg
+        browser.close()
+
+
+def _metrics(page) -> tuple[int, str]:
+    table = page.locator("#fs-metrics")
+    return int(table.get_attribute("data-update")), table.inner_text()
+
+
+def _slider_handle(page, label: str):
+    return page.locator(".fs-slider", has_text=label).locator(".noUi-handle")
+
+
+def _status(page) -> str:
+    return page.locator("#fs-status").inner_text()
+
+
+def test_move_a_slider_and_the_metrics_change(page, server):
+    SHOTS.mkdir(parents=True, exist_ok=True)
+    update, before = _metrics(page)
+    assert "flc2_reshaped (edited)" in before and "p_k10" in before
+    page.screenshot(path=str(SHOTS / "designer_loaded.png"), full_page=True)
+
+    handle = _slider_handle(page, "input reshape")
+    handle.focus()
+    for _ in range(30):  # reshape γ 2 → 1.7
+        page.keyboard.press("ArrowLeft")
+    page.wait_for_function("1", timeout=1000)
+    deadline = time.monotonic() + 60
+    while time.monotonic() < deadline:
+        n, after = _metrics(page)
+        if n > update and after != before:
+            break
+        time.sleep(0.1)
+    assert after != before, "the metrics table did not change after moving the reshape slider"
+    page.screenshot(path=str(SHOTS / "designer_after_reshape.png"), full_page=True)
+
+    # the time from one change to the redrawn page, over CHANGES changes
+    handle = _slider_handle(page, "input translate")
+    handle.focus()
+    times = []
+    for k in range(CHANGES):
+        n, _ = _metrics(page)
+        t0 = time.perf_counter()
+        if os.environ.get("FUZZYSERVO_DESIGNER_PROFILE"):
+            print(f"press at {time.time():.3f}")
+        page.keyboard.press("ArrowRight" if k % 2 == 0 else "ArrowLeft")
+        page.wait_for_selector(f"#fs-metrics[data-update='{n + 1}']", timeout=60_000)
+        times.append(time.perf_counter() - t0)
+        if os.environ.get("FUZZYSERVO_DESIGNER_PROFILE"):
+            print(f"seen at {time.time():.3f}")
+    page.screenshot(path=str(SHOTS / "designer_after_20_changes.png"), full_page=True)
+    (SHOTS / "redraw_times.json").write_text(
+        json.dumps(
+            {
+                "changes": CHANGES,
+                "median_s": statistics.median(times),
+                "min_s": min(times),
+                "max_s": max(times),
+                "times_s": times,
+            },
+            indent=1,
+        )
+    )
+    print(f"redraw after a change: median {statistics.median(times) * 1e3:.0f} ms over {CHANGES}")
+
+
+def test_no_file_access_outside_the_folders(page, server):
+    _, out = server
+    page.get_by_placeholder("studies/controllers/flc1_translated.yaml").fill("/etc/passwd")
+    page.locator(".fs-open-path button").click()
+    page.wait_for_function("1")
+    _wait_text(page, "outside the designer's folders")
+    page.get_by_placeholder("studies/controllers/flc1_translated.yaml").fill("../../../etc/x.yaml")
+    page.locator(".fs-open-path button").click()
+    _wait_text(page, "outside the designer's folders")
+
+    save_as = page.locator(".fs-save-name input")
+    save_as.fill("../escaped.yaml")
+    page.locator(".fs-save-yaml button").click()
+    _wait_text(page, "outside the designer's folders")
+    assert not (out.parent / "escaped.yaml").exists()
+
+    save_as.fill("designed.yaml")
+    page.locator(".fs-save-yaml button").click()
+    _wait_text(page, "saved")
+    assert (out / "designed.yaml").is_file()
+    page.screenshot(path=str(SHOTS / "designer_saved.png"), full_page=True)
+
+
+def _wait_text(page, text: str, timeout_s: float = 30) -> None:
+    deadline = time.monotonic() + timeout_s
+    while time.monotonic() < deadline:
+        if text in _status(page):
+            return
+        time.sleep(0.1)
+    raise AssertionError(f"status never said {text!r}; it says {_status(page)!r}")

@@ -183,6 +183,44 @@ def test_no_file_access_outside_the_folders(page, server):
     page.screenshot(path=str(SHOTS / "designer_saved.png"), full_page=True)
 
 
+def test_curve_rules_and_firing_tabs(page):
+    page.locator(".bk-tab", has_text="Control curve").click()
+    page.wait_for_timeout(1000)
+    page.screenshot(path=str(SHOTS / "designer_control_curve.png"), full_page=True)
+    page.locator(".bk-tab", has_text="Rules and firing").click()
+    picked = page.locator(".fs-pick-e input")
+    picked.fill("0.3")
+    picked.press("Enter")
+    page.wait_for_function("1")
+    deadline = time.monotonic() + 30
+    while "e = 0.3 V" not in page.locator("#fs-command").inner_text():
+        assert time.monotonic() < deadline, "the command at the picked input was not shown"
+        time.sleep(0.1)
+    page.screenshot(path=str(SHOTS / "designer_rules_firing.png"), full_page=True)
+    page.locator(".bk-tab", has_text="Membership functions").click()
+
+
+def test_open_a_study_storage_and_compare_its_best_trials(page, server):
+    from fuzzyservo.io.studies import load_study
+    from fuzzyservo.tuning.runner import run_study
+
+    _, out = server
+    spec = load_study(ROOT / "studies" / "dinca_flc.yaml")
+    run_study(spec, out / "dinca_flc", trials=6, progress=False)
+    storage = page.locator(".fs-storage input")
+    storage.fill(f"sqlite:///{out / 'dinca_flc' / 'dinca_flc.db'}")
+    storage.press("Enter")
+    page.locator(".fs-open-study button").click()
+    _wait_text(page, "6 complete trials")
+    update, _ = _metrics(page)
+    page.locator(".fs-trials .tabulator-row input[type='checkbox']").first.click()
+    page.locator(".fs-compare button").click()
+    page.wait_for_selector(f"#fs-metrics[data-update='{update + 1}']", timeout=60_000)
+    _, text = _metrics(page)
+    assert "#" in text.splitlines()[0], f"no trial column in the metrics table: {text[:200]}"
+    page.screenshot(path=str(SHOTS / "designer_study_compare.png"), full_page=True)
+
+
 def _wait_text(page, text: str, timeout_s: float = 30) -> None:
     deadline = time.monotonic() + timeout_s
     while time.monotonic() < deadline:

@@ -326,11 +326,13 @@ class Designer:
             self.src_pick.data = {"x": [e_pick], "y": [de_pick]}
 
     def _build_firing(self) -> None:
-        self.pick_e = pn.widgets.FloatInput(name="error e [V]", value=0.1, step=0.01, width=150)
+        self.pick_e = pn.widgets.FloatInput(
+            name="error e [V]", value=0.1, step=0.01, width=150, css_classes=["fs-pick-e"]
+        )
         self.pick_de = pn.widgets.FloatInput(
             name="error rate ė [V/s]", value=0.0, step=0.1, width=150
         )
-        self.pick_out = pn.pane.HTML("")
+        self.pick_out = pn.pane.HTML("", css_classes=["fs-command"])
         self.src_fire = ColumnDataSource({"rule": [], "w": []})
         self.fig_fire = figure(title="rule firing strengths at the picked input", width=WIDTH,
                                height=260, x_range=FactorRange(), y_range=Range1d(0, 1.05),
@@ -351,8 +353,10 @@ class Designer:
         if list(self.fig_fire.x_range.factors) != labels:
             self.fig_fire.x_range.factors = labels
         self.src_fire.data = {"rule": labels, "w": list(w)}
-        self.pick_out.object = f"command u = <b>{u:.4g} V</b> at e = {self.pick_e.value:g} V" + (
-            f", ė = {self.pick_de.value:g} V/s" if len(s.controller.system.inputs) == 2 else ""
+        rate = f", ė = {self.pick_de.value:g} V/s" if len(s.controller.system.inputs) == 2 else ""
+        self.pick_out.object = (
+            f"<span id='fs-command'>command u = <b>{u:.4g} V</b> at "
+            f"e = {self.pick_e.value:g} V{rate}</span>"
         )
         c = s.controller
         for role, (*_, picked) in self.mf_figs.items():
@@ -563,20 +567,22 @@ class Designer:
         studies = s.study_files()
         self.study_select = pn.widgets.Select(name="study", options=studies, width=250,
                                               value="dinca_flc" if "dinca_flc" in studies else None)  # fmt: skip
-        self.storage_input = pn.widgets.TextInput(name="storage URL", width=330)
+        self.storage_input = pn.widgets.TextInput(
+            name="storage URL", width=330, css_classes=["fs-storage"]
+        )
         if self.study_select.value:
             self.storage_input.value = s.default_storage(self.study_select.value)
         self.study_select.param.watch(
             lambda ev: self._guard(lambda: setattr(self.storage_input, "value", s.default_storage(ev.new))),
             "value",
         )  # fmt: skip
-        open_btn = pn.widgets.Button(name="Open storage", width=120)
+        open_btn = pn.widgets.Button(name="Open storage", width=120, css_classes=["fs-open-study"])
         open_btn.on_click(lambda ev: self._guard(self._open_study))
         import pandas as pd
 
-        self.trials_table = pn.widgets.Tabulator(pd.DataFrame(), selectable="checkbox", width=360,
+        self.trials_table = pn.widgets.Tabulator(pd.DataFrame(), selectable="checkbox", width=360, css_classes=["fs-trials"],
                                                  height=240, show_index=False, disabled=True)  # fmt: skip
-        compare = pn.widgets.Button(name="Compare selected", width=140)
+        compare = pn.widgets.Button(name="Compare selected", width=140, css_classes=["fs-compare"])
         compare.on_click(lambda ev: self._guard(self._compare))
         load = pn.widgets.Button(name="Edit first selected", width=140)
         load.on_click(lambda ev: self._guard(self._load_trial))
@@ -739,15 +745,17 @@ class Designer:
         self._guard(apply)
 
     def _guard(self, fn, *args) -> None:
-        """Run a change; a bad value shows one red line and leaves the last good state."""
-        try:
-            fn(*args)
-        except FuzzyservoError as exc:
-            self._say(str(exc), error=True)
-            self.rebuild_soft()
-        except ValueError as exc:
-            self._say(f"{exc}", error=True)
-            self.rebuild_soft()
+        """Run a change; a bad value shows one red line and leaves the last good state.
+
+        Everything runs inside one ``hold``: Bokeh models may only change under the
+        document's lock, and the browser gets one patch.
+        """
+        with pn.io.hold():
+            try:
+                fn(*args)
+            except (FuzzyservoError, ValueError) as exc:
+                self._say(str(exc), error=True)
+                self.rebuild_soft()
 
     def rebuild_soft(self) -> None:
         """Put the tables and dragged points back to the last good controller after a refused edit."""

@@ -89,6 +89,7 @@ def test_breakpoints_make_explicit_terms_and_rules_edit_as_a_table(session):
     session.set_breakpoints("input", "Z", [z.params[0], 0.05, z.params[2]])
     assert session.design("input") is None
     assert session.data["input"]["terms"]["Z"] == ["trimf", [z.params[0], 0.05, z.params[2]]]
+    assert "reshape" in session.designs["input"]
     grid = session.rule_grid()
     assert [row[0] for row in grid] == ["NB", "NM", "NS", "Z", "PS", "PM", "PB"]
     session.set_rule_cell(0, 0, "NM")
@@ -96,6 +97,25 @@ def test_breakpoints_make_explicit_terms_and_rules_edit_as_a_table(session):
     labels, strengths, u = session.firing(0.05)  # the new peak of Z
     assert labels[3] == "Z -> Z" and strengths[3] == pytest.approx(1.0)
     assert math.isfinite(u)
+    session.restore_design("input")
+    assert session.design("input")["reshape"] == 2.0 and not session.designs
+
+
+def test_cli_designer_rejects_bad_files_and_a_busy_port_in_one_line(capsys, tmp_path):
+    from fuzzyservo.cli import main
+
+    assert main(["designer", "dinca_cylinder", "p_k10", "--out", str(tmp_path)]) == 2
+    assert "is a P controller" in capsys.readouterr().err
+    assert main(["designer", "no_such_rig", "--out", str(tmp_path)]) == 2
+    assert "no rig named 'no_such_rig'" in capsys.readouterr().err
+    with socket.socket() as busy:
+        busy.bind(("127.0.0.1", 0))
+        busy.listen()
+        port = busy.getsockname()[1]
+        assert main(["designer", "--port", str(port), "--out", str(tmp_path)]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("fuzzyservo: error: cannot listen on 127.0.0.1:") and "--port" in err
+    assert "Traceback" not in err
 
 
 def test_save_yaml_and_fis_read_back_as_the_same_controller(session, folders):

@@ -461,6 +461,10 @@ class Designer:
                     f"**{role} {var.name}**: explicit terms (edit breakpoints in the "
                     "membership-function tab, or drag them)"
                 ))  # fmt: skip
+                if role in s.designs:
+                    back = pn.widgets.Button(name=f"Back to the {role}'s seven-term design")
+                    back.on_click(lambda ev, role=role: self._guard(self._restore, role))
+                    cards.append(back)
                 continue
             lo, hi = design["range"]
             span = hi - lo
@@ -708,6 +712,10 @@ class Designer:
                 flush=True,
             )
 
+    def _restore(self, role: str) -> None:
+        self.s.restore_design(role)
+        self.refresh(structure=True)
+
     def _on_breakpoint(self, role: str, table, ev) -> None:
         frame = table.value
         row = frame.iloc[int(ev.row)]
@@ -855,16 +863,21 @@ def run_server(
         return Designer(session, dashboard_port=port + 1).view()
 
     pn.extension("tabulator", raw_css=[CSS], notifications=False)
-    server = pn.serve(
-        {"/": page},
-        port=port,
-        address=host,
-        websocket_origin=[f"{host}:{port}", f"localhost:{port}"],
-        show=show,
-        start=False,
-        title="fuzzyservo designer",
-        verbose=False,
-    )
+    try:
+        server = pn.serve(
+            {"/": page},
+            port=port,
+            address=host,
+            websocket_origin=[f"{host}:{port}", f"localhost:{port}"],
+            show=show,
+            start=False,
+            title="fuzzyservo designer",
+            verbose=False,
+        )
+    except OSError as exc:
+        raise FuzzyservoError(
+            f"cannot listen on {host}:{port} ({exc.strerror or exc}); give another --port"
+        ) from None
     print(f"fuzzyservo designer on http://{host}:{server.port}/ (Ctrl-C stops it)", flush=True)
     server.start()
     if ready is not None:

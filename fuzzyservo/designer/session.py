@@ -76,6 +76,8 @@ class Session:
     controller: FuzzyController | None = None
     baselines: dict[str, FuzzyController] = field(default_factory=dict)
     compared: dict[str, Any] = field(default_factory=dict)
+    #: seven-term designs of variables whose breakpoints were edited since (to go back to)
+    designs: dict[str, dict[str, Any]] = field(default_factory=dict)
     _baseline_runs: dict[tuple[str, str], list[Run]] = field(default_factory=dict)
     _compared_runs: dict[tuple, list[Run]] = field(default_factory=dict)
 
@@ -173,7 +175,19 @@ class Session:
             raise ConfigError(f"{role} has no term {term!r}; its terms are {list(terms)}")
         terms[term][1] = [float(p) for p in params]
         data[role] = {"name": var.name, "range": [var.low, var.high], "terms": terms}
+        design = self.data[role] if "terms" not in self.data[role] else None
         self.apply(data)
+        if design is not None:
+            self.designs[role] = design
+
+    def restore_design(self, role: str) -> None:
+        """Undo breakpoint edits: the variable's seven-term design as it was before them."""
+        if role not in self.designs:
+            raise ConfigError(f"{role} had no seven-term design in this session")
+        data = self.edited()
+        data[role] = copy.deepcopy(self.designs[role])
+        self.apply(data)
+        del self.designs[role]
 
     def set_rules(self, lines: list[str]) -> None:
         data = self.edited()
@@ -290,6 +304,7 @@ class Session:
         data = read_controller_data(path)
         controller = build(data, str(path))
         self.data, self.controller, self.source = data, controller, str(path)
+        self.designs = {}
 
     def open_upload(self, filename: str, content: bytes) -> None:
         """Open a controller file the browser sent (read from memory; nothing is written)."""
@@ -316,6 +331,7 @@ class Session:
             raise ConfigError("a controller file ends in .yaml or .fis", file=filename)
         controller = build(data, filename)
         self.data, self.controller, self.source = data, controller, filename
+        self.designs = {}
 
     def save_yaml(self, name: str) -> Path:
         """Write the mapping as a controller file inside the output folder."""
@@ -412,8 +428,9 @@ class Session:
 
     def load_trial(self, view: StudyView, trial: Trial) -> None:
         data = self.trial_data(view, trial)
-        self.source = f"{view.spec.name} trial {trial.number}"
         self.apply(data)
+        self.source = f"{view.spec.name} trial {trial.number}"
+        self.designs = {}
 
 
 # ---------------------------------------------------------------------- helpers

@@ -265,6 +265,28 @@ def test_open_a_study_storage_and_compare_its_best_trials(page, server):
     page.screenshot(path=str(SHOTS / "designer_study_compare.png"), full_page=True)
 
 
+@pytest.mark.parametrize(
+    "path",
+    [
+        "/static/../../../../etc/passwd",
+        "/static/%2e%2e/%2e%2e/%2e%2e/%2e%2e/etc/passwd",
+        "/static/extensions/panel/..%2f..%2f..%2f..%2f..%2fetc%2fpasswd",
+        "/..%2f..%2f..%2fetc/passwd",
+        "/components/../../etc/passwd",
+    ],
+)
+def test_the_server_serves_no_file_outside_its_assets(server, path):
+    import http.client
+
+    host, port = server[0].split("//")[1].rstrip("/").split(":")
+    conn = http.client.HTTPConnection(host, int(port), timeout=30)
+    conn.request("GET", path)  # sent as written: http.client does not normalise '..'
+    reply = conn.getresponse()
+    body = reply.read().decode(errors="replace")
+    conn.close()
+    assert reply.status >= 400 and "root:" not in body, (path, reply.status)
+
+
 def _wait_text(page, text: str, timeout_s: float = 30) -> None:
     deadline = time.monotonic() + timeout_s
     while time.monotonic() < deadline:

@@ -61,7 +61,6 @@ class Designer:
         self.s = session
         self.dashboard_port = dashboard_port
         self.updates = 0
-        self.last_ms = 0.0
         self.study: StudyView | None = None
         self.status = pn.pane.HTML("", css_classes=["fs-status"], sizing_mode="stretch_width")
         self.title = pn.pane.HTML("", sizing_mode="stretch_width")
@@ -728,7 +727,9 @@ class Designer:
         if getattr(self, "_setting_points", False):
             return
         old_x, new_x = list(old.get("x", [])), list(new.get("x", []))
-        if len(old_x) != len(new_x):
+        if len(old_x) != len(new_x):  # a point deleted (Backspace): terms keep their corners
+            self._drawn_vars.pop(role, None)
+            self._guard(self._draw_mf)
             return
         moved = [k for k, (a, b) in enumerate(zip(old_x, new_x, strict=True)) if a != b]
         if not moved:

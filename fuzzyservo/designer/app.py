@@ -189,6 +189,8 @@ class Designer:
         self.fig_y.yaxis.axis_label = axis_label(out_name, unit)
         limits, i_unit = to_display(first, first.actuator_name, np.asarray(first.actuator_limits))
         self.fig_i.yaxis.axis_label = axis_label(first.actuator_name, i_unit)
+        self.fig_y.title.text = f"(a) reference and {axis_label(out_name, '')}"
+        self.fig_i.title.text = f"(b) {axis_label(first.actuator_name, '')} with its limits"
         for span, limit in zip(self.limit_spans, limits, strict=True):
             span.location = float(limit) if np.isfinite(limit) else None
         for k, name in enumerate(pressures):
@@ -292,7 +294,13 @@ class Designer:
         if n_inputs == 1:
             fig = figure(title="control curve u = G_u·F(G_e·e) (before limits)", width=WIDTH,
                          height=330, tools=tools)  # fmt: skip
-            fig.line("e", "u", source=self.src_curve, line_width=2, color=_colour(0))
+            for k, (name, c) in enumerate(self.s.baselines.items(), start=1):
+                if hasattr(c, "curve") and len(c.system.inputs) == 1:
+                    fig.line("e", name, source=self.src_curve, line_width=1.3, color=_colour(k),
+                             line_dash="dashed", legend_label=name)  # fmt: skip
+            fig.line("e", "u", source=self.src_curve, line_width=2, color=_colour(0),
+                     legend_label="edited")  # fmt: skip
+            fig.legend.location = "top_left"
             fig.xaxis.axis_label, fig.yaxis.axis_label = "error e [V]", "command u [V]"
         else:
             fig = figure(title="control surface u(e, ė) (before limits)", width=WIDTH, height=420,
@@ -315,7 +323,11 @@ class Designer:
         e_pick, de_pick = self.pick_e.value, self.pick_de.value
         if n_inputs == 1:
             e, u = out
-            self.src_curve.data = {"e": e, "u": u}
+            data = {"e": e, "u": u}
+            for name, c in self.s.baselines.items():
+                if hasattr(c, "curve") and len(c.system.inputs) == 1:
+                    data[name] = c.curve(e)
+            self.src_curve.data = data
             self.src_pick.data = {"x": [e_pick], "y": [s.firing(e_pick)[2]]}
         else:
             e, de, U = out
@@ -349,12 +361,25 @@ class Designer:
         s = self.s
         labels, w, u = s.firing(self.pick_e.value, self.pick_de.value)
         labels = [f"{k + 1}. {text}" for k, text in enumerate(labels)]
+        if len(labels) > 12:  # a 7×7 table: the rules that fire, or 49 bars nobody can read
+            shown = [k for k, v in enumerate(w) if v > 0]
+            labels, w = [labels[k] for k in shown], [w[k] for k in shown]
+            self.fig_fire.title.text = (
+                f"firing strengths of the rules that fire at the picked input "
+                f"({len(shown)} of {len(s.controller.system.rules)})"
+            )
+        else:
+            self.fig_fire.title.text = "rule firing strengths at the picked input"
         if list(self.fig_fire.x_range.factors) != labels:
             self.fig_fire.x_range.factors = labels
         self.src_fire.data = {"rule": labels, "w": list(w)}
         rate = f", ė = {self.pick_de.value:g} V/s" if len(s.controller.system.inputs) == 2 else ""
+        # form pi integrates the fuzzy output: what the map gives is the command's rate
+        what, unit = (
+            ("command rate du/dt", "V/s") if s.controller.form == "pi" else ("command u", "V")
+        )
         self.pick_out.object = (
-            f"<span id='fs-command'>command u = <b>{u:.4g} V</b> at "
+            f"<span id='fs-command'>{what} = <b>{u:.4g} {unit}</b> at "
             f"e = {self.pick_e.value:g} V{rate}</span>"
         )
         c = s.controller

@@ -34,7 +34,7 @@ from fuzzyservo.designer.session import Session, StudyView, metrics_rows
 from fuzzyservo.errors import FuzzyservoError
 from fuzzyservo.metrics import METRIC_DOCS
 from fuzzyservo.plots._display import axis_label, controller_colour, to_display
-from fuzzyservo.plots._response import _PRESSURE_COLOURS
+from fuzzyservo.plots._response import _PRESSURE_COLOURS, saturated_spans
 
 TERM_COLOURS = ("#1f77b4", "#ff7f0e", "#2ca02c", "#d62728", "#9467bd", "#8c564b", "#e377c2",
                 "#7f7f7f", "#bcbd22", "#17becf")  # fmt: skip
@@ -134,6 +134,10 @@ class Designer:
         ]
         for span in self.limit_spans:
             self.fig_i.add_layout(span)
+        # the edited controller's saturated intervals, shaded as in `compare`'s figure
+        self.src_sat = ColumnDataSource({"x0": [], "x1": []})
+        self.fig_i.vstrip(x0="x0", x1="x1", source=self.src_sat, fill_color=_colour(0),
+                          fill_alpha=0.12, line_width=0, legend_label="saturated (edited)")  # fmt: skip
         self.src_p = ColumnDataSource({"t": []})
         self._drawn_key: tuple | None = None
         self._labels: dict[int, str] = {}
@@ -165,6 +169,8 @@ class Designer:
                     self._labels[k] = label
             else:
                 ry.visible = ri.visible = False
+        spans = saturated_spans(first)
+        self.src_sat.data = {"x0": [a for a, _ in spans], "x1": [e for _, e in spans]}
         pressures = [n for n in first.signals if first.units.get(n) == "Pa"]
         data = {"t": first.t}
         p_unit = ""
@@ -202,7 +208,7 @@ class Designer:
         for name, renderer in self.pressure_renderers.items():
             renderer.visible = name in pressures
         self.fig_p.yaxis.axis_label = f"pressure [{p_unit}]" if p_unit else "pressure"
-        for fig in (self.fig_y, self.fig_p):
+        for fig in (self.fig_y, self.fig_i, self.fig_p):
             fig.legend.location = "top_right"
             fig.legend.label_text_font_size = "8pt"
             fig.legend.click_policy = "hide"

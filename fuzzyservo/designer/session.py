@@ -391,12 +391,21 @@ class Session:
             url = f"sqlite:///{path}"
         import optuna
         from optuna.trial import TrialState
+        from sqlalchemy.exc import SQLAlchemyError
+
+        from fuzzyservo.tuning.runner import _driver_url
 
         optuna.logging.set_verbosity(optuna.logging.WARNING)
         try:
-            loaded = optuna.load_study(study_name=spec.name, storage=url)
+            loaded = optuna.load_study(study_name=spec.name, storage=_driver_url(url))
         except KeyError:
             raise ConfigError(f"the storage holds no study named {spec.name!r}", file=url) from None
+        except (SQLAlchemyError, ValueError, ImportError) as exc:
+            first = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
+            raise ConfigError(
+                f"cannot open the storage ({first}); check the URL and that the server runs",
+                file=url,
+            ) from None
         trials = loaded.get_trials(deepcopy=False, states=(TrialState.COMPLETE,))
         ranked = sorted(
             trials,

@@ -89,7 +89,7 @@ class Designer:
             ("Control curve", self.curve_fig_pane),
             ("Rules and firing", pn.Column(self.rules_box, self.firing_box)),
             ("Controller file", self.yaml_view),
-            dynamic=False,
+            dynamic=True,
         )
         main = pn.Column(
             self.title,

@@ -17,6 +17,7 @@ from fuzzyservo.io.jsonfile import json_ready, write_json
 DEFAULT_RIG = "dinca_cylinder"
 DEFAULT_STUDY = "dinca_flc"
 DEFAULT_CONTROLLER = "p_k10"
+DEFAULT_DESIGN = "flc2_reshaped"
 EXIT_USAGE = 2
 EXIT_FAILED_RUN = 1
 
@@ -384,6 +385,15 @@ def cmd_tune(args: argparse.Namespace) -> int:
     return 0
 
 
+def cmd_designer(args: argparse.Namespace) -> int:
+    from fuzzyservo.designer import serve
+
+    rig = resolve(args.rig, "rigs", "rig")
+    controller = resolve(args.controller, "studies/controllers", "controller")
+    serve(rig, controller, port=args.port, host=args.host, out_dir=args.out, show=args.show)
+    return 0
+
+
 def _fmt_values(values) -> str:
     return ", ".join(_fmt(v) for v in values)
 
@@ -692,6 +702,28 @@ def build_parser() -> argparse.ArgumentParser:
     )
     p.add_argument("--out", metavar="OUT.csv", help="write the outputs here (default: print)")
     p.set_defaults(func=cmd_evaluate)
+
+    p = sub.add_parser(
+        "designer", help="web app: shape a fuzzy controller and watch the loop respond"
+    )
+    p.add_argument(
+        "rig", nargs="?", default=DEFAULT_RIG, help=f"rig file or name (default: {DEFAULT_RIG})"
+    )
+    p.add_argument(
+        "controller",
+        nargs="?",
+        default=DEFAULT_DESIGN,
+        help=f"fuzzy controller file (YAML or .fis) or name (default: {DEFAULT_DESIGN})",
+    )
+    p.add_argument("--port", type=int, default=5006, help="port (default: 5006)")
+    p.add_argument("--host", default="127.0.0.1", help="address to listen on (default: 127.0.0.1)")
+    p.add_argument(
+        "--out",
+        default="out/designer",
+        help="the only folder the app writes to (default: out/designer)",
+    )
+    p.add_argument("--show", action="store_true", help="open the page in the web browser")
+    p.set_defaults(func=cmd_designer)
 
     p = sub.add_parser("bench", help="speed of the compiled loop against the scipy reference path")
     p.add_argument("--json", metavar="FILE", help="write the figures as JSON")

@@ -287,3 +287,60 @@ def _term_index(root: Node, var: Variable, term: str, where: str) -> int:
             key=where,
         )
     raise ConfigError("unreachable")  # pragma: no cover
+
+
+def rule_text(system: FuzzySystem, rule: Rule) -> str:
+    """One rule as a rule line ``"NB and PS -> NM 0.5"`` (what :func:`_rules` reads back)."""
+    names = []
+    for var, idx in zip(system.inputs, rule.antecedent, strict=True):
+        if idx == -1:
+            names.append("-")
+        else:
+            k = idx if idx >= 0 else -idx - 2
+            names.append(("~" if idx < -1 else "") + var.terms[k].name)
+    weight = f" {rule.weight:g}" if rule.weight != 1.0 else ""
+    return (
+        f" {rule.connective} ".join(names)
+        + f" -> {system.output.terms[rule.consequent].name}{weight}"
+    )
+
+
+def fuzzy_controller_data(controller: FuzzyController) -> dict:
+    """The ``kind: fuzzy`` mapping of a controller, with explicit terms and rule lines.
+
+    What a controller read from a ``.fis`` (or edited term by term) is written back as;
+    :func:`fuzzyservo.io.controllers.controller_from_data` rebuilds the same controller.
+    """
+    system = controller.system
+
+    def variable(var: Variable) -> dict:
+        return {
+            "name": var.name,
+            "range": [var.low, var.high],
+            "terms": {t.name: [t.shape, list(t.params)] for t in var.terms},
+        }
+
+    data: dict = {"name": controller.name, "kind": "fuzzy", "form": controller.form}
+    if controller.description:
+        data["description"] = controller.description
+    data["input"] = variable(system.inputs[0])
+    if len(system.inputs) == 2:
+        data["rate"] = variable(system.inputs[1])
+    data["output"] = variable(system.output)
+    data["rules"] = [rule_text(system, r) for r in system.rules]
+    data["methods"] = {
+        "and": system.and_method,
+        "or": system.or_method,
+        "implication": system.implication,
+        "aggregation": system.aggregation,
+        "defuzzification": system.defuzzification,
+    }
+    data["points"] = system.output.points
+    data["gains"] = {
+        "input": controller.input_gain,
+        "rate": controller.rate_gain,
+        "output": controller.output_gain,
+    }
+    if controller.has_limits:
+        data["output_limits"] = [controller.u_min, controller.u_max]
+    return data

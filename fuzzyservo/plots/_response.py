@@ -114,20 +114,29 @@ def _actuator_panel(ax: Axes, results: list[SimResult]) -> None:
     ax.legend(loc="best", fontsize=8)
 
 
-def _shade_saturation(ax: Axes, result: SimResult) -> None:
-    """Shade the intervals where ``result``'s actuator sits at a limit (one sample wide each)."""
+def saturated_spans(result: SimResult) -> list[tuple[float, float]]:
+    """``(start, end)`` times of the intervals where the actuator sits at a limit.
+
+    Each sample holds until the next one (zero-order hold of the controller).
+    """
     sat = np.asarray(result.saturated, dtype=bool)
     t = np.asarray(result.t, dtype=float)
     if not sat.any():
-        return
+        return []
     edges = np.diff(np.concatenate(([0], sat.astype(np.int8), [0])))
     starts = np.flatnonzero(edges == 1)
     stops = np.flatnonzero(edges == -1)  # index one past each run's last sample
-    # Each sample holds until the next one (zero-order hold of the controller).
     t_ends = np.where(
         stops < t.size, t[np.minimum(stops, t.size - 1)], t[-1] + result.sample_time_s
     )
-    spans = [(t[a], e - t[a]) for a, e in zip(starts, t_ends, strict=True)]
+    return [(float(t[a]), float(e)) for a, e in zip(starts, t_ends, strict=True)]
+
+
+def _shade_saturation(ax: Axes, result: SimResult) -> None:
+    """Shade the intervals where ``result``'s actuator sits at a limit (one sample wide each)."""
+    spans = [(a, e - a) for a, e in saturated_spans(result)]
+    if not spans:
+        return
     ax.broken_barh(
         spans,
         (0.0, 1.0),

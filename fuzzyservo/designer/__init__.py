@@ -1,0 +1,40 @@
+"""The designer: a local web app to shape a fuzzy controller and watch the loop respond.
+
+Built on Panel and Bokeh (the only place either is imported). :mod:`.session` holds one
+browser session's state and does the work with the library's own functions (files →
+:func:`~fuzzyservo.io.controllers.controller_from_data`, :func:`~fuzzyservo.simulate`,
+:func:`~fuzzyservo.metrics.result_metrics`); :mod:`.files` confines every file the app
+opens or writes to the project and output folders; :mod:`.app` is the page.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+
+def serve(
+    rig: str | Path,
+    controller: str | Path,
+    *,
+    port: int = 5006,
+    host: str = "127.0.0.1",
+    out_dir: str | Path = "out/designer",
+    show: bool = False,
+    ready=None,
+):
+    """Start the designer on ``http://host:port/`` and block until stopped (Ctrl-C).
+
+    ``rig`` and ``controller`` are files (already resolved by the caller); ``ready`` is
+    called with the server once it listens (tests use it to learn the port).
+    """
+    from fuzzyservo.designer.app import run_server
+
+    return run_server(
+        Path(rig),
+        Path(controller),
+        port=port,
+        host=host,
+        out_dir=Path(out_dir),
+        show=show,
+        ready=ready,
+    )

@@ -12,13 +12,14 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from support import SHARED
 
 from fuzzyservo.errors import DataError
 from fuzzyservo.io.measured import Measured, read_measured
 
 N = 50
 T = 0.01
-FASTER = Path(__file__).resolve().parents[2] / "shared" / "data" / "faster" / "faster.csv"
+FASTER = SHARED / "data" / "faster" / "faster.csv"
 FASTER_MAPPING = {"t": "t_s", "r": "ref_1", "u": "u_V", "y": "f_1", "d": "d_mm"}
 
 

@@ -24,7 +24,6 @@ from pathlib import Path
 
 import numpy as np
 import yaml
-
 from support import TESTS, shipped
 
 Files = dict[str, str | bytes | Callable[[Path], None]]
@@ -96,8 +95,9 @@ _MEASURED: dict[str, np.ndarray] = {}
 def _base_run() -> dict[str, np.ndarray]:
     """A seed-002 P K=10 `steps` run at 100 Hz: t [s], i [mA], ref, y [cm], p3, p4 [bar]."""
     if not _MEASURED:
-        from fuzzyservo.calibration.synthetic import synthetic_run
         from support import controller_named, rig_named
+
+        from fuzzyservo.calibration.synthetic import synthetic_run
 
         data = synthetic_run(
             rig_named("dinca_cylinder"),
@@ -126,7 +126,8 @@ def measured(header: str = "t_s,i_mA,ref_cm,y_cm,p3_bar,p4_bar", **edit) -> Call
         run = dict(_base_run())
         names = header.split(",")
         for key, fn in edit.items():
-            run[key] = fn(run[key])
+            if fn is not None:
+                run[key] = fn(run[key])
         cols = [c for c, name in zip(run, names, strict=True) if edit.get(c, 1) is not None]
         head = [n for c, n in zip(run, names, strict=True) if edit.get(c, 1) is not None]
         rows = np.column_stack([run[c] for c in cols])
@@ -189,19 +190,53 @@ def _cases() -> list[Case]:
     add(Case("cli rig path is a folder", ("simulate", "{in}", "p_k10"), needs=("{in}",)))
     exist = {"taken": "a file, not a folder\n"}
     add(Case("cli simulate --out existing file", (*sim[:-1], "{in}/taken"), exist, ("--out",)))
-    add(Case("cli compare --out existing file",
-             ("compare", DINCA, "p_k10", *STEPS, "--out", "{in}/taken"), exist, ("--out",)))  # fmt: skip
-    add(Case("cli show --out existing file",
-             ("show", "flc1_translated", "--out", "{in}/taken"), exist, ("--out",)))  # fmt: skip
-    add(Case("cli tune --out existing file",
-             ("tune", "dinca_flc", "--trials", "1", "--out", "{in}/taken"), exist, ("--out",)))  # fmt: skip
-    add(Case("cli calibrate --out existing file", (*CAL[:-1], "{in}/taken"),
-             {"d.csv": measured(), **exist}, ("--out",)))  # fmt: skip
+    add(
+        Case(
+            "cli compare --out existing file",
+            ("compare", DINCA, "p_k10", *STEPS, "--out", "{in}/taken"),
+            exist,
+            ("--out",),
+        )
+    )
+    add(
+        Case(
+            "cli show --out existing file",
+            ("show", "flc1_translated", "--out", "{in}/taken"),
+            exist,
+            ("--out",),
+        )
+    )
+    add(
+        Case(
+            "cli tune --out existing file",
+            ("tune", "dinca_flc", "--trials", "1", "--out", "{in}/taken"),
+            exist,
+            ("--out",),
+        )
+    )
+    add(
+        Case(
+            "cli calibrate --out existing file",
+            (*CAL[:-1], "{in}/taken"),
+            {"d.csv": measured(), **exist},
+            ("--out",),
+        )
+    )
     add(Case("cli --json is a folder", (*sim, "--json", "{in}"), needs=("--json",)))
-    add(Case("cli --json in a missing folder is created", (*sim, "--json", "{work}/j/x.json"),
-             expect="ok"))  # fmt: skip
-    add(Case("cli compare duplicate names", ("compare", DINCA, "p_k10", "p_k10", *STEPS),
-             needs=("name",)))  # fmt: skip
+    add(
+        Case(
+            "cli --json in a missing folder is created",
+            (*sim, "--json", "{work}/j/x.json"),
+            expect="ok",
+        )
+    )
+    add(
+        Case(
+            "cli compare duplicate names",
+            ("compare", DINCA, "p_k10", "p_k10", *STEPS),
+            needs=("name",),
+        )
+    )
     for value in ("0", "-3"):
         add(Case(f"cli tune --trials {value}", ("tune", "--trials", value), needs=("--trials",)))
     add(Case("cli tune --workers 0", ("tune", "--workers", "0"), needs=("--workers",)))
@@ -217,28 +252,84 @@ def _cases() -> list[Case]:
     add(Case("cli bench unknown case", ("bench", "--case", "nope"), needs=("nope",)))
     for opt in ("--runs", "--reference-runs", "--study-trials", "--workers"):
         add(Case(f"cli bench {opt} 0", ("bench", "--case", "fuzzy_eval", opt, "0"), needs=(opt,)))
-    add(Case("cli calibrate --max-effects -1", (*CAL[:3], "--max-effects", "-1"),
-             {"d.csv": measured()}, ("--max-effects",)))  # fmt: skip
-    add(Case("cli calibrate --effects unknown", (*CAL, "--effects", "nope"),
-             {"d.csv": measured()}, ("nope",)))  # fmt: skip
-    add(Case("cli calibrate missing data", ("calibrate", DINCA, "{in}/none.csv"), needs=("none.csv",)))
-    add(Case("cli calibrate controller unknown", (*CAL, "--controller", "nosuch"),
-             {"d.csv": measured()}, ("nosuch",)))  # fmt: skip
+    add(
+        Case(
+            "cli calibrate --max-effects -1",
+            (*CAL[:3], "--max-effects", "-1"),
+            {"d.csv": measured()},
+            ("--max-effects",),
+        )
+    )
+    add(
+        Case(
+            "cli calibrate --effects unknown",
+            (*CAL, "--effects", "nope"),
+            {"d.csv": measured()},
+            ("nope",),
+        )
+    )
+    add(
+        Case(
+            "cli calibrate missing data", ("calibrate", DINCA, "{in}/none.csv"), needs=("none.csv",)
+        )
+    )
+    add(
+        Case(
+            "cli calibrate controller unknown",
+            (*CAL, "--controller", "nosuch"),
+            {"d.csv": measured()},
+            ("nosuch",),
+        )
+    )
     fit = ("fit-valve", "{in}/v.csv", "--restarts", "1")
-    add(Case("cli fit-valve --restarts 0", ("fit-valve", "{in}/v.csv", "--restarts", "0"),
-             {"v.csv": valve_csv()}, ("--restarts",)))  # fmt: skip
+    add(
+        Case(
+            "cli fit-valve --restarts 0",
+            ("fit-valve", "{in}/v.csv", "--restarts", "0"),
+            {"v.csv": valve_csv()},
+            ("--restarts",),
+        )
+    )
     add(Case("cli fit-valve missing data", ("fit-valve", "{in}/none.csv"), needs=("none.csv",)))
-    add(Case("cli fit-valve default keeps the shipped network", fit, {"v.csv": valve_csv()},
-             expect="ok"))  # fmt: skip
-    add(Case("cli fit-valve --out is a folder", (*fit, "--out", "{in}"), {"v.csv": valve_csv()},
-             ("--out",)))  # fmt: skip
-    add(Case("cli fit-valve unknown rig", (*fit, "--rig", "nosuch"), {"v.csv": valve_csv()},
-             ("nosuch",)))  # fmt: skip
-    add(Case("cli export a P controller", ("export", "p_k10", "--fis", "{work}/x.fis"),
-             needs=("fuzzy",)))  # fmt: skip
+    add(
+        Case(
+            "cli fit-valve default keeps the shipped network",
+            fit,
+            {"v.csv": valve_csv()},
+            expect="ok",
+        )
+    )
+    add(
+        Case(
+            "cli fit-valve --out is a folder",
+            (*fit, "--out", "{in}"),
+            {"v.csv": valve_csv()},
+            ("--out",),
+        )
+    )
+    add(
+        Case(
+            "cli fit-valve unknown rig",
+            (*fit, "--rig", "nosuch"),
+            {"v.csv": valve_csv()},
+            ("nosuch",),
+        )
+    )
+    add(
+        Case(
+            "cli export a P controller",
+            ("export", "p_k10", "--fis", "{work}/x.fis"),
+            needs=("fuzzy",),
+        )
+    )
     add(Case("cli show a P controller", ("show", "p_k10", "--out", "{work}/o"), needs=("fuzzy",)))
-    add(Case("cli export --fis is a folder", ("export", "flc1_translated", "--fis", "{in}"),
-             needs=("--fis",)))  # fmt: skip
+    add(
+        Case(
+            "cli export --fis is a folder",
+            ("export", "flc1_translated", "--fis", "{in}"),
+            needs=("--fis",),
+        )
+    )
     add(Case("cli unknown option", ("simulate", DINCA, "p_k10", "--bogus"), needs=("--bogus",)))
     add(Case("cli --trials not a number", ("tune", "--trials", "many"), needs=("--trials",)))
 
@@ -247,69 +338,143 @@ def _cases() -> list[Case]:
     pp = "plant__parameters__"
     rigs: list[tuple[str, str, tuple[str, ...]]] = [
         ("duplicate top-level key", base + "\nname: other\n", ("name", "twice")),
-        ("duplicate parameter key", _replace(
-            "    piston_mass:", "    supply_pressure: {value: 7, unit: bar}\n    piston_mass:", base),
-         ("supply_pressure", "twice")),  # fmt: skip
-        ("duplicate scenario", _replace("  steps:\n", "  pulses:\n    duration: 1\n  steps:\n", base),
-         ("pulses",)),  # fmt: skip
-        ("supply pressure 70 (Pa, no unit)", rig(**{pp + "supply_pressure": 70}),
-         ("supply_pressure", "bar")),  # fmt: skip
-        ("supply pressure 70 Pa", rig(**{pp + "supply_pressure": {"value": 70, "unit": "Pa"}}),
-         ("supply_pressure",)),  # fmt: skip
-        ("initial position beyond the stroke",
-         rig(plant__initial__position={"value": 20, "unit": "cm"}), ("position", "stroke")),
-        ("initial position before the stroke",
-         rig(plant__initial__position={"value": -5, "unit": "cm"}), ("position", "stroke")),
-        ("scenario initial position beyond the stroke",
-         rig(scenarios__steps__initial={"position": {"value": 1, "unit": "m"}}),
-         ("position", "stroke")),  # fmt: skip
+        (
+            "duplicate parameter key",
+            _replace(
+                "    piston_mass:",
+                "    supply_pressure: {value: 7, unit: bar}\n    piston_mass:",
+                base,
+            ),
+            ("supply_pressure", "twice"),
+        ),
+        (
+            "duplicate scenario",
+            _replace("  steps:\n", "  pulses:\n    duration: 1\n  steps:\n", base),
+            ("pulses",),
+        ),
+        (
+            "supply pressure 70 (Pa, no unit)",
+            rig(**{pp + "supply_pressure": 70}),
+            ("supply_pressure", "bar"),
+        ),
+        (
+            "supply pressure 70 Pa",
+            rig(**{pp + "supply_pressure": {"value": 70, "unit": "Pa"}}),
+            ("supply_pressure",),
+        ),
+        (
+            "initial position beyond the stroke",
+            rig(plant__initial__position={"value": 20, "unit": "cm"}),
+            ("position", "stroke"),
+        ),
+        (
+            "initial position before the stroke",
+            rig(plant__initial__position={"value": -5, "unit": "cm"}),
+            ("position", "stroke"),
+        ),
+        (
+            "scenario initial position beyond the stroke",
+            rig(scenarios__steps__initial={"position": {"value": 1, "unit": "m"}}),
+            ("position", "stroke"),
+        ),
         ("name with a slash", rig(name="a/b"), ("name",)),
         ("name with an absolute path", rig(name="{root}/abs/x"), ("name",)),
         ("name climbing out", rig(name="../../x"), ("name",)),
         ("empty name", rig(name=""), ("name",)),
         ("name '..'", rig(name=".."), ("name",)),
-        ("scenario name with a path", rig(**{"scenarios__../../evil": _data("rigs", DINCA)["scenarios"]["steps"]}),
-         ("scenarios",)),  # fmt: skip
-        ("duration 1e7 s", rig(scenarios__pulses__duration={"value": 1e7, "unit": "s"}), ("duration",)),
-        ("duration 1e307 min", rig(scenarios__pulses__duration={"value": 1e307, "unit": "min"}),
-         ("duration",)),  # fmt: skip
-        ("sample time subnormal", rig(controller__sample_time={"value": 1e-310, "unit": "s"}),
-         ("sample_time",)),  # fmt: skip
+        (
+            "scenario name with a path",
+            rig(**{"scenarios__../../evil": _data("rigs", DINCA)["scenarios"]["steps"]}),
+            ("scenarios",),
+        ),
+        (
+            "duration 1e7 s",
+            rig(scenarios__pulses__duration={"value": 1e7, "unit": "s"}),
+            ("duration",),
+        ),
+        (
+            "duration 1e307 min",
+            rig(scenarios__pulses__duration={"value": 1e307, "unit": "min"}),
+            ("duration",),
+        ),
+        (
+            "sample time subnormal",
+            rig(controller__sample_time={"value": 1e-310, "unit": "s"}),
+            ("sample_time",),
+        ),
         ("sample time bare subnormal", rig(controller__sample_time=5e-324), ("sample_time",)),
-        ("sample time 1e307 min", rig(controller__sample_time={"value": 1e307, "unit": "min"}),
-         ("sample_time",)),  # fmt: skip
-        ("bulk modulus 1e307 kbar", rig(**{pp + "bulk_modulus": {"value": 1e307, "unit": "kbar"}}),
-         ("bulk_modulus",)),  # fmt: skip
-        ("unknown unit", rig(**{pp + "piston_mass": {"value": 1, "unit": "furlong"}}), ("piston_mass",)),
-        ("wrong kind of unit", rig(**{pp + "piston_mass": {"value": 1, "unit": "bar"}}),
-         ("piston_mass",)),  # fmt: skip
+        (
+            "sample time 1e307 min",
+            rig(controller__sample_time={"value": 1e307, "unit": "min"}),
+            ("sample_time",),
+        ),
+        (
+            "bulk modulus 1e307 kbar",
+            rig(**{pp + "bulk_modulus": {"value": 1e307, "unit": "kbar"}}),
+            ("bulk_modulus",),
+        ),
+        (
+            "unknown unit",
+            rig(**{pp + "piston_mass": {"value": 1, "unit": "furlong"}}),
+            ("piston_mass",),
+        ),
+        (
+            "wrong kind of unit",
+            rig(**{pp + "piston_mass": {"value": 1, "unit": "bar"}}),
+            ("piston_mass",),
+        ),
         ("unknown key", rig(plant__parameters__pistn_mass=1), ("pistn_mass",)),
         ("unknown plant type", rig(plant__type="nope"), ("type",)),
         ("YAML syntax error", base + "\n  : : [\n", ("YAML",)),
         ("top level is a list", "- a\n- b\n", ("mapping",)),
         ("empty file", "", ("mapping",)),
         ("value as text with a unit", rig(**{pp + "piston_mass": "1 kg"}), ("piston_mass",)),
-        ("value .nan", base.replace("piston_mass: {value: 1,", "piston_mass: {value: .nan,"),
-         ("piston_mass",)),  # fmt: skip
-        ("value .inf", base.replace("piston_mass: {value: 1,", "piston_mass: {value: .inf,"),
-         ("piston_mass",)),  # fmt: skip
-        ("negative bulk modulus", rig(**{pp + "bulk_modulus": {"value": -1, "unit": "bar"}}),
-         ("bulk_modulus",)),  # fmt: skip
+        (
+            "value .nan",
+            base.replace("piston_mass: {value: 1,", "piston_mass: {value: .nan,"),
+            ("piston_mass",),
+        ),
+        (
+            "value .inf",
+            base.replace("piston_mass: {value: 1,", "piston_mass: {value: .inf,"),
+            ("piston_mass",),
+        ),
+        (
+            "negative bulk modulus",
+            rig(**{pp + "bulk_modulus": {"value": -1, "unit": "bar"}}),
+            ("bulk_modulus",),
+        ),
         ("feedback gain zero", rig(feedback__gain={"value": 0, "unit": "V/cm"}), ("gain",)),
-        ("actuator lower above upper", rig(actuator__lower={"value": 40, "unit": "mA"}), ("lower",)),
+        (
+            "actuator lower above upper",
+            rig(actuator__lower={"value": 40, "unit": "mA"}),
+            ("lower",),
+        ),
         ("unknown output signal", rig(output__signal="z"), ("signal",)),
         ("unknown reference type", rig(scenarios__pulses__reference={"type": "ramp"}), ("type",)),
-        ("warm-up longer than duration", rig(scenarios__pulses__warmup={"value": 30, "unit": "s"}),
-         ("warmup",)),  # fmt: skip
+        (
+            "warm-up longer than duration",
+            rig(scenarios__pulses__warmup={"value": 30, "unit": "s"}),
+            ("warmup",),
+        ),
         ("pulse period zero", rig(scenarios__pulses__reference__period_s=0), ("period_s",)),
-        ("steps values and times differ", rig(scenarios__steps__reference__values=[1.0]),
-         ("steps",)),  # fmt: skip
+        (
+            "steps values and times differ",
+            rig(scenarios__steps__reference__values=[1.0]),
+            ("steps",),
+        ),
         ("no scenarios", rig(scenarios={}), ("scenarios",)),
         ("unknown effect", rig(effects={"magic": {}}), ("magic",)),
-        ("effect parameter in a wrong unit",
-         rig(effects={"coulomb_friction": {"force": {"value": 1, "unit": "bar"}}}), ("force",)),
-        ("measured sample period subnormal",
-         rig(measured={"sample_period": {"value": 1e-310, "unit": "s"}}), ("sample_period",)),
+        (
+            "effect parameter in a wrong unit",
+            rig(effects={"coulomb_friction": {"force": {"value": 1, "unit": "bar"}}}),
+            ("force",),
+        ),
+        (
+            "measured sample period subnormal",
+            rig(measured={"sample_period": {"value": 1e-310, "unit": "s"}}),
+            ("sample_period",),
+        ),
         ("YAML alias", "a: &x [1]\nb: *x\n" + base, ("a",)),
     ]
     for label, text, needs in rigs:
@@ -317,8 +482,14 @@ def _cases() -> list[Case]:
     add(Case("rig not UTF-8", SIM, {"rig.yaml": b"name: \xff\xfe\n"}, ("UTF-8",)))
     hp = _data("rigs", "hydroprax_pdcv")
     hp["plant"]["parameters"]["nn_weights"]["file"] = "../../nowhere.json"
-    add(Case("rig weights file missing", ("simulate", "{in}/rig.yaml", "pi_hydroprax"),
-             {"rig.yaml": yaml.safe_dump(hp, sort_keys=False)}, ("nn_weights",)))  # fmt: skip
+    add(
+        Case(
+            "rig weights file missing",
+            ("simulate", "{in}/rig.yaml", "pi_hydroprax"),
+            {"rig.yaml": yaml.safe_dump(hp, sort_keys=False)},
+            ("nn_weights",),
+        )
+    )
 
     # -- controller files ------------------------------------------------------------------
     ctrl = _text("studies/controllers", "p_k10")
@@ -333,9 +504,12 @@ def _cases() -> list[Case]:
         ("output limits reversed", controller(output_limits=[3, -3]), ("output_limits",)),
         ("output limits 1e400", ctrl.replace("[-10, 10]", "[-1e400, 1e400]"), ("output_limits",)),
         ("PI key in a P file", controller(ki=1), ("ki",)),
-        ("fuzzy without rules", controller("flc1_translated", rules=_DELETE), ("rules",)),
-        ("fuzzy duplicate key", _text("studies/controllers", "flc1_translated") + "form: pd\n",
-         ("form", "twice")),  # fmt: skip
+        ("fuzzy input not a mapping", controller("flc1_translated", input="wide"), ("input",)),
+        (
+            "fuzzy duplicate key",
+            _text("studies/controllers", "flc1_translated") + "form: pd\n",
+            ("form", "twice"),
+        ),
         ("fuzzy name with a path", controller("flc1_translated", name="../../evil"), ("name",)),
     ]
     for label, text, needs in controllers:
@@ -346,27 +520,56 @@ def _cases() -> list[Case]:
         ("garbage", "this is not a fis file\n", ("x.fis",)),
         ("no rules", fis.split("[Rules]")[0], ("Rules",)),
     ]
-    for label, text, needs in fis_cases:
-        add(Case(f"fis {label}", ("show", "{in}/x.fis", "--out", "{work}/out"), {"x.fis": text},
-                 needs))  # fmt: skip
+    add(
+        Case(
+            "fis Name with a path is not a file name (the file stem is)",
+            ("show", "{in}/x.fis", "--out", "{work}/out"),
+            {"x.fis": fis.replace("Name='tipper'", "Name='../../evil'")},
+            expect="ok",
+        )
+    )
+    for label, text, needs in fis_cases[1:]:
+        add(
+            Case(
+                f"fis {label}",
+                ("show", "{in}/x.fis", "--out", "{work}/out"),
+                {"x.fis": text},
+                needs,
+            )
+        )
 
     # -- study files -----------------------------------------------------------------------
     studies: list[tuple[str, str, tuple[str, ...], tuple[str, ...]]] = [
         ("name climbing out", study(name="../../x"), ("name",), ()),
         ("name climbing out, default --out", study(name="../../x"), ("name",), ("default",)),
         ("name with an absolute path", study(name="{root}/abs/x"), ("name",), ()),
-        ("SQLite storage outside the output", study(storage="sqlite:///{root}/x.db"), ("storage",), ()),
+        (
+            "SQLite storage outside the output",
+            study(storage="sqlite:///{root}/x.db"),
+            ("storage",),
+            (),
+        ),
         ("mysql storage", study(storage="mysql://u@localhost/db"), ("storage",), ()),
         ("duplicate key", study() + "trials: 5\n", ("trials", "twice"), ()),
         ("trials 0", study(trials=0), ("trials",), ()),
         ("unknown sampler", study(sampler="grid"), ("sampler",), ()),
         ("no parameters", study(parameters={}), ("parameters",), ()),
-        ("unknown parameter path", study(parameters={"nope.x": {"low": 0, "high": 1}}), ("nope.x",), ()),
+        (
+            "unknown parameter path",
+            study(parameters={"nope.x": {"low": 0, "high": 1}}),
+            ("nope.x",),
+            (),
+        ),
         ("bad constraint", study(constraints=["overshoot_pct << 5"]), ("constraints",), ()),
         ("unknown scenario", study(scenarios=["nope"]), ("nope",), ()),
         ("unknown rig", study(rig="nosuchrig"), ("rig",), ()),
         ("unknown metric", study(objective={"metric": "speed"}), ("speed",), ()),
-        ("low above high", study(parameters={"gains.output": {"low": 2, "high": 1}}), ("gains.output",), ()),
+        (
+            "low above high",
+            study(parameters={"gains.output": {"low": 2, "high": 1}}),
+            ("gains.output",),
+            (),
+        ),
     ]
     for label, text, needs, flags in studies:
         argv = ("tune", "{in}/s.yaml", "--trials", "1") if flags else TUNE
@@ -378,8 +581,11 @@ def _cases() -> list[Case]:
         ("time in ms under an s header", measured(t=lambda t: t * 1000), ("t_s", "ms")),
         ("no y column", measured(y=None), ("y",)),
         ("constant (stuck) position", measured(y=lambda y: y * 0 + 1.0), ("y_cm",)),
-        ("pressure in bar under a Pa header", measured("t_s,i_mA,ref_cm,y_cm,p3_Pa,p4_Pa"),
-         ("p3_Pa",)),  # fmt: skip
+        (
+            "pressure in bar under a Pa header",
+            measured("t_s,i_mA,ref_cm,y_cm,p3_Pa,p4_Pa"),
+            ("p3_Pa",),
+        ),
         ("empty file", "", ("empty",)),
         ("header only", "t_s,i_mA,y_cm\n", ("rows",)),
         ("text cell", measured_text(lambda ls: [*ls[:5], "0.04,x,1,1,1,1", *ls[6:]]), ("row 6",)),
@@ -387,35 +593,62 @@ def _cases() -> list[Case]:
         ("NaN cell", measured_text(lambda ls: [*ls[:5], "0.04,nan,1,1,1,1", *ls[6:]]), ("NaN",)),
         ("time backwards", measured(t=lambda t: t[::-1].copy()), ("backwards",)),
         ("repeated stamps", measured(t=lambda t: np.round(t, 1)), ("repeated", "--resample")),
-        ("uneven sampling", measured(t=lambda t: t ** 1.2), ("uneven", "--resample")),
+        ("uneven sampling", measured(t=lambda t: t**1.2), ("uneven", "--resample")),
         ("unknown unit", measured("t_s,i_mA,ref_cm,y_furlong,p3_bar,p4_bar"), ("y_furlong",)),
         ("header without unit", measured("t_s,i_mA,ref_cm,y,p3_bar,p4_bar"), ("'y'",)),
         ("too few samples", measured_text(lambda ls: ls[:10]), ("samples",)),
         ("ragged row", measured_text(lambda ls: [*ls[:5], "1,2", *ls[6:]]), ("row 6",)),
         ("duplicate column", measured("t_s,i_mA,ref_cm,y_cm,p3_bar,p3_bar"), ("p3_bar",)),
         ("not UTF-8", b"t_s,y_cm\n\xff\xfe\n", ("UTF-8",)),
-        ("reference in bar", measured("t_s,i_mA,ref_bar,y_cm,p3_bar,p4_bar"), ("ref",)),
         ("position in volts", measured("t_s,i_mA,ref_cm,y_V,p3_bar,p4_bar"), ("y",)),
-        ("time 1e307 min", measured("t_min,i_mA,ref_cm,y_cm,p3_bar,p4_bar", t=lambda t: t * 1e307),
-         ("t_min",)),  # fmt: skip
-        ("semicolons and decimal commas", measured_text(
-            lambda ls: [line.replace(",", ";").replace(".", ",") for line in ls]), ("row 2",)),
+        (
+            "time 1e307 min",
+            measured("t_min,i_mA,ref_cm,y_cm,p3_bar,p4_bar", t=lambda t: t * 1e307),
+            ("t_min",),
+        ),
+        (
+            "semicolons and decimal commas",
+            measured_text(lambda ls: [line.replace(",", ";").replace(".", ",") for line in ls]),
+            ("row 2",),
+        ),
     ]
     for label, content, needs in data_cases:
         add(Case(f"data {label}", CAL, {"d.csv": content}, needs))
-    add(Case("data .mat garbage", (*CAL[:2], "{in}/d.mat", *CAL[3:]), {"d.mat": b"garbage"},
-             ("d.mat",)))  # fmt: skip
+    add(
+        Case(
+            "data .mat garbage",
+            (*CAL[:2], "{in}/d.mat", *CAL[3:]),
+            {"d.mat": b"garbage"},
+            ("d.mat",),
+        )
+    )
     add(Case("data is a folder", (*CAL[:2], "{in}", *CAL[3:]), needs=("{in}",)))
-    add(Case("data closed loop without ref", (*CAL, "--controller", "p_k10"),
-             {"d.csv": measured(ref=None)}, ("ref",)))  # fmt: skip
+    add(
+        Case(
+            "data closed loop without ref",
+            (*CAL, "--controller", "p_k10"),
+            {"d.csv": measured(ref=None)},
+            ("ref",),
+        )
+    )
     valve = [
         ("wrong header", valve_csv(header="a,b,c,d,e,f"), ("header",)),
-        ("text cell", lambda p: valve_csv()(p) or p.write_text(p.read_text() + "1,2,x,4,5,6\n"), ("x",)),
+        (
+            "text cell",
+            lambda p: valve_csv()(p) or p.write_text(p.read_text() + "1,2,x,4,5,6\n"),
+            ("x",),
+        ),
         ("empty file", "", ("empty",)),
     ]
     for label, content, needs in valve:
-        add(Case(f"valve data {label}", ("fit-valve", "{in}/v.csv", "--out", "{work}/net.json"),
-                 {"v.csv": content}, needs))  # fmt: skip
+        add(
+            Case(
+                f"valve data {label}",
+                ("fit-valve", "{in}/v.csv", "--out", "{work}/net.json"),
+                {"v.csv": content},
+                needs,
+            )
+        )
     return c
 
 
@@ -448,9 +681,9 @@ def prepare(case: Case, root: Path) -> list[str]:
 
 def snapshot(root: Path) -> dict[str, str]:
     """Every file outside ``root/work`` and every shipped file, with its content hash."""
-    shipped_root = shipped("dinca_cylinder").parent.parent
+    data = shipped("dinca_cylinder").parent.parent
     files = {}
-    for base in (root, shipped_root):
+    for base in (root, data / "rigs", data / "studies"):
         for path in base.rglob("*"):
             if path.is_file() and (root / "work") not in path.parents:
                 files[str(path)] = hashlib.sha1(path.read_bytes()).hexdigest()

@@ -609,7 +609,7 @@ def _cases() -> list[Case]:
         (
             "semicolons and decimal commas",
             measured_text(lambda ls: [line.replace(",", ";").replace(".", ",") for line in ls]),
-            ("row 3",),
+            ("is not a number", "decimal point"),
         ),
     ]
     for label, content, needs in data_cases:

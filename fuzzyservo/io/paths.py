@@ -1,4 +1,9 @@
-"""Finding the project's files: a path as given, or a bare name under ``rigs/``, ``studies/`` …"""
+"""Finding the project's files: a path as given, or a bare name under ``rigs/``, ``studies/`` …
+
+Bare names are looked up in the working folder first (a user's own ``rigs/``), then in
+the rigs, controllers and studies shipped inside the package (``fuzzyservo/data``),
+so an installed package finds them from any folder.
+"""
 
 from __future__ import annotations
 
@@ -8,14 +13,14 @@ from pathlib import Path
 from fuzzyservo.errors import ConfigError
 
 
-def project_root() -> Path:
-    """The checkout holding ``rigs/`` and ``studies/`` (the package's parent folder)."""
-    return Path(__file__).resolve().parent.parent.parent
+def data_root() -> Path:
+    """The shipped ``rigs/`` and ``studies/`` (package data, installed with the package)."""
+    return Path(__file__).resolve().parent.parent / "data"
 
 
 def search_dirs() -> list[Path]:
-    """Where bare names are looked up: the working folder, then the checkout."""
-    return [Path.cwd(), project_root()]
+    """Where bare names are looked up: the working folder, then the shipped files."""
+    return [Path.cwd(), data_root()]
 
 
 def find_file(name: str, folder: str, what: str, *, relative_to: Path | None = None) -> Path:

@@ -385,8 +385,14 @@ def _read_csv(
             fh.seek(0)
             reader = csv.reader(fh, delimiter=delimiter)
             header = next(
-                [c.strip() for c in cells] for cells in reader if any(c.strip() for c in cells)
+                ([c.strip() for c in cells] for cells in reader if any(c.strip() for c in cells)),
+                None,
             )
+            if header is None:
+                raise DataError(
+                    f"{file}: the header line names no column; write <signal>_<unit> names "
+                    "such as t_s,y_cm"
+                )
             _check_header(file, header)
             columns = _columns(file, kind, header, mapping)
             _check_required(file, kind, columns, require, has_period)

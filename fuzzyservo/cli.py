@@ -84,6 +84,19 @@ def _checked_duration(rig, duration: float | None) -> float | None:
     return duration
 
 
+def _note_compiling() -> None:
+    """One line before a long silent compile (first run after install or a kernel change)."""
+    from fuzzyservo._jit import cache_is_cold
+
+    if cache_is_cold():
+        print(
+            "compiling the simulation kernels (first run after an install or a change; "
+            "about a minute, cached afterwards)",
+            file=sys.stderr,
+            flush=True,
+        )
+
+
 def _at_least_one(**options: int) -> None:
     for name, value in options.items():
         if value < 1:
@@ -212,6 +225,7 @@ def cmd_simulate(args: argparse.Namespace) -> int:
     out, json_path = _out_dir(args.out), _out_file(args.json, "--json")
     rig, (controller,) = _load(args.rig, [args.controller])
     scenario = _scenario_name(rig, args.scenario)
+    _note_compiling()
     result = simulate(rig, controller, scenario, duration_s=_checked_duration(rig, args.duration))
     return _report_runs(rig, scenario, [result], out, json_path)
 
@@ -330,6 +344,7 @@ def cmd_tune(args: argparse.Namespace) -> int:
     print(
         f"study {spec.name}: {spec.objective.describe()}; {total} trials, {args.workers} worker(s)"
     )
+    _note_compiling()
     try:
         outcome = run_study(spec, out, trials=total, storage=args.storage, workers=args.workers)
     except KeyboardInterrupt:

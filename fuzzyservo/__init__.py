@@ -4,8 +4,11 @@ The public API is small and imported lazily, so ``import fuzzyservo`` pulls in n
 YAML, matplotlib nor optuna::
 
     from fuzzyservo import load_rig, load_controller, simulate
-    rig = load_rig("rigs/dinca_cylinder.yaml")
-    result = simulate(rig, load_controller("studies/controllers/p_k10.yaml"), "pulses")
+    from fuzzyservo.io.paths import find_file   # a shipped file by name, or a path
+
+    rig = load_rig(find_file("dinca_cylinder", "rigs", "rig"))
+    p_k10 = load_controller(find_file("p_k10", "studies/controllers", "controller"))
+    result = simulate(rig, p_k10, "pulses")
 """
 
 from __future__ import annotations

@@ -43,4 +43,12 @@ if not os.environ.get("NUMBA_CACHE_DIR"):
     except OSError:  # read-only home: numba falls back to __pycache__ or no cache
         pass
 
-__all__ = ["njit"]
+
+def cache_is_cold() -> bool:
+    """True when no compiled kernel is cached yet: the next run compiles first (about a
+    minute on a small machine), so the command line can say so instead of staying silent."""
+    folder = numba.config.CACHE_DIR
+    return not folder or not any(Path(folder).rglob("*.nbi"))
+
+
+__all__ = ["cache_is_cold", "njit"]

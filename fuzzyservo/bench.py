@@ -18,7 +18,7 @@ from pathlib import Path
 
 import numpy as np
 
-from fuzzyservo.io.paths import project_root
+from fuzzyservo.io.paths import data_root
 from fuzzyservo.simulation import SimResult, simulate
 from fuzzyservo.simulation.reference import simulate_reference
 
@@ -159,7 +159,7 @@ def run_calibrate_case(root: Path | None = None) -> BenchResult:
     from fuzzyservo.io.controllers import load_controller
     from fuzzyservo.io.rigs import load_rig
 
-    root = root or project_root()
+    root = root or data_root()
     rig = load_rig(root / "rigs" / "dinca_cylinder.yaml")
     controller = load_controller(root / "studies" / "controllers" / "p_k10.yaml")
     noise = {"y": 5e-6, "p1": 5e3, "p2": 5e3, "p3": 5e3, "p4": 5e3}
@@ -204,7 +204,7 @@ def run_study_case(*, trials: int = 300, workers: int = 2, root: Path | None = N
     from fuzzyservo.io.studies import load_study
     from fuzzyservo.tuning.runner import run_study
 
-    root = root or project_root()
+    root = root or data_root()
     spec = load_study(root / "studies" / "dinca_flc.yaml")
     with tempfile.TemporaryDirectory() as tmp:
         t0 = time.perf_counter()
@@ -254,7 +254,7 @@ def run_fuzzy_eval(
     from fuzzyservo.controllers.fuzzy.skfuzzy_adapter import SkfuzzyReference
     from fuzzyservo.io.controllers import load_controller
 
-    root = root or project_root()
+    root = root or data_root()
     controller = load_controller(root / controller_file)
     system = controller.system
     x = random_inputs(system, points)
@@ -313,7 +313,7 @@ def run_case(
     from fuzzyservo.io.controllers import load_controller
     from fuzzyservo.io.rigs import load_rig
 
-    root = root or project_root()
+    root = root or data_root()
     rig = load_rig(root / case.rig_file)
     controller = load_controller(root / case.controller_file)
     simulate(rig, controller, case.scenario, duration_s=case.duration_s)  # compile / warm caches

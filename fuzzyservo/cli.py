@@ -10,6 +10,7 @@ import math
 import sys
 from collections.abc import Sequence
 from pathlib import Path
+from typing import NoReturn
 
 from fuzzyservo.errors import ConfigError, FuzzyservoError
 from fuzzyservo.io.jsonfile import json_ready, write_json
@@ -53,6 +54,56 @@ def _scenario_name(rig, scenario: str | None) -> str:
     return scenario
 
 
+def _out_dir(path: str | None, option: str = "--out") -> Path | None:
+    """The output folder ``path``: refused when a file of that name is in the way."""
+    if path is None:
+        return None
+    out = Path(path)
+    if out.exists() and not out.is_dir():
+        raise ConfigError(
+            f"{option} {path}: is a file, not a folder; name a folder (new or existing)"
+        )
+    return out
+
+
+def _out_file(path: str | None, option: str) -> str | None:
+    """An output file ``path``: refused when it names a folder."""
+    if path is not None and Path(path).is_dir():
+        raise ConfigError(
+            f"{option} {path}: is a folder; give a file name such as {Path(path) / 'out.json'}"
+        )
+    return path
+
+
+def _checked_duration(rig, duration: float | None) -> float | None:
+    """``--duration`` checked against the rig's sample time (at least one sample, at most
+    what a run holds in memory)."""
+    from fuzzyservo.limits import duration_problem
+
+    if duration is not None and duration_problem(duration, rig.sample_time_s):
+        raise ConfigError(f"--duration: {duration_problem(duration, rig.sample_time_s)}")
+    return duration
+
+
+def _note_compiling() -> None:
+    """One line before a long silent compile (first run after install or a kernel change)."""
+    from fuzzyservo._jit import cache_is_cold
+
+    if cache_is_cold():
+        print(
+            "compiling the simulation kernels (first run after an install or a change; "
+            "about a minute, cached afterwards)",
+            file=sys.stderr,
+            flush=True,
+        )
+
+
+def _at_least_one(**options: int) -> None:
+    for name, value in options.items():
+        if value < 1:
+            raise ConfigError(f"--{name.replace('_', '-')} must be >= 1, got {value}")
+
+
 # --------------------------------------------------------------------------- output
 def _fmt(value: float | None) -> str:
     if value is None or (isinstance(value, float) and math.isnan(value)):
@@ -66,13 +117,17 @@ def _fmt(value: float | None) -> str:
 
 
 def metrics_table(
-    names: Sequence[str], rows: Sequence[dict[str, float]], unit_notes: dict[str, str]
+    names: Sequence[str],
+    rows: Sequence[dict[str, float]],
+    unit_notes: dict[str, str],
+    metrics: Sequence[str] | None = None,
 ) -> str:
-    """A plain-text table: one row per metric, one column per controller."""
+    """A plain-text table: one row per metric (``metrics``, default all), one column per controller."""
     from fuzzyservo.metrics import METRIC_NAMES
 
     header = ["metric", *names]
-    lines = [[f"{m}{unit_notes.get(m, '')}", *(_fmt(r.get(m)) for r in rows)] for m in METRIC_NAMES]
+    shown = METRIC_NAMES if metrics is None else metrics
+    lines = [[f"{m}{unit_notes.get(m, '')}", *(_fmt(r.get(m)) for r in rows)] for m in shown]
     widths = [max(len(row[i]) for row in [header, *lines]) for i in range(len(header))]
     out = ["  ".join(h.ljust(w) for h, w in zip(header, widths, strict=True))]
     out.append("  ".join("-" * w for w in widths))
@@ -101,17 +156,26 @@ def _write_csv(path: Path, result) -> None:
 
 
 def _report_runs(rig, scenario: str, results, out: Path | None, json_path: str | None) -> int:
-    from fuzzyservo.metrics import heave_metrics, result_metrics
+    from fuzzyservo.metrics import METRIC_NAMES, applicable_metrics, heave_metrics, result_metrics
 
     metrics = [result_metrics(r) for r in results]
     print(
         f"rig {rig.name} · scenario {scenario} · {rig.scenarios[scenario].description}".rstrip(" ·")
     )
+    shown = applicable_metrics(results[0])
     print(
         metrics_table(
-            [r.controller for r in results], [m.aggregate for m in metrics], _unit_notes(results[0])
+            [r.controller for r in results],
+            [m.aggregate for m in metrics],
+            _unit_notes(results[0]),
+            shown,
         )
     )
+    if len(shown) < len(METRIC_NAMES):
+        left_out = ", ".join(m for m in METRIC_NAMES if m not in shown)
+        print(
+            f"not shown: {left_out} (step metrics; this scenario's reference is tracked, not stepped)"
+        )
     heave = [heave_metrics(r) for r in results]
     if any(heave):
         print(
@@ -159,24 +223,28 @@ def _report_runs(rig, scenario: str, results, out: Path | None, json_path: str |
 def cmd_simulate(args: argparse.Namespace) -> int:
     from fuzzyservo.simulation import simulate
 
+    out, json_path = _out_dir(args.out), _out_file(args.json, "--json")
     rig, (controller,) = _load(args.rig, [args.controller])
     scenario = _scenario_name(rig, args.scenario)
-    result = simulate(rig, controller, scenario, duration_s=args.duration)
-    return _report_runs(rig, scenario, [result], Path(args.out) if args.out else None, args.json)
+    _note_compiling()
+    result = simulate(rig, controller, scenario, duration_s=_checked_duration(rig, args.duration))
+    return _report_runs(rig, scenario, [result], out, json_path)
 
 
 def cmd_compare(args: argparse.Namespace) -> int:
     from fuzzyservo.simulation import simulate
 
+    out, json_path = _out_dir(args.out), _out_file(args.json, "--json")
     rig, controllers = _load(args.rig, args.controllers or [DEFAULT_CONTROLLER])
     scenario = _scenario_name(rig, args.scenario)
+    duration = _checked_duration(rig, args.duration)
     names = [c.name for c in controllers]
     if len(set(names)) != len(names):
         raise ConfigError(
             f"two controllers share a name ({names}); give each file a distinct 'name'"
         )
-    results = [simulate(rig, c, scenario, duration_s=args.duration) for c in controllers]
-    return _report_runs(rig, scenario, results, Path(args.out) if args.out else None, args.json)
+    results = [simulate(rig, c, scenario, duration_s=duration) for c in controllers]
+    return _report_runs(rig, scenario, results, out, json_path)
 
 
 def _load_fuzzy(name: str):
@@ -228,6 +296,7 @@ def describe_fuzzy(controller) -> str:
 def cmd_show(args: argparse.Namespace) -> int:
     from fuzzyservo import plots
 
+    out = _out_dir(args.out)
     controller = _load_fuzzy(args.controller)
     print(describe_fuzzy(controller))
     if controller.system.type == "sugeno":
@@ -236,7 +305,6 @@ def cmd_show(args: argparse.Namespace) -> int:
             "membership plots to draw; use `fuzzyservo evaluate` for its values",
             file=args.controller,
         )
-    out = Path(args.out)
     figures = {
         "overview": plots.fuzzy_overview_figure(controller),
         "membership": plots.membership_figure(controller),
@@ -260,6 +328,10 @@ def cmd_export(args: argparse.Namespace) -> int:
         raise ConfigError(f"--lut needs at least 2 points per input, got {args.lut}")
     if not (math.isfinite(args.sample_time) and args.sample_time > 0):
         raise ConfigError(f"--sample-time must be > 0 s, got {args.sample_time}")
+    _out_file(args.fis, "--fis")
+    _out_file(args.fcl, "--fcl")
+    _out_file(args.st, "--st")
+    _out_dir(args.c, "--c")
     controller = _load_fuzzy(args.controller)
     gains = (controller.input_gain, controller.rate_gain, controller.output_gain)
     if (args.fis or args.fcl) and (any(g != 1.0 for g in gains) or controller.form == "pi"):
@@ -350,17 +422,23 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
 def cmd_tune(args: argparse.Namespace) -> int:
     from fuzzyservo.io.studies import load_study
     from fuzzyservo.tuning.runner import run_study
+    from fuzzyservo.tuning.spec import storage_problem
 
-    spec = load_study(resolve(args.study, "studies", "study"))
     if args.trials is not None and args.trials < 1:
         raise ConfigError(f"--trials must be >= 1, got {args.trials}")
     if args.workers < 1:
         raise ConfigError(f"--workers must be >= 1, got {args.workers}")
-    out = Path(args.out) if args.out else Path("out") / spec.name
+    if args.storage and storage_problem(args.storage):
+        raise ConfigError(f"--storage: {storage_problem(args.storage)}")
+    _out_file(args.json, "--json")
+    spec = load_study(resolve(args.study, "studies", "study"))
+    out = _out_dir(args.out) or Path("out") / spec.name
+    _out_dir(str(out))
     total = args.trials or spec.trials
     print(
         f"study {spec.name}: {spec.objective.describe()}; {total} trials, {args.workers} worker(s)"
     )
+    _note_compiling()
     try:
         outcome = run_study(spec, out, trials=total, storage=args.storage, workers=args.workers)
     except KeyboardInterrupt:
@@ -399,7 +477,7 @@ def _fmt_values(values) -> str:
 
 
 def _network_file_of(rig_name: str) -> Path:
-    """The weights file a rig names under ``nn_weights`` (written next to the rig)."""
+    """The weights file a rig names under ``nn_weights`` (relative to the rig file)."""
     from fuzzyservo.io._yaml import read_yaml
 
     path = resolve(rig_name, "rigs", "rig")
@@ -419,14 +497,21 @@ def cmd_fit_valve(args: argparse.Namespace) -> int:
     from fuzzyservo.errors import DataError
     from fuzzyservo.io.valve_data import read_valve_csv, write_valve_network
 
+    _at_least_one(restarts=args.restarts)
+    _out_file(args.out, "--out")
+    # the rig's own file (a shipped one too) is replaced only when --into-rig asks for it
+    rig_file = _network_file_of(args.rig)
+    out = Path(args.out) if args.out else rig_file if args.into_rig else Path("out") / rig_file.name
     data = read_valve_csv(args.data)
-    if args.restarts < 1:
-        raise ConfigError(f"--restarts must be >= 1, got {args.restarts}")
+    bar = _progress(args.restarts, "restarts")
     try:
-        fit = fit_valve_network(data, seed=args.seed, restarts=args.restarts)
+        fit = fit_valve_network(
+            data, seed=args.seed, restarts=args.restarts, progress=lambda k: bar.update(1)
+        )
     except ValueError as exc:
         raise DataError(f"{args.data}: {exc}") from None
-    out = Path(args.out) if args.out else _network_file_of(args.rig)
+    finally:
+        bar.close()
     write_valve_network(
         out,
         fit.weights,
@@ -445,6 +530,10 @@ def cmd_fit_valve(args: argparse.Namespace) -> int:
         q_a, q_b = (v * 60e3 for v in values)
         print(f"{label:<10} RMS  Q_A {q_a:.4g} l/min  Q_B {q_b:.4g} l/min")
     print(f"wrote {out}")
+    if out.resolve() != rig_file.resolve():
+        print(
+            f"the rig reads {rig_file}: use --into-rig to replace it, or point its nn_weights at {out}"
+        )
     return 0
 
 
@@ -457,6 +546,10 @@ def cmd_calibrate(args: argparse.Namespace) -> int:
     from fuzzyservo.io.measured import read_measured
     from fuzzyservo.io.rigs import load_rig
 
+    out = _out_dir(args.out)
+    _out_file(args.json, "--json")
+    if args.max_effects < 0:
+        raise ConfigError(f"--max-effects must be >= 0, got {args.max_effects}")
     rig = load_rig(resolve(args.rig, "rigs", "rig"))
     controller = None
     if args.controller:
@@ -476,8 +569,6 @@ def cmd_calibrate(args: argparse.Namespace) -> int:
                 raise ConfigError(
                     f"--effects: unknown effect {e!r}; choose from {', '.join(LIBRARY)}"
                 )
-    if args.max_effects < 0:
-        raise ConfigError(f"--max-effects must be >= 0, got {args.max_effects}")
     replay = make_replay(rig, data, controller)
     candidates = [
         e for e in (effects or LIBRARY) if e in rig.plant.effects and e not in rig.effects
@@ -497,9 +588,7 @@ def cmd_calibrate(args: argparse.Namespace) -> int:
         )
     finally:
         bar.close()
-    out = (
-        Path(args.out) if args.out else Path("out") / f"calibrate_{rig.name}_{Path(args.data).stem}"
-    )
+    out = out or _out_dir(str(Path("out") / f"calibrate_{rig.name}_{Path(args.data).stem}"))
     paths, summary = write_outputs(outcome, replay, args.data, out)
     summary = json_ready(summary)  # as in summary.json: non-finite numbers are null
     print(f"effects added: {summary['decision']}")
@@ -527,6 +616,13 @@ def cmd_calibrate(args: argparse.Namespace) -> int:
 def cmd_bench(args: argparse.Namespace) -> int:
     from fuzzyservo import bench
 
+    _at_least_one(
+        runs=args.runs,
+        reference_runs=args.reference_runs,
+        study_trials=args.study_trials,
+        workers=args.workers,
+    )
+    _out_file(args.json, "--json")
     known = [bench.FUZZY_EVAL, *(c.name for c in bench.CASES), bench.STUDY, bench.CALIBRATE]
     wanted = args.case or known
     unknown = [c for c in wanted if c not in known]
@@ -589,26 +685,73 @@ def _duration(seconds: float) -> str:
     return f"{seconds:.3f}s"
 
 
+class _Lines:
+    """Progress as one plain line per step on stderr, for logs and CI (no terminal)."""
+
+    def __init__(self, total: int, desc: str):
+        import time
+
+        self.total, self.desc, self.postfix, self.n = total, desc, "", 0
+        self._clock, self._t0 = time.perf_counter, time.perf_counter()
+
+    def set_description(self, desc: str) -> None:
+        self.desc = desc
+
+    def set_postfix_str(self, text: str) -> None:
+        self.postfix = text
+
+    def update(self, k: int = 1) -> None:
+        self.n += k
+        done = f" {self.postfix}" if self.postfix else ""
+        print(
+            f"{self.desc}: {self.n}/{self.total}{done} ({self._clock() - self._t0:.0f} s)",
+            file=sys.stderr,
+            flush=True,
+        )
+
+    def close(self) -> None:
+        pass
+
+
 def _progress(total: int, desc: str):
+    """A tqdm bar on a terminal, plain progress lines otherwise."""
+    if not sys.stderr.isatty():
+        return _Lines(total, desc)
     from tqdm import tqdm
 
-    return tqdm(
-        total=total, desc=desc, unit="case", file=sys.stderr, disable=not sys.stderr.isatty()
-    )
+    return tqdm(total=total, desc=desc, unit="step", file=sys.stderr)
 
 
 # --------------------------------------------------------------------------- parser
+class _Parser(argparse.ArgumentParser):
+    """argparse with its errors on one line (what, and where to read the usage)."""
+
+    def error(self, message: str) -> NoReturn:
+        self.exit(EXIT_USAGE, f"{self.prog}: error: {message}; see {self.prog} --help\n")
+
+
+def _seconds(text: str) -> float:
+    """A ``--duration``: a finite number of seconds above zero."""
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a number of seconds") from None
+    if not (math.isfinite(value) and value > 0):
+        raise argparse.ArgumentTypeError(f"must be a positive number of seconds, got {text}")
+    return value
+
+
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(
+    parser = _Parser(
         prog="fuzzyservo",
         description="Design, simulate and tune controllers for electro-hydraulic servo systems.",
     )
-    sub = parser.add_subparsers(dest="command", metavar="COMMAND")
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=_Parser)
 
     def common(p: argparse.ArgumentParser) -> None:
         p.add_argument("--scenario", help="scenario of the rig file (default: its first)")
         p.add_argument(
-            "--duration", type=float, help="simulated time [s] (default: the scenario's)"
+            "--duration", type=_seconds, help="simulated time [s] (default: the scenario's)"
         )
         p.add_argument(
             "--out", default="out", help="folder for plots and CSV signals (default: out)"
@@ -767,7 +910,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument(
         "--out",
         metavar="FILE",
-        help="network JSON to write (default: the file the rig names, next to it)",
+        help="network JSON to write (default: out/<the file name the rig gives>)",
     )
     p.add_argument(
         "--rig",
@@ -778,6 +921,11 @@ def build_parser() -> argparse.ArgumentParser:
         "--seed", type=int, default=0, help="seed of the split and restarts (default: 0)"
     )
     p.add_argument("--restarts", type=int, default=6, help="random restarts (default: 6)")
+    p.add_argument(
+        "--into-rig",
+        action="store_true",
+        help="replace the network file the rig names (default: write out/<that file name>)",
+    )
     p.set_defaults(func=cmd_fit_valve)
     return parser
 

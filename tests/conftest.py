@@ -1,25 +1,9 @@
-"""Shared fixtures: the project's own rig and controller files."""
+"""Shared fixtures: the project's own rig and controller files (see ``support.py``)."""
 
 from __future__ import annotations
 
-from pathlib import Path
-
 import pytest
-
-from fuzzyservo.io.controllers import load_controller
-from fuzzyservo.io.rigs import load_rig
-
-ROOT = Path(__file__).resolve().parent.parent
-
-
-def rig_named(name: str):
-    """The shipped rig ``rigs/<name>.yaml``."""
-    return load_rig(ROOT / "rigs" / f"{name}.yaml")
-
-
-def controller_named(name: str):
-    """The shipped controller ``studies/controllers/<name>.yaml``."""
-    return load_controller(ROOT / "studies" / "controllers" / f"{name}.yaml")
+from support import controller_named, rig_named
 
 
 @pytest.fixture(scope="session")

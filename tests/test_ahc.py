@@ -7,13 +7,13 @@ import math
 import numpy as np
 import pytest
 from scipy.optimize import fsolve
+from support import controller_named, rig_named
 
 from fuzzyservo.metrics import compensation_pct, heave_metrics, result_metrics
 from fuzzyservo.params import pack
 from fuzzyservo.plants import ahc_cylinder, ahc_motor
 from fuzzyservo.simulation import simulate
 from fuzzyservo.simulation.reference import simulate_reference
-from tests.conftest import controller_named, rig_named
 
 PRESSURES = ("steps_5mpa", "steps_10mpa", "steps_15mpa")
 

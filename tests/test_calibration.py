@@ -15,12 +15,12 @@ import json
 from pathlib import Path
 
 import pytest
+from support import controller_named, rig_named
 
 from fuzzyservo.calibration.synthetic import synthetic_run
 from fuzzyservo.cli import main
 from fuzzyservo.io.measured import write_measured
 from fuzzyservo.io.rigs import load_rig
-from tests.conftest import controller_named, rig_named
 
 # Seed 002 rig, P K=10, `pulses`: effect -> parameters (SI) and why they are realistic.
 DINCA_EFFECTS = {

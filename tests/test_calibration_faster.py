@@ -11,11 +11,11 @@ import json
 from pathlib import Path
 
 import pytest
+from support import DATA, SHARED
 
 from fuzzyservo.cli import main
-from tests.conftest import ROOT
 
-FASTER = ROOT.parent / "shared" / "data" / "faster" / "faster.csv"
+FASTER = SHARED / "data" / "faster" / "faster.csv"
 needs_faster = pytest.mark.skipif(
     not FASTER.is_file(), reason=f"real FASTER data not found at {FASTER} (../shared is absent)"
 )
@@ -26,7 +26,7 @@ def test_faster_calibration_is_the_whole_command(tmp_path: Path, monkeypatch) ->
     monkeypatch.chdir(tmp_path)  # the default output folder goes here
     out = tmp_path / "out.json"
     code = main(
-        ["calibrate", str(ROOT / "rigs" / "faster_beam.yaml"), str(FASTER), "--json", str(out)]
+        ["calibrate", str(DATA / "rigs" / "faster_beam.yaml"), str(FASTER), "--json", str(out)]
     )
     assert code == 0
     summary = json.loads(out.read_text())

@@ -13,7 +13,7 @@ from fuzzyservo.metrics import METRIC_NAMES
 def test_compare_writes_table_plots_json(tmp_path, capsys):
     out = tmp_path / "out"
     code = main(
-        ["compare", "rigs/dinca_cylinder.yaml", "studies/controllers/p_k10.yaml", "--scenario", "pulses",
+        ["compare", "dinca_cylinder", "p_k10", "--scenario", "pulses",
          "--out", str(out), "--json", str(tmp_path / "out.json")]
     )  # fmt: skip
     assert code == 0

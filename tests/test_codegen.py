@@ -14,14 +14,13 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from support import controller_named
 
 from fuzzyservo.codegen import identifier, lut_error, write_c
 from fuzzyservo.controllers.fuzzy.controller import FuzzyController
 from fuzzyservo.controllers.fuzzy.evaluate import evaluate_inputs
-from fuzzyservo.io.controllers import load_controller
 from fuzzyservo.io.fis import controller_from_fis, parse_fis
 
-ROOT = Path(__file__).resolve().parent.parent
 DATA = Path(__file__).resolve().parent / "data"
 CC = shutil.which("cc") or shutil.which("gcc")
 pytestmark = pytest.mark.skipif(CC is None, reason="no C compiler (cc/gcc) on PATH")
@@ -69,7 +68,7 @@ MF3='pos':'linear',[1.5 0.2 0.2]
 
 
 def shipped(name: str) -> FuzzyController:
-    return load_controller(ROOT / "studies" / "controllers" / f"{name}.yaml")
+    return controller_named(name)
 
 
 def tipper(semantics: str, **methods: str) -> FuzzyController:

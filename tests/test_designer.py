@@ -10,10 +10,10 @@ import os
 import socket
 import time
 import urllib.request
-from pathlib import Path
 
 import numpy as np
 import pytest
+from support import DATA
 
 from fuzzyservo.designer.files import Folders
 from fuzzyservo.designer.session import Session, metrics_rows
@@ -21,14 +21,13 @@ from fuzzyservo.errors import ConfigError
 from fuzzyservo.io.controllers import load_controller
 from fuzzyservo.io.fuzzy import fuzzy_controller_data
 
-ROOT = Path(__file__).resolve().parent.parent
-RIG = ROOT / "rigs" / "dinca_cylinder.yaml"
-FLC2 = ROOT / "studies" / "controllers" / "flc2_reshaped.yaml"
+RIG = DATA / "rigs" / "dinca_cylinder.yaml"
+FLC2 = DATA / "studies" / "controllers" / "flc2_reshaped.yaml"
 
 
 @pytest.fixture
 def folders(tmp_path) -> Folders:
-    return Folders.make(ROOT, tmp_path / "out")
+    return Folders.make(DATA, tmp_path / "out")
 
 
 @pytest.fixture
@@ -50,7 +49,7 @@ def test_folders_refuse_paths_outside_the_project_and_output(folders, tmp_path):
     # writing: the output folder only (not the project)
     assert folders.resolve("a/b.yaml", write=True) == folders.output / "a" / "b.yaml"
     with pytest.raises(ConfigError, match="outside"):
-        folders.resolve(str(ROOT / "studies" / "x.yaml"), write=True)
+        folders.resolve(str(DATA / "studies" / "x.yaml"), write=True)
     with pytest.raises(ConfigError, match="ends in"):
         folders.controller_path("rigs/dinca_cylinder.json")
 
@@ -139,8 +138,8 @@ def test_upload_and_two_input_controllers(session):
     assert session.controller.name == "flc2_reshaped"
     with pytest.raises(ConfigError, match="ends in"):
         session.open_upload("x.txt", b"")
-    pd_file = ROOT / "studies" / "controllers" / "fpi_ehs160.yaml"
-    session.set_rig(ROOT / "rigs" / "ehs160_motor.yaml")
+    pd_file = DATA / "studies" / "controllers" / "fpi_ehs160.yaml"
+    session.set_rig(DATA / "rigs" / "ehs160_motor.yaml")
     session.open_file(str(pd_file))
     assert session.roles() == ["input", "rate", "output"]
     e, de, surface = session.curve()
@@ -152,7 +151,7 @@ def test_upload_and_two_input_controllers(session):
 def test_controller_data_round_trip_for_a_fis_style_rule_base(tmp_path):
     from fuzzyservo.io.controllers import controller_from_data
 
-    original = load_controller(ROOT / "studies" / "controllers" / "fpi_ehs160.yaml")
+    original = load_controller(DATA / "studies" / "controllers" / "fpi_ehs160.yaml")
     data = fuzzy_controller_data(original)
     data["rules"][0] = data["rules"][0].replace(" and ", " or ") + " 0.5"
     rebuilt = controller_from_data(data, "edited")
@@ -168,13 +167,13 @@ def study_out(tmp_path_factory):
     from fuzzyservo.tuning.runner import run_study
 
     out = tmp_path_factory.mktemp("designer_study")
-    spec = load_study(ROOT / "studies" / "dinca_flc.yaml")
+    spec = load_study(DATA / "studies" / "dinca_flc.yaml")
     run_study(spec, out / "dinca_flc", trials=6, progress=False)
     return out
 
 
 def test_a_study_storage_lists_its_best_trials_to_compare_and_edit(study_out):
-    session = Session.open(Folders.make(ROOT, study_out), RIG, FLC2)
+    session = Session.open(Folders.make(DATA, study_out), RIG, FLC2)
     url = f"sqlite:///{study_out / 'dinca_flc' / 'dinca_flc.db'}"
     view = session.open_study("dinca_flc", url)
     assert view.complete == 6 and len(view.trials) == 6

@@ -35,6 +35,8 @@ ARGS = [
     "--no-first-run",
 ]
 ROOT = Path(__file__).resolve().parent.parent
+from support import DATA  # noqa: E402
+
 SHOTS = Path(os.environ.get("FUZZYSERVO_SCREENSHOTS", ROOT / "out" / "designer_test"))
 CHANGES = 20
 
@@ -246,7 +248,7 @@ def test_open_a_study_storage_and_compare_its_best_trials(page, server):
     from fuzzyservo.tuning.runner import run_study
 
     _, out = server
-    spec = load_study(ROOT / "studies" / "dinca_flc.yaml")
+    spec = load_study(DATA / "studies" / "dinca_flc.yaml")
     run_study(spec, out / "dinca_flc", trials=6, progress=False)
     storage = page.locator(".fs-storage input")
     storage.fill(f"sqlite:///{out / 'dinca_flc' / 'dinca_flc.db'}")

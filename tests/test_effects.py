@@ -8,6 +8,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from support import DATA, controller_named, rig_named
 
 from fuzzyservo.components import effects as fx
 from fuzzyservo.components.orifice import signed_sqrt_flow
@@ -21,7 +22,6 @@ from fuzzyservo.rig import Scenario
 from fuzzyservo.signals import Sampled, Steps
 from fuzzyservo.simulation import simulate
 from fuzzyservo.simulation.reference import simulate_reference
-from tests.conftest import ROOT, controller_named, rig_named
 
 ISSUE_NAMES = (
     "coulomb_friction", "stribeck_friction", "line_resistance", "internal_leakage",
@@ -139,7 +139,7 @@ def test_lower_bulk_modulus_slows_the_pressure_build_up() -> None:
 
 def _rig_with(tmp_path: Path, base: str, extra: str) -> Path:
     path = tmp_path / f"{base}.yaml"
-    path.write_text((ROOT / "rigs" / f"{base}.yaml").read_text() + "\n" + extra)
+    path.write_text((DATA / "rigs" / f"{base}.yaml").read_text() + "\n" + extra)
     return path
 
 
@@ -169,7 +169,7 @@ def test_rig_file_declares_effects_and_unknowns(tmp_path: Path) -> None:
         ("dinca_cylinder", "effects:\n  valve_lag: {}\n", "effects.valve_lag", "time_constant"),
         ("dinca_cylinder", "effects:\n  valve_lag:\n    time_constant: {value: 30, unit: ms, fit: [0, 20]}\n", "effects.valve_lag.time_constant.fit", "outside"),
         ("dinca_cylinder", "effects:\n  valve_lag:\n    time_constant: {value: 3, unit: kg}\n", "effects.valve_lag.time_constant.unit", "unit"),
-        ("dinca_cylinder", "measured:\n  sample_period: {value: -1, unit: s}\n", "measured.sample_period", "> 0"),
+        ("dinca_cylinder", "measured:\n  sample_period: {value: -1, unit: s}\n", "measured.sample_period", "must be at least"),
     ],
 )  # fmt: skip
 def test_bad_effect_declarations_fail_with_one_line(

@@ -7,6 +7,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from support import DATA
 
 from fuzzyservo.cli import main
 from fuzzyservo.controllers.fuzzy.controller import FuzzyController
@@ -17,13 +18,12 @@ from fuzzyservo.io.fis import controller_from_fis, fis_text, parse_fis, read_fis
 from fuzzyservo.io.rigs import load_rig
 from fuzzyservo.simulation import simulate
 
-ROOT = Path(__file__).resolve().parent.parent
 TIPPER = Path(__file__).resolve().parent / "data" / "tipper.fis"
 SHIPPED = ["flc1_translated", "flc2_reshaped"]
 
 
 def shipped(name: str) -> FuzzyController:
-    return load_controller(ROOT / "studies" / "controllers" / f"{name}.yaml")
+    return load_controller(DATA / "studies" / "controllers" / f"{name}.yaml")
 
 
 # --------------------------------------------------------------------------- round trip
@@ -157,7 +157,7 @@ def test_fis_controller_simulates_on_the_rig(tmp_path):
     path = write_fis(shipped("flc1_translated").system, tmp_path / "flc1.fis")
     controller = load_controller(path)
     result = simulate(
-        load_rig(ROOT / "rigs" / "dinca_cylinder.yaml"), controller, "steps", duration_s=4
+        load_rig(DATA / "rigs" / "dinca_cylinder.yaml"), controller, "steps", duration_s=4
     )
     assert result.status == "ok", result.message
 

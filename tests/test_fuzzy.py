@@ -8,6 +8,7 @@ import tracemalloc
 
 import numpy as np
 import pytest
+from support import DATA
 
 from fuzzyservo.bench import random_inputs
 from fuzzyservo.controllers.fuzzy import (
@@ -21,11 +22,10 @@ from fuzzyservo.controllers.fuzzy import (
 from fuzzyservo.controllers.fuzzy.design import table_rules, warp
 from fuzzyservo.controllers.fuzzy.skfuzzy_adapter import SkfuzzyReference
 from fuzzyservo.io.controllers import load_controller
-from tests.conftest import ROOT
 
 
 def _flc(name: str) -> FuzzyController:
-    return load_controller(ROOT / "studies" / "controllers" / f"{name}.yaml")
+    return load_controller(DATA / "studies" / "controllers" / f"{name}.yaml")
 
 
 def _pd(points: int = 101) -> FuzzyController:

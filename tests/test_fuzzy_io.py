@@ -6,13 +6,13 @@ import copy
 
 import pytest
 import yaml
+from support import DATA
 
 from fuzzyservo.cli import main
 from fuzzyservo.errors import ConfigError
 from fuzzyservo.io.controllers import load_controller
-from tests.conftest import ROOT
 
-FLC2 = yaml.safe_load((ROOT / "studies" / "controllers" / "flc2_reshaped.yaml").read_text())
+FLC2 = yaml.safe_load((DATA / "studies" / "controllers" / "flc2_reshaped.yaml").read_text())
 EXPLICIT_TERMS = {
     "NB": ["trapmf", [-5, -5, -2, -1]],
     "Z": ["trimf", [-1.5, 0, 1.5]],

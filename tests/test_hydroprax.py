@@ -7,6 +7,7 @@ import json
 
 import numpy as np
 import pytest
+from support import DATA, controller_named, rig_named
 
 from fuzzyservo.cli import main
 from fuzzyservo.components.nn_fit import predict
@@ -18,7 +19,6 @@ from fuzzyservo.params import pack
 from fuzzyservo.plants import hydroprax
 from fuzzyservo.simulation import simulate
 from fuzzyservo.simulation.reference import simulate_reference
-from tests.conftest import ROOT, controller_named, rig_named
 
 SIG = {name: i for i, name in enumerate(hydroprax.SIGNALS)}
 
@@ -153,7 +153,7 @@ def test_network_tracks_the_polynomial_valve(runs, rig):
     for t_step in (3.0, 5.5, 8.0, 10.5):
         rest |= (a.t > t_step - 0.5) & (a.t < t_step)
     assert np.max(np.abs(a.output[rest] - b.output[rest])) < 0.5e-3
-    net = read_valve_network(ROOT / "rigs" / "hydroprax_nn_valve.json")
+    net = read_valve_network(DATA / "rigs" / "hydroprax_nn_valve.json")
     assert max(net.validation_rms_m3_s) < 1.0e-3 / 60  # below 1 l/min
 
 
@@ -244,7 +244,7 @@ def test_missing_valve_data_and_too_few_rows(tmp_path, capsys, rig):
 
 
 def test_bad_network_file_in_rig(tmp_path):
-    text = (ROOT / "rigs" / "hydroprax_pdcv.yaml").read_text()
+    text = (DATA / "rigs" / "hydroprax_pdcv.yaml").read_text()
     (tmp_path / "hydroprax_nn_valve.json").write_text('{"format": "something else"}')
     (tmp_path / "rig.yaml").write_text(text)
     with pytest.raises(ConfigError, match=r"plant\.parameters\.nn_weights\.file: .*format"):
@@ -253,7 +253,7 @@ def test_bad_network_file_in_rig(tmp_path):
         text.replace('value: 1\n      unit: "1"', 'value: 4\n      unit: "1"')
     )
     (tmp_path / "hydroprax_nn_valve.json").write_text(
-        (ROOT / "rigs" / "hydroprax_nn_valve.json").read_text()
+        (DATA / "rigs" / "hydroprax_nn_valve.json").read_text()
     )
     with pytest.raises(ConfigError, match="valve_model"):
         load_rig(tmp_path / "rig.yaml")

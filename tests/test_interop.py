@@ -8,6 +8,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from support import DATA, SHARED
 
 from fuzzyservo.cli import main
 from fuzzyservo.controllers.fuzzy.evaluate import evaluate_inputs
@@ -18,9 +19,8 @@ from fuzzyservo.io.controllers import load_controller
 from fuzzyservo.io.fcl import fcl_text, parse_fcl
 from fuzzyservo.io.fis import fis_text, parse_fis, read_fis
 
-ROOT = Path(__file__).resolve().parent.parent
 TIPPER = Path(__file__).resolve().parent / "data" / "tipper.fis"
-CONFORMANCE = ROOT.parent / "shared" / "conformance" / "fuzzylite" / "examples"
+CONFORMANCE = SHARED / "conformance" / "fuzzylite" / "examples"
 
 
 def matlab(system: FuzzySystem, **changes) -> FuzzySystem:
@@ -126,7 +126,7 @@ def test_shapes_match_matlab_definitions():
 
 # --------------------------------------------------------------------------- round trips
 def systems() -> list[FuzzySystem]:
-    found = [read_fis(TIPPER), load_controller(ROOT / "studies/controllers/fpi_ehs160.yaml").system]
+    found = [read_fis(TIPPER), load_controller(DATA / "studies/controllers/fpi_ehs160.yaml").system]
     if CONFORMANCE.is_dir():
         for path in sorted(CONFORMANCE.rglob("*.fis")):
             try:
@@ -295,7 +295,7 @@ def test_export_writes_every_format(tmp_path, capsys):
     assert "largest error" in printed and "of the output range" in printed
     for name in ("t.fis", "t.fcl", "t.st", "c/flc_dinca_tuned.c", "c/flc_dinca_tuned.h"):
         assert (tmp_path / name).stat().st_size > 100
-    tuned = load_controller(ROOT / "studies/controllers/flc_dinca_tuned.yaml")
+    tuned = load_controller(DATA / "studies/controllers/flc_dinca_tuned.yaml")
     assert read_fis(tmp_path / "t.fis") == tuned.system
     assert main(["export", "flc_dinca_tuned"]) == 2
     assert "at least one of" in capsys.readouterr().err

@@ -16,19 +16,19 @@ from typing import Any
 import numpy as np
 import pytest
 import yaml
+from support import DATA
 
 from fuzzyservo.cli import main
 from fuzzyservo.errors import ConfigError
 from fuzzyservo.io.controllers import load_controller
 from fuzzyservo.io.rigs import load_rig
 
-ROOT = Path(__file__).resolve().parent.parent
-RIG_FILES = sorted((ROOT / "rigs").glob("*.yaml"))
+RIG_FILES = sorted((DATA / "rigs").glob("*.yaml"))
 QUANTITY_KEYS = {"value", "unit", "source"}
 
 
 def shipped(folder: str, name: str) -> dict[str, Any]:
-    return yaml.safe_load((ROOT / folder / f"{name}.yaml").read_text(encoding="utf-8"))
+    return yaml.safe_load((DATA / folder / f"{name}.yaml").read_text(encoding="utf-8"))
 
 
 def write(tmp_path: Path, data: Any, name: str = "bad.yaml") -> Path:

@@ -12,13 +12,14 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from support import SHARED
 
 from fuzzyservo.errors import DataError
 from fuzzyservo.io.measured import Measured, read_measured
 
 N = 50
 T = 0.01
-FASTER = Path(__file__).resolve().parents[2] / "shared" / "data" / "faster" / "faster.csv"
+FASTER = SHARED / "data" / "faster" / "faster.csv"
 FASTER_MAPPING = {"t": "t_s", "r": "ref_1", "u": "u_V", "y": "f_1", "d": "d_mm"}
 
 
@@ -106,7 +107,7 @@ def test_unknown_unit(tmp_path):
 def test_header_without_unit(tmp_path):
     names, cols = good_columns()
     path = write_csv(tmp_path, [*names, "pressure"], [*cols, [1] * N])
-    expect_error(path, "'pressure'", "no unit", "mapping=")
+    expect_error(path, "'pressure'", "no unit", "measured: columns")
 
 
 def test_time_in_wrong_unit(tmp_path):
@@ -122,7 +123,7 @@ def test_missing_required_signal(tmp_path):
 
 def test_missing_time(tmp_path):
     path = write_csv(tmp_path, ["u_V", "y_m"], [[1] * N, [2] * N])
-    expect_error(path, "no time column", "sample_period_s")
+    expect_error(path, "no time column", "measured: sample_period")
     assert len(read_measured(path, sample_period_s=T)) == N
 
 
@@ -139,7 +140,7 @@ def test_bad_time(tmp_path, t_values, hints):
     names, cols = good_columns()
     path = write_csv(tmp_path, names, [t_values, *cols[1:]])
     message = expect_error(path, "column 't_s'", *hints)
-    assert "resample=True" in message or "sort the rows" in message
+    assert "--resample" in message or "sort the rows" in message
 
 
 def test_nan_cell(tmp_path):
@@ -180,7 +181,7 @@ def test_missing_file_and_bad_mapping(tmp_path):
     expect_error(tmp_path / "absent.csv", "file not found")
     names, cols = good_columns()
     path = write_csv(tmp_path, names, cols)
-    expect_error(path, "mapping names column 'yy'", mapping={"yy": "y_m"})
+    expect_error(path, "columns names column 'yy'", mapping={"yy": "y_m"})
 
 
 # -- mapping, .mat, resampling, split ------------------------------------------------------
@@ -223,7 +224,7 @@ def test_resample_on_request(tmp_path):
     t = np.sort(np.concatenate([[0.0, 1.0], rng.uniform(0.0, 1.0, N - 2)]))
     t[5] = t[4]  # one repeated stamp
     path = write_csv(tmp_path, ["t_s", "u_V"], [list(t), list(2.0 * t + 1.0)])
-    expect_error(path, "column 't_s'", "resample=True")
+    expect_error(path, "column 't_s'", "--resample")
     data = read_measured(path, resample=True)
     assert len(data) == N
     np.testing.assert_allclose(np.diff(data.t), 1.0 / (N - 1), rtol=1e-9)
@@ -262,7 +263,7 @@ def test_faster_file():
     message = expect_error(
         FASTER, "column 't' (mapped to t_s)", "repeated time stamp", mapping=FASTER_MAPPING
     )
-    assert "sample_period_s" in message
+    assert "measured: sample_period" in message
     for kwargs in ({"sample_period_s": 0.0077531}, {"resample": True}):
         data = read_measured(FASTER, mapping=FASTER_MAPPING, require=("t", "u", "f"), **kwargs)
         assert len(data) == 21275

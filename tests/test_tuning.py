@@ -7,6 +7,7 @@ from pathlib import Path
 
 import pytest
 import yaml
+from support import DATA
 
 from fuzzyservo.errors import ConfigError
 from fuzzyservo.io.studies import load_study
@@ -14,9 +15,8 @@ from fuzzyservo.metrics import result_metrics
 from fuzzyservo.simulation import simulate
 from fuzzyservo.tuning.objective import set_path, split_path
 from fuzzyservo.tuning.runner import build_evaluator, run_study
-from tests.conftest import ROOT
 
-STUDIES = ROOT / "studies"
+STUDIES = DATA / "studies"
 
 
 @pytest.mark.parametrize("name", ["dinca_flc", "dinca_pareto", "ehs160_flc", "dinca_pi"])
@@ -32,7 +32,7 @@ def _bad_study(tmp_path: Path, **changes) -> Path:
             data.pop(key, None)
         else:
             data[key] = value
-    data["rig"] = str(ROOT / "rigs" / "dinca_cylinder.yaml")
+    data["rig"] = str(DATA / "rigs" / "dinca_cylinder.yaml")
     data["controller"] = str(STUDIES / "controllers" / "flc2_reshaped.yaml")
     data["baseline"] = str(STUDIES / "controllers" / "p_k10.yaml")
     path = tmp_path / "study.yaml"

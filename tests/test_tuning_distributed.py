@@ -19,9 +19,9 @@ from pathlib import Path
 
 import pytest
 import yaml
+from support import DATA
 
-ROOT = Path(__file__).resolve().parent.parent
-STUDY = ROOT / "studies" / "dinca_flc.yaml"
+STUDY = DATA / "studies" / "dinca_flc.yaml"
 TUNE = [sys.executable, "-m", "fuzzyservo", "tune"]
 URL_ENV = "FUZZYSERVO_TEST_POSTGRES_URL"
 RUN_TIMEOUT_S = 120
@@ -350,19 +350,9 @@ def test_resume_after_ctrl_c(tmp_path):
 def test_same_seed_one_worker_gives_same_best(tmp_path):
     study, _ = study_copy(tmp_path, "seed")
     trials = 15
-    if (ROOT / "fuzzyservo" / "tuning" / "report.py").is_file():
-        best = []
-        for folder in ("a", "b"):
-            out = tmp_path / folder
-            run_tune(study, out, trials)
-            best.append(best_params_of(out / "summary.json"))
-    else:  # the report writer is not there yet: compare the runner's outcome
-        from fuzzyservo.io.studies import load_study
-        from fuzzyservo.tuning.runner import run_study
-
-        spec = load_study(study)
-        best = [
-            run_study(spec, tmp_path / folder, trials=trials, progress=False).best_params
-            for folder in ("a", "b")
-        ]
+    best = []
+    for folder in ("a", "b"):
+        out = tmp_path / folder
+        run_tune(study, out, trials)
+        best.append(best_params_of(out / "summary.json"))
     assert best[0] == best[1]

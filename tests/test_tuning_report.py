@@ -14,13 +14,13 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from support import DATA
 
 from fuzzyservo.io.controllers import load_controller, write_controller_file
 from fuzzyservo.io.studies import load_study
 from fuzzyservo.tuning.report import write_outputs
 from fuzzyservo.tuning.runner import build_evaluator, run_study
 
-ROOT = Path(__file__).resolve().parent.parent
 SUMMARY_KEYS = {
     "study", "trials", "objective", "best", "baseline", "pareto", "importances", "storage",
     "wall_s", "sim_time_s", "sampler_time_s",
@@ -37,13 +37,13 @@ def _run(study: Path, out: Path, trials: int):
 @pytest.fixture(scope="module")
 def fuzzy_study(tmp_path_factory):
     out = tmp_path_factory.mktemp("dinca_flc")
-    return (*_run(ROOT / "studies" / "dinca_flc.yaml", out, trials=20), out)
+    return (*_run(DATA / "studies" / "dinca_flc.yaml", out, trials=20), out)
 
 
 @pytest.fixture(scope="module")
 def pareto_study(tmp_path_factory):
     folder = tmp_path_factory.mktemp("pareto")
-    template = ROOT / "studies" / "controllers" / "flc2_reshaped.yaml"
+    template = DATA / "studies" / "controllers" / "flc2_reshaped.yaml"
     study = folder / "pareto_small.yaml"
     study.write_text(
         f"""name: pareto_small
@@ -139,7 +139,7 @@ def test_non_fuzzy_template_writes_no_fuzzy_files(tmp_path):
     study = tmp_path / "p_gain.yaml"
     study.write_text(
         "name: p_gain\nrig: dinca_cylinder\nscenarios: [steps]\n"
-        f"controller: {(ROOT / 'studies' / 'controllers' / 'p_k10.yaml').as_posix()}\n"
+        f"controller: {(DATA / 'studies' / 'controllers' / 'p_k10.yaml').as_posix()}\n"
         "parameters:\n  gain: {low: 2, high: 20, log: true}\n"
         "objective: {metric: itae}\nsampler: random\nseed: 0\n",
         encoding="utf-8",

@@ -125,8 +125,11 @@ class Replay:
 
 def make_replay(rig: Rig, data: Measured, controller: Controller | None = None) -> Replay:
     """A replay of ``data`` on ``rig``: closed loop through ``controller``, else open loop."""
+    from fuzzyservo.calibration.plausibility import check_against_rig
+
     plant = rig.plant
     channels = _channels(rig, data)
+    check_against_rig(rig, data, channels)
     if not channels:
         raise DataError(
             f"{data.source}: no signal the model computes (the data has {sorted(data.signals)}; "

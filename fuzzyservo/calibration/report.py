@@ -334,7 +334,7 @@ def _report(
         f"![residuals after]({rel('residuals_after')})",
         "",
         "Residual of the model before calibration regressed on each effect's signature "
-        "(MODELLING.md table; share of residual variance explained):",
+        "(docs/modelling.md table; share of residual variance explained):",
         "",
         "| effect | R² |",
         "|---|---|",

@@ -2,7 +2,7 @@
 
 Pure functions of arrays. The definitions follow MATLAB's System Identification
 Toolbox: ``compare`` for the fit and ``resid`` for the correlation tests (biased
-estimators, 99 % band ``±2.58/√N``); MODELLING.md, "Measured data: what the residual
+estimators, 99 % band ``±2.58/√N``); docs/modelling.md, "Measured data: what the residual
 tells you", lists which missing effect leaves which signature in the residual.
 """
 
@@ -47,7 +47,7 @@ def fit_percent(y: np.ndarray, yhat: np.ndarray) -> float:
     """Normalised root-mean-square fit of ``yhat`` to ``y`` in percent.
 
     ``fit = 100·(1 − ‖y − ŷ‖ / ‖y − mean(y)‖)`` (MATLAB ``compare``, NRMSE fit;
-    MODELLING.md). 100 is a perfect fit, 0 is no better than the mean of ``y``, and
+    docs/modelling.md). 100 is a perfect fit, 0 is no better than the mean of ``y``, and
     the value is unbounded below. A model output with any non-finite sample (a
     diverged replay) scores ``-inf``; a constant ``y`` gives NaN (nothing to explain).
     """
@@ -172,7 +172,7 @@ def cross_correlation(
 def confidence_band(n: int, z: float = 2.58) -> float:
     """Half-width ``z/√n`` of the band a white residual's correlations stay inside.
 
-    With ``z = 2.58`` this is the 99 % band of MATLAB ``resid`` (MODELLING.md): for a
+    With ``z = 2.58`` this is the 99 % band of MATLAB ``resid`` (docs/modelling.md): for a
     white sequence of ``n`` samples each normalised correlation at lag ≠ 0 is
     approximately normal with standard deviation ``1/√n``.
     """
@@ -234,7 +234,7 @@ def signature_regression(
     own standard deviation, so channels weigh equally) is fitted by least squares as
     ``a·x + b``; the result is ``R² = 1 − Σ_c SSres_c / Σ_c SStot_c`` in ``[0, 1]``.
     A high value says the residual carries that regressor's signature, i.e. the
-    matching missing effect of MODELLING.md's table (``tanh(v/vc)`` for Coulomb
+    matching missing effect of docs/modelling.md's table (``tanh(v/vc)`` for Coulomb
     friction, ``u(t−k)`` for a delay …).
 
     Only rows where the channel's residual and the regressor are both finite are
@@ -285,7 +285,7 @@ def signature_regression(
 def lagged(u: np.ndarray, k: int) -> np.ndarray:
     """``u(t − k)``: ``u`` delayed by ``k ≥ 0`` samples, the first ``k`` held at ``u(0)``.
 
-    The regressor for a missing transport delay (MODELLING.md). A lead (``k < 0``)
+    The regressor for a missing transport delay (docs/modelling.md). A lead (``k < 0``)
     is not causal and is refused.
     """
     u = _as_1d("u", u)
@@ -304,7 +304,7 @@ def derivative(y: np.ndarray, dt: float) -> np.ndarray:
     """``dy/dt`` by central differences (one-sided at the ends), ``numpy.gradient``.
 
     In units of ``y`` per second for ``dt`` in seconds; the regressor for valve lag
-    (``u̇``) and for a wrong bulk modulus (``ṗ``) in MODELLING.md.
+    (``u̇``) and for a wrong bulk modulus (``ṗ``) in docs/modelling.md.
     """
     y = _as_1d("y", y)
     if not dt > 0.0:

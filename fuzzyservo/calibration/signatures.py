@@ -1,5 +1,5 @@
 """What each missing effect's residual looks like: one regressor per effect, built from
-the nominal model's own signals (MODELLING.md "Measured data: what the residual tells you").
+the nominal model's own signals (docs/modelling.md "Measured data: what the residual tells you").
 
 The regression of the residual on these is a diagnostic shown in the report next to the
 candidate fits; the decision itself rests on the fits.

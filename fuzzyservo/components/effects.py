@@ -14,7 +14,7 @@ zero value switches an effect off. Two stages:
   internal leakage, effective bulk modulus, supply droop.
 
 Formulations (SI units; "force" is N for a cylinder and N·m for a motor, "velocity"
-m/s or rad/s, "input" the plant input unit, A or V). Sources: MODELLING.md tables
+m/s or rad/s, "input" the plant input unit, A or V). Sources: docs/modelling.md tables
 "what the residual tells you" and "typical ranges"; seed 002 §5 (dry friction and
 line resistance neglected), seed 003 §2 (leakage), seed 000 Table 2.
 
@@ -136,7 +136,7 @@ def bulk_modulus(p: Any, declared: float) -> float:
 def friction_force(v: float, p: Any) -> float:
     """Coulomb plus Stribeck friction [N or N·m] opposing velocity ``v`` [m/s or rad/s].
 
-    ``F = (Fc + Fc_s + Fst·exp(−(v/vs)²))·tanh(v/vc)`` (MODELLING.md "Friction", smooth
+    ``F = (Fc + Fc_s + Fst·exp(−(v/vs)²))·tanh(v/vc)`` (docs/modelling.md "Friction", smooth
     form; Armstrong-Hélouvry's Stribeck curve without its viscous part, which every
     plant already has). Zero when both friction effects are off.
     """
@@ -158,7 +158,7 @@ def friction_force(v: float, p: Any) -> float:
 @njit(cache=True, inline="always")
 def deadband(i: float, null: float, width: float) -> float:
     """Spool overlap: ``i0 + sign(Δi)·max(|Δi| − w, 0)`` with Δi = i − i0 (no flow change
-    for |Δi| ≤ w; MODELLING.md "dead band / overlap")."""
+    for |Δi| ≤ w; docs/modelling.md "dead band / overlap")."""
     if width <= 0.0:
         return i
     d = i - null
@@ -189,7 +189,7 @@ def port_pressure(
     """Pressure [Pa] of a valve port joined to a chamber by a laminar line (``line_resistance``).
 
     Solves the port's flow balance ``c_in·√(p_in − x) − c_out·√(x − p_out) = (x − p_c)/R``
-    (turbulent valve slots in and out, laminar line Δp = R·q; MODELLING.md "line loss")
+    (turbulent valve slots in and out, laminar line Δp = R·q; docs/modelling.md "line loss")
     by Newton's method inside a bracket; the left side falls and the right side rises
     with x, so the root is unique and lies between the smallest and largest pressure.
     """
@@ -320,7 +320,7 @@ LIBRARY: dict[str, Effect] = {
                 _smoothing(),
             ),
             "F = Fc·tanh(v/vc) opposing the motion [N or N·m]; vc the plant's smoothing velocity",
-            "MODELLING.md Friction (smooth form); seed 002 §5 names dry friction as neglected",
+            "docs/modelling.md Friction (smooth form); seed 002 §5 names dry friction as neglected",
         ),
         Effect(
             "stribeck_friction",
@@ -341,7 +341,7 @@ LIBRARY: dict[str, Effect] = {
                 _smoothing(),
             ),
             "F = (Fc + Fst·exp(−(v/vs)²))·tanh(v/vc): breakaway Fc + Fst at rest, Fc in motion",
-            "MODELLING.md Friction and typical ranges (Fs/Fc 1.1-1.5, vs 1-10 mm/s)",
+            "docs/modelling.md Friction and typical ranges (Fs/Fc 1.1-1.5, vs 1-10 mm/s)",
         ),
         Effect(
             "line_resistance",
@@ -354,7 +354,7 @@ LIBRARY: dict[str, Effect] = {
             ),
             "laminar line between each valve port and its chamber: Δp = R·q [Pa], "
             "R = 128·μ·L/(π·d⁴)",
-            "MODELLING.md line loss; seed 002 §5 names the valve-cylinder line as neglected",
+            "docs/modelling.md line loss; seed 002 §5 names the valve-cylinder line as neglected",
         ),
         Effect(
             "internal_leakage",
@@ -366,7 +366,7 @@ LIBRARY: dict[str, Effect] = {
                 ),
             ),
             "q = Kl·(pA − pB) across the piston or motor [m³/s]",
-            "MODELLING.md typical ranges (1e-14..1e-12 cylinders, 1e-12..1e-11 motors); "
+            "docs/modelling.md typical ranges (1e-14..1e-12 cylinders, 1e-12..1e-11 motors); "
             "seed 003 §2, seed 001 eq. 1-9",
         ),
         Effect(
@@ -378,7 +378,7 @@ LIBRARY: dict[str, Effect] = {
                 ),
             ),
             "i_eff = i0 + sign(Δi)·max(|Δi| − w, 0) around the valve null i0",
-            "MODELLING.md dead band / overlap",
+            "docs/modelling.md dead band / overlap",
         ),
         Effect(
             "valve_bias",
@@ -390,14 +390,14 @@ LIBRARY: dict[str, Effect] = {
                 ),
             ),
             "i_eff = i + b: a null bias beyond the declared one [A or V]",
-            "MODELLING.md null bias (≤ 2-3 % of rated current)",
+            "docs/modelling.md null bias (≤ 2-3 % of rated current)",
         ),
         Effect(
             "valve_lag",
             "input",
             (EffectParam("time_constant", "valve_lag_s", "s", lambda s: (0.0, 0.02)),),
             "τ·di_s/dt = i − i_s: first-order spool dynamics [s]",
-            "MODELLING.md typical ranges (spool bandwidth 50-200 Hz: τ 0.8-3.2 ms); seed 000 eq. 8",
+            "docs/modelling.md typical ranges (spool bandwidth 50-200 Hz: τ 0.8-3.2 ms); seed 000 eq. 8",
         ),
         Effect(
             "transport_delay",
@@ -409,7 +409,7 @@ LIBRARY: dict[str, Effect] = {
                 ),
             ),
             "i_eff(t) = i(t − d): computation, bus and converter delay [s]",
-            "MODELLING.md transport delay (cross-correlation peak at lag > 0)",
+            "docs/modelling.md transport delay (cross-correlation peak at lag > 0)",
         ),
         Effect(
             "bulk_modulus",
@@ -421,7 +421,7 @@ LIBRARY: dict[str, Effect] = {
                 ),
             ),
             "E_eff replaces the oil's bulk modulus in every chamber [Pa]",
-            "MODELLING.md typical ranges (oil 1.4-1.8 GPa; hoses or air 0.2-0.7 GPa)",
+            "docs/modelling.md typical ranges (oil 1.4-1.8 GPa; hoses or air 0.2-0.7 GPa)",
         ),
         Effect(
             "supply_droop",
@@ -434,7 +434,7 @@ LIBRARY: dict[str, Effect] = {
             ),
             "q_supply = min(q_demand, Qp): a pump of limited flow behind the relief valve; "
             "the supply pressure sags when the valve asks for more",
-            "MODELLING.md supply droop; seed 003 eq. 1 (pump with relief)",
+            "docs/modelling.md supply droop; seed 003 eq. 1 (pump with relief)",
         ),
     )
 }  # fmt: skip

@@ -9,6 +9,7 @@ restart with the lowest validation error wins.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -67,12 +68,14 @@ def fit_valve_network(
     validation_fraction: float = 0.25,
     seed: int = 0,
     max_evaluations: int = 4000,
+    progress: Callable[[int], None] | None = None,
 ) -> NetworkFit:
     """Fit the 4-5-2 network to ``data`` rows (P_S, U_C, P_A, P_B, Q_A, Q_B), any consistent units.
 
     A seeded random split keeps ``validation_fraction`` of the rows out of training;
     each restart starts from random weights (seeded) and runs
     ``scipy.optimize.least_squares(method="lm")`` on the scaled output errors.
+    ``progress`` is called with the number of each finished restart.
     """
     data = np.asarray(data, dtype=np.float64)
     if data.ndim != 2 or data.shape[1] != NN_INPUTS + NN_OUTPUTS:
@@ -117,7 +120,9 @@ def fit_valve_network(
         return ((out - t_train) / out_scale).ravel()
 
     best, best_score = None, np.inf
-    for _ in range(restarts):
+    for k in range(restarts):
+        if k and progress is not None:
+            progress(k)
         w0 = rng.normal(0.0, 0.5, free)
         sol = least_squares(residual, w0, method="lm", max_nfev=max_evaluations)
         full = template.copy()
@@ -125,6 +130,8 @@ def fit_valve_network(
         score = float(np.sum(((predict(full, x_val) - t_val) / out_scale) ** 2))
         if np.isfinite(score) and score < best_score:
             best, best_score = full, score
+    if progress is not None:
+        progress(restarts)
     if best is None:
         raise ValueError("data: every restart diverged; check the data for outliers")
     return NetworkFit(

@@ -16,7 +16,7 @@ def signed_sqrt_flow(coeff: float, dp: float, p_lam: float) -> float:
 
     ``coeff`` K in m³/(s·sqrt(Pa)), ``dp`` Δp in Pa, ``p_lam`` in Pa. Equals
     ``K·sign(Δp)·sqrt(|Δp|)`` for ``|Δp| ≫ p_lam`` and is linear (laminar) below,
-    so ``dq/dΔp`` is bounded by ``K/sqrt(p_lam)``. Source: MODELLING.md "Orifice law
+    so ``dq/dΔp`` is bounded by ``K/sqrt(p_lam)``. Source: docs/modelling.md "Orifice law
     near Δp = 0" (Hopsan's signedSquareL, Simscape's orifice).
     """
     # two square roots are several times faster than a fractional power

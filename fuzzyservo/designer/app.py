@@ -454,8 +454,8 @@ class Designer:
 
     # ================================================================ sidebar
     def _rig_widgets(self):
-        rigs_dir = self.s.folders.project / "rigs"
-        rigs = sorted(p.stem for p in rigs_dir.glob("*.yaml")) if rigs_dir.is_dir() else []
+        folders = self.s.folders
+        rigs = folders.names("rigs")
         current = self.s.rig_path.stem
         self.rig_select = pn.widgets.Select(
             name="rig", options=sorted({*rigs, current}), value=current, width=170
@@ -465,8 +465,8 @@ class Designer:
         )
 
         def on_rig(ev) -> None:
-            path = rigs_dir / f"{ev.new}.yaml"
-            self.s.set_rig(path)
+            path = folders.find("rigs", ev.new)
+            self.s.set_rig(path if path is not None else self.s.rig_path)
             self.scenario_select.options = list(self.s.rig.scenarios)
             self.scenario_select.value = self.s.scenario
             self.refresh()
@@ -885,9 +885,9 @@ def run_server(
     ready=None,
 ):
     """Check the files once (a bad file fails here, before the server starts), then serve."""
-    from fuzzyservo.io.paths import project_root
+    from fuzzyservo.io.paths import data_root
 
-    folders = Folders.make(project_root(), out_dir)
+    folders = Folders.make(data_root(), out_dir, Path.cwd())
     Session.open(folders, rig, controller)  # raises ConfigError for a bad file
 
     def page():

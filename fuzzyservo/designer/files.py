@@ -1,4 +1,5 @@
-"""The folders the designer may read and write: the project and the output folder, nothing else.
+"""The folders the designer may read and write, nothing else: the shipped files (package
+data), the working folder (a user's own ``rigs/`` and ``studies/``) and the output folder.
 
 Every path the page names (open, save, a study's SQLite storage) goes through
 :meth:`Folders.resolve`, which resolves links and ``..`` first and refuses anything
@@ -17,28 +18,55 @@ CONTROLLER_SUFFIXES = (".yaml", ".yml", ".fis")
 
 @dataclass(frozen=True)
 class Folders:
-    """The project folder (rigs/, studies/) and the output folder the designer writes to."""
+    """Where the designer reads (``project``: the shipped ``rigs/`` and ``studies/``; ``work``:
+    the working folder with the user's own) and the output folder it writes to."""
 
     project: Path
     output: Path
+    work: Path | None = None
 
     @classmethod
-    def make(cls, project: Path, output: Path) -> Folders:
-        return cls(Path(project).resolve(), Path(output).resolve())
+    def make(cls, project: Path, output: Path, work: Path | None = None) -> Folders:
+        return cls(
+            Path(project).resolve(), Path(output).resolve(), Path(work).resolve() if work else None
+        )
 
     @property
-    def roots(self) -> tuple[Path, Path]:
-        return (self.project, self.output)
+    def sources(self) -> tuple[Path, ...]:
+        """The folders holding ``rigs/`` and ``studies/``, the user's first."""
+        return (self.project,) if self.work is None else (self.work, self.project)
+
+    @property
+    def roots(self) -> tuple[Path, ...]:
+        return (*self.sources, self.output)
+
+    def find(self, folder: str, name: str) -> Path | None:
+        """``<folder>/<name>.yaml`` in the first source that has it."""
+        for source in self.sources:
+            path = source / folder / f"{name}.yaml"
+            if path.is_file():
+                return path
+        return None
+
+    def names(self, folder: str) -> list[str]:
+        """The YAML files' names in ``<folder>/`` of every source."""
+        return sorted({p.stem for s in self.sources for p in (s / folder).glob("*.yaml")})
 
     def resolve(self, name: str, *, write: bool = False) -> Path:
         """``name`` (absolute, or relative: to the output folder when writing, else to the
-        project) as a resolved path inside an allowed folder; :class:`ConfigError` otherwise."""
+        first source that has it) as a resolved path inside an allowed folder;
+        :class:`ConfigError` otherwise."""
         text = str(name).strip()
         if not text:
             raise ConfigError("no file name given; type one, e.g. my_controller.yaml")
         given = Path(text).expanduser()
-        base = self.output if write else self.project
-        path = (given if given.is_absolute() else base / given).resolve()
+        if given.is_absolute():
+            path = given.resolve()
+        elif write:
+            path = (self.output / given).resolve()
+        else:
+            bases = [s for s in self.sources if (s / given).exists()] or [self.sources[-1]]
+            path = (bases[0] / given).resolve()
         allowed = (self.output,) if write else self.roots
         if not any(path.is_relative_to(root) for root in allowed):
             where = " or ".join(str(r) for r in allowed)
@@ -63,7 +91,8 @@ class Folders:
     def controller_files(self) -> list[str]:
         """Controller files the page offers: ``studies/controllers/`` and the output folder."""
         found = []
-        for folder in (self.project / "studies" / "controllers", self.output):
+        folders = [s / "studies" / "controllers" for s in self.sources]
+        for folder in (*folders, self.output):
             if folder.is_dir():
                 for p in sorted(folder.rglob("*")):
                     if p.suffix.lower() in CONTROLLER_SUFFIXES and p.is_file():
@@ -71,8 +100,9 @@ class Folders:
         return found
 
     def label(self, path: Path) -> str:
-        """``path`` relative to the project (or absolute when it is in the output folder only)."""
+        """``path`` relative to its source folder (absolute when it is in the output folder)."""
         path = Path(path).resolve()
-        if path.is_relative_to(self.project):
-            return str(path.relative_to(self.project))
+        for source in self.sources:
+            if path.is_relative_to(source) and not path.is_relative_to(self.output):
+                return str(path.relative_to(source))
         return str(path)

@@ -361,8 +361,7 @@ class Session:
 
     # ------------------------------------------------------------------ studies
     def study_files(self) -> list[str]:
-        folder = self.folders.project / "studies"
-        return sorted(p.stem for p in folder.glob("*.yaml")) if folder.is_dir() else []
+        return self.folders.names("studies")
 
     def default_storage(self, study: str) -> str:
         """Where ``fuzzyservo tune`` keeps the study: its ``storage``, else out/<name>/<name>.db."""
@@ -374,7 +373,9 @@ class Session:
     def _study_spec(self, study: str):
         from fuzzyservo.io.studies import load_study
 
-        path = self.folders.resolve(str(Path("studies") / f"{study}.yaml"))
+        path = self.folders.find("studies", study)
+        if path is None:
+            raise ConfigError(f"no study named {study!r}; known: {', '.join(self.study_files())}")
         return load_study(path)
 
     def open_study(self, study: str, url: str | None = None, top: int = TOP_TRIALS) -> StudyView:
@@ -474,8 +475,8 @@ def load_baselines(folders: Folders) -> dict[str, Any]:
 
     found = {}
     for name in BASELINES:
-        path = folders.project / "studies" / "controllers" / f"{name}.yaml"
-        if path.is_file():
+        path = folders.find("studies/controllers", name)
+        if path is not None:
             controller = load_controller(path)
             found[controller.name] = controller
     return found

@@ -41,7 +41,9 @@ def read_yaml(path: str | Path) -> dict[str, Any]:
             f"cannot read the file ({exc.strerror or exc}); check its permissions", file=str(path)
         ) from None
     try:
-        data = yaml.safe_load(text)
+        data = yaml.load(text, Loader=_StrictLoader)  # a SafeLoader subclass
+    except _DuplicateKey as exc:
+        raise ConfigError(str(exc), file=str(path), key=exc.key) from None
     except yaml.YAMLError as exc:
         mark = getattr(exc, "problem_mark", None)
         where = f"line {mark.line + 1}, column {mark.column + 1}: " if mark else ""
@@ -56,6 +58,34 @@ def read_yaml(path: str | Path) -> dict[str, Any]:
             file=str(path),
         )
     return data
+
+
+class _DuplicateKey(yaml.YAMLError):
+    def __init__(self, key: str, first: int, again: int):
+        self.key = key
+        super().__init__(
+            f"given twice (lines {first} and {again}), and YAML would keep only the last; "
+            "delete one of them"
+        )
+
+
+class _StrictLoader(yaml.SafeLoader):
+    """``yaml.SafeLoader`` that refuses a key given twice in one mapping (PyYAML keeps the last)."""
+
+    def construct_mapping(self, node: yaml.MappingNode, deep: bool = False) -> dict:
+        seen: dict[Any, int] = {}
+        for key_node, _ in node.value:
+            if key_node.tag == "tag:yaml.org,2002:merge":
+                continue
+            key = self.construct_object(key_node, deep=True)
+            line = key_node.start_mark.line + 1
+            try:
+                if key in seen:
+                    raise _DuplicateKey(str(key), seen[key], line)
+            except TypeError:  # an unhashable key: SafeLoader reports it itself
+                continue
+            seen[key] = line
+        return super().construct_mapping(node, deep=deep)
 
 
 def _describe(value: Any) -> str:
@@ -140,6 +170,16 @@ class Node:
             )
         return value
 
+    def name(self, key: str, default: str) -> str:
+        """Text that becomes part of output file names: no path, see :func:`name_problem`."""
+        from fuzzyservo.io.paths import name_problem
+
+        value = self.str(key, default=default)
+        problem = name_problem(value)
+        if problem:
+            self.fail(problem, key=key)
+        return value
+
     def number(self, key: str, default: float | None = None) -> float:
         if key not in self.data:
             if default is None:
@@ -214,8 +254,11 @@ class Node:
         """``value`` given in ``unit`` as a number in ``si_unit``; a wrong unit fails at ``key``."""
         self.unit(unit, key)
         try:
-            return to_si(value, unit, si_unit)
+            converted = to_si(value, unit, si_unit)
         except ValueError as exc:
             self.fail(_unit_fix(str(exc)), key=key)
         except ArithmeticError:
+            converted = math.inf
+        if not math.isfinite(converted):
             self.fail(f"{value!r} {unit} overflows in {si_unit}; give a smaller value", key=key)
+        return converted

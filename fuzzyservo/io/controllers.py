@@ -35,8 +35,12 @@ def load_controller(path: str | Path) -> Controller:
     file = str(path)
     if Path(file).suffix.lower() == ".fis":
         from fuzzyservo.io.fis import controller_from_fis
+        from fuzzyservo.io.paths import name_problem
 
-        return controller_from_fis(path)
+        controller = controller_from_fis(path)
+        if name_problem(controller.name):
+            raise ConfigError(name_problem(controller.name), file=file, key="[System] Name")
+        return controller
     return controller_from_data(read_yaml(path), file)
 
 
@@ -53,7 +57,7 @@ def controller_from_data(data: dict, file: str) -> Controller:
         if other:
             root.fail(f"is a key of kind {other[0]}, not {kind}; remove it or change kind", key=key)
     root.only((*_COMMON, *_KINDS[kind]))
-    name = root.str("name", default=Path(file).stem)
+    name = root.name("name", default=Path(file).stem)
     limits = {}
     if root.has("output_limits"):
         lo_hi = root.numbers("output_limits")

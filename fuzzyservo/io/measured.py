@@ -18,15 +18,17 @@ which is also the row a spreadsheet shows.
 from __future__ import annotations
 
 import csv
-import io
 import re
+from array import array
 from collections.abc import Callable, Iterable, Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
+from typing import NoReturn
 
 import numpy as np
 
 from fuzzyservo.errors import DataError
+from fuzzyservo.limits import period_problem
 from fuzzyservo.units import parse_unit, to_si
 
 __all__ = ["UNIT_SUFFIXES", "Measured", "read_measured", "write_measured"]
@@ -71,6 +73,7 @@ UNIT_SUFFIXES: dict[str, tuple[str, str]] = {
 _BY_LENGTH = sorted(UNIT_SUFFIXES, key=len, reverse=True)
 _SIGNAL = re.compile(r"[A-Za-z][A-Za-z0-9_]*\Z")
 _TIME_DIMS = parse_unit("s").dims
+_MAP = "under the rig file's measured: columns"
 
 
 @dataclass(frozen=True, eq=False)
@@ -81,6 +84,7 @@ class Measured:
     name (``y``, ``u``, ``p1`` ...) to an array of the same length as ``t``; ``units``
     gives the SI unit of each signal (``m``, ``Pa``, ``rad/s``, ``1`` ...);
     ``sample_period_s`` is the median of ``diff(t)``. Arrays are read-only.
+    ``columns`` names the file's column of each signal and of ``t`` (for messages).
     """
 
     t: np.ndarray
@@ -88,6 +92,7 @@ class Measured:
     units: dict[str, str]
     source: str
     sample_period_s: float
+    columns: dict[str, str] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
         t = np.array(self.t, dtype=np.float64)
@@ -127,6 +132,7 @@ class Measured:
             units=self.units,
             source=source,
             sample_period_s=float(np.median(np.diff(t))),
+            columns=self.columns,
         )
 
     def segment(self, t0_s: float, t1_s: float) -> Measured:
@@ -175,7 +181,7 @@ def _parse_name(file: str, kind: str, name: str, spec: str) -> _Column:
         if "_" not in spec.strip("_"):
             raise DataError(
                 f"{where}: the name says no unit; name it <signal>_<unit> (e.g. y_cm, u_V) "
-                f"or pass mapping={{{name!r}: 'y_cm'}} with its real signal and unit"
+                f"or map it {_MAP} (e.g. {name}: y_cm) with its real signal and unit"
             )
         head, unit = spec.split("_", 1)
         if not _SIGNAL.match(head):
@@ -202,7 +208,8 @@ def _columns(
     missing = [k for k in mapping if k not in names]
     if missing:
         raise DataError(
-            f"{file}: mapping names {kind} {missing[0]!r}, which the file does not have; "
+            f"{file}: the rig file's measured: columns names {kind} {missing[0]!r}, which the "
+            "file does not have; "
             f"use one of: {', '.join(names)}"
         )
     columns = []
@@ -229,12 +236,12 @@ def _check_required(
             continue
         if signal == "t":
             raise DataError(
-                f"{file}: no time {kind} (found {found}); add a t_s {kind}, map one with "
-                "mapping={'time': 't_s'}, or pass sample_period_s to build time as n*T"
+                f"{file}: no time {kind} (found {found}); add a t_s {kind}, map one {_MAP}, "
+                "or give measured: sample_period in the rig file to build time as n*T"
             )
         raise DataError(
             f"{file}: required signal {signal!r} missing (found {found}); add a "
-            f"{signal}_<unit> {kind} or map one with mapping={{'<name>': '{signal}_<unit>'}}"
+            f"{signal}_<unit> {kind} or map one {_MAP}"
         )
 
 
@@ -272,15 +279,16 @@ def _time_axis(
         i = int(repeated[0])
         raise DataError(
             f"{file}: {where}: repeated time stamp {t[i]:.6g} s at {row(i)} and {row(i + 1)} "
-            f"({repeated.size} repeated stamps); pass resample=True to average them and resample "
-            "onto a uniform grid, or sample_period_s=T to rebuild time as n*T"
+            f"({repeated.size} repeated stamps); pass --resample (or resample: true under the rig "
+            "file's measured:) to average them onto a uniform grid, or give measured: "
+            "sample_period to rebuild time as n*T"
         )
     if resample:
         stamps, inverse, counts = np.unique(t, return_inverse=True, return_counts=True)
         if stamps.size < 2:
             raise DataError(
                 f"{file}: {where}: every row has the time stamp {t[0]:.6g} s; "
-                "give a real time column or pass sample_period_s"
+                "give a real time column, or measured: sample_period in the rig file"
             )
         # Same number of points as rows: the mean row interval is the best estimate of the
         # true period when stamps are quantised (printed with too few digits).
@@ -298,7 +306,8 @@ def _time_axis(
             f"{file}: {where}: uneven sampling, dt from {dt.min():.6g} to {dt.max():.6g} s "
             f"(median {median:.6g} s, spread {100 * spread:.1f} % > {100 * UNEVEN_TOLERANCE:g} %); "
             f"worst gap {dt[i]:.6g} s between {row(i)} and {row(i + 1)} (t = {t[i]:.6g} s); "
-            "pass resample=True to resample onto a uniform grid by linear interpolation"
+            "pass --resample (or resample: true under the rig file's measured:) to resample "
+            "onto a uniform grid by linear interpolation"
         )
     return t, signals
 
@@ -325,6 +334,12 @@ def _build(
     for col in columns:
         expr, si = UNIT_SUFFIXES[col.suffix]
         values = col.values * to_si(1.0, expr, si)
+        if not np.isfinite(values).all():
+            big = float(col.values[~np.isfinite(values)][0])
+            raise DataError(
+                f"{file}: {col.label(kind)}: {big:g} {col.suffix} overflows in {si}; "
+                "check the values and the unit of the column"
+            )
         if col.signal == "t":
             time_col = (col, values)
             continue
@@ -334,7 +349,7 @@ def _build(
         t = np.arange(n) * sample_period_s
     else:
         if time_col is None:  # _check_required rules this out; keep the error one line anyway
-            raise DataError(f"{file}: no time {kind}; add a t_s {kind} or pass sample_period_s")
+            raise DataError(f"{file}: no time {kind}; add a t_s {kind}")
         col, t = time_col
         t, signals = _time_axis(file, col.label(kind), t, signals, row, resample)
     return Measured(
@@ -343,47 +358,78 @@ def _build(
         units=units,
         source=file,
         sample_period_s=float(np.median(np.diff(t))),
+        columns={c.signal: c.label(kind) for c in columns},
     )
 
 
 # -- CSV ---------------------------------------------------------------------------------
 
 
-def _read_csv_cells(p: Path, file: str) -> tuple[list[str], list[list[str]], list[int]]:
+def _read_csv(
+    p: Path,
+    file: str,
+    mapping: Mapping[str, str] | None,
+    require: Iterable[str],
+    has_period: bool,
+) -> tuple[list[_Column], np.ndarray]:
+    """Stream the CSV row by row into one float array per column (8 bytes a value, so a
+    file is never held as text); the header is checked before any row is read.
+    Returns the columns (with their values) and the file line number of each row."""
+    kind = "column"
     try:
-        text = p.read_text(encoding="utf-8-sig")
+        with p.open(encoding="utf-8-sig", newline="") as fh:
+            first = next((line for line in fh if line.strip()), "")
+            if not first:
+                raise DataError(f"{file}: the file is empty; give a header line and data rows")
+            delimiter = next((d for d in ",;\t" if d in first), ",")
+            fh.seek(0)
+            reader = csv.reader(fh, delimiter=delimiter)
+            header = next(
+                ([c.strip() for c in cells] for cells in reader if any(c.strip() for c in cells)),
+                None,
+            )
+            if header is None:
+                raise DataError(
+                    f"{file}: the header line names no column; write <signal>_<unit> names "
+                    "such as t_s,y_cm"
+                )
+            _check_header(file, header)
+            columns = _columns(file, kind, header, mapping)
+            _check_required(file, kind, columns, require, has_period)
+            values = [array("d") for _ in header]
+            lines = array("q")
+            for cells in reader:
+                if not any(c.strip() for c in cells):
+                    continue
+                if len(cells) != len(header):
+                    raise DataError(
+                        f"{file}: row {reader.line_num} has {len(cells)} cells, the header has "
+                        f"{len(header)}; fix or delete the row"
+                    )
+                try:
+                    row = [float(c) for c in cells]
+                except ValueError:
+                    _bad_cell(file, kind, columns, cells, reader, first_row=not lines)
+                for column, value in zip(values, row, strict=True):
+                    column.append(value)
+                lines.append(reader.line_num)
     except UnicodeDecodeError as exc:
         raise DataError(
-            f"{file}: not UTF-8 text (byte {exc.object[exc.start]:#04x} at offset {exc.start}); "
+            f"{file}: not UTF-8 text (byte {exc.object[exc.start]:#04x}); "
             "save the file as UTF-8 CSV"
         ) from None
     except OSError as exc:
         raise DataError(
             f"{file}: cannot read the file ({exc.strerror or exc}); check its permissions"
         ) from None
-    first = next((line for line in text.splitlines() if line.strip()), "")
-    if not first:
-        raise DataError(f"{file}: the file is empty; give a header line and data rows")
-    delimiter = "," if "," in first else ";" if ";" in first else "\t" if "\t" in first else ","
-    reader = csv.reader(io.StringIO(text), delimiter=delimiter)
-    header: list[str] | None = None
-    rows: list[list[str]] = []
-    lines: list[int] = []
-    for cells in reader:
-        if not any(c.strip() for c in cells):
-            continue
-        if header is None:
-            header = [c.strip() for c in cells]
-            continue
-        if len(cells) != len(header):
-            raise DataError(
-                f"{file}: row {reader.line_num} has {len(cells)} cells, the header has "
-                f"{len(header)}; fix or delete the row"
-            )
-        rows.append(cells)
-        lines.append(reader.line_num)
-    if header is None or not rows:
+    if not lines:
         raise DataError(f"{file}: no data rows below the header; add measurements")
+    for col, column in zip(columns, values, strict=True):
+        col.values = np.frombuffer(column, dtype=np.float64)
+    return columns, np.frombuffer(lines, dtype=np.int64)
+
+
+def _check_header(file: str, header: list[str]) -> None:
     for j, name in enumerate(header):
         if not name:
             raise DataError(
@@ -391,30 +437,35 @@ def _read_csv_cells(p: Path, file: str) -> tuple[list[str], list[list[str]], lis
             )
         if name in header[:j]:
             raise DataError(f"{file}: column {name!r} appears twice; rename or delete one")
-    return header, rows, lines
 
 
-def _csv_values(file: str, where: str, cells: list[str], row: Callable[[int], str]) -> np.ndarray:
-    cells = [c.strip() for c in cells]
-    try:
-        return np.array(cells, dtype=np.float64)
-    except ValueError:
-        pass
-    if cells and not any(cells):
-        raise DataError(f"{file}: {where}: the column is empty; fill it or delete the column")
-    for i, cell in enumerate(cells):
-        if not cell:
-            raise DataError(
-                f"{file}: {where}: empty cell at {row(i)}; fill the gap or delete the row"
-            )
+def _bad_cell(
+    file: str, kind: str, columns: list[_Column], cells: list[str], reader, first_row: bool
+) -> NoReturn:
+    """The one-line error for the first cell of this row that is not a number."""
+    line = reader.line_num
+    for col, cell in zip(columns, cells, strict=True):
+        cell = cell.strip()
         try:
             float(cell)
+            continue
         except ValueError:
+            pass
+        where = col.label(kind)
+        if not cell:
+            j = columns.index(col)
+            if first_row and not any(r[j].strip() for r in reader if len(r) > j):
+                raise DataError(
+                    f"{file}: {where}: the column is empty; fill it or delete the column"
+                )
             raise DataError(
-                f"{file}: {where}: {cell!r} at {row(i)} is not a number; write a plain number "
-                "(decimal point '.', no units or thousands separators) or delete the row"
-            ) from None
-    raise DataError(f"{file}: {where}: cannot read the numbers; check the column")  # unreachable
+                f"{file}: {where}: empty cell at row {line}; fill the gap or delete the row"
+            )
+        raise DataError(
+            f"{file}: {where}: {cell!r} at row {line} is not a number; write a plain number "
+            "(decimal point '.', no units or thousands separators) or delete the row"
+        )
+    raise DataError(f"{file}: row {line}: cannot read the numbers; check the row")
 
 
 # -- MATLAB ------------------------------------------------------------------------------
@@ -487,12 +538,12 @@ def read_measured(
     """
     file = str(path)
     p = Path(path)
-    if sample_period_s is not None and not (
-        isinstance(sample_period_s, int | float) and 0.0 < sample_period_s < float("inf")
+    if sample_period_s is not None and (
+        not isinstance(sample_period_s, int | float) or period_problem(sample_period_s)
     ):
         raise DataError(
-            f"{file}: sample_period_s must be a positive number of seconds, got "
-            f"{sample_period_s!r}; pass e.g. sample_period_s=0.001"
+            f"{file}: the sample period (measured: sample_period in the rig file) "
+            f"{period_problem(float(sample_period_s)) if isinstance(sample_period_s, int | float) else 'must be a number'}"
         )
     if not p.is_file():
         raise DataError(f"{file}: file not found (looked in {p.resolve().parent}); check the path")
@@ -515,15 +566,10 @@ def read_measured(
                 )
     else:
         kind = "column"
-        header, rows, lines = _read_csv_cells(p, file)
-        columns = _columns(file, kind, header, mapping)
-        _check_required(file, kind, columns, require, sample_period_s is not None)
+        columns, lines = _read_csv(p, file, mapping, require, sample_period_s is not None)
 
         def row(i: int) -> str:
             return f"row {lines[i]}"
-
-        for j, col in enumerate(columns):
-            col.values = _csv_values(file, col.label(kind), [r[j] for r in rows], row)
 
     if sample_period_s is not None:
         columns = [c for c in columns if c.signal != "t"]  # time is rebuilt; ignore the stamps

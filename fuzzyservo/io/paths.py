@@ -1,20 +1,26 @@
-"""Finding the project's files: a path as given, or a bare name under ``rigs/``, ``studies/`` …"""
+"""Finding the project's files: a path as given, or a bare name under ``rigs/``, ``studies/`` …
+
+Bare names are looked up in the working folder first (a user's own ``rigs/``), then in
+the rigs, controllers and studies shipped inside the package (``fuzzyservo/data``),
+so an installed package finds them from any folder.
+"""
 
 from __future__ import annotations
 
+import re
 from pathlib import Path
 
 from fuzzyservo.errors import ConfigError
 
 
-def project_root() -> Path:
-    """The checkout holding ``rigs/`` and ``studies/`` (the package's parent folder)."""
-    return Path(__file__).resolve().parent.parent.parent
+def data_root() -> Path:
+    """The shipped ``rigs/`` and ``studies/`` (package data, installed with the package)."""
+    return Path(__file__).resolve().parent.parent / "data"
 
 
 def search_dirs() -> list[Path]:
-    """Where bare names are looked up: the working folder, then the checkout."""
-    return [Path.cwd(), project_root()]
+    """Where bare names are looked up: the working folder, then the shipped files."""
+    return [Path.cwd(), data_root()]
 
 
 def find_file(name: str, folder: str, what: str, *, relative_to: Path | None = None) -> Path:
@@ -36,3 +42,22 @@ def find_file(name: str, folder: str, what: str, *, relative_to: Path | None = N
             return candidate
     known = sorted({p.stem for base in search_dirs() for p in (base / folder).glob("*.yaml")})
     raise ConfigError(f"no {what} named {name!r}; known: {', '.join(known) or 'none'}", file=name)
+
+
+_UNSAFE = re.compile(r"[/\\:\x00-\x1f]")
+
+
+def name_problem(name: str) -> str | None:
+    """Why ``name`` (of a rig, controller, study or scenario) cannot be part of a file
+    name, or ``None``. Names become output file names, so they hold no path."""
+    if not name.strip():
+        return "is empty; give a short name such as my_rig"
+    if _UNSAFE.search(name) or name.startswith("."):
+        return (
+            f"{name!r} is not a plain name: it becomes part of output file names, so it may "
+            "not hold '/', '\\', ':', control characters or start with '.'; "
+            "use letters, digits, '_' and '-' (e.g. my_rig)"
+        )
+    if len(name) > 100:
+        return f"is {len(name)} characters long; give at most 100"
+    return None

@@ -29,6 +29,8 @@ from typing import Any
 
 from fuzzyservo.errors import ConfigError, DataError
 from fuzzyservo.io._yaml import Node, read_yaml
+from fuzzyservo.io.paths import name_problem
+from fuzzyservo.limits import duration_problem, period_problem
 from fuzzyservo.params import check, fields_by_key, vectors_by_key
 from fuzzyservo.plants import PLANTS, PlantModel
 from fuzzyservo.rig import Actuator, LinearSensor, MeasuredFormat, Rig, Scenario
@@ -102,7 +104,8 @@ def load_rig(path: str | Path) -> Rig:
         name: _scenario(name, node, plant, params, feedback)
         for name, node in scenario_nodes.items()
     }
-    name = root.str("name", default=Path(file).stem)
+    _check_plausible(root, plant, params, initial, scenarios, sample_time)
+    name = root.name("name", default=Path(file).stem)
     title = root.str("title", default="")
     source = root.str("source", default="")
     try:
@@ -250,12 +253,65 @@ def _measured(node: Node) -> MeasuredFormat:
         for plain in cols.data:
             columns[str(plain)] = cols.str(str(plain))
     period = node.quantity("sample_period", "s") if node.has("sample_period") else None
-    if period is not None and not period > 0:
-        node.fail(f"must be > 0 s, got {period} s; give the logger's period", key="sample_period")
+    if period is not None and period_problem(period):
+        node.fail(period_problem(period), key="sample_period")
     resample = node.data.get("resample", False)
     if not isinstance(resample, bool):
         node.fail(f"must be true or false, got {resample!r}", key="resample")
     return MeasuredFormat(columns=columns, sample_period_s=period, resample=resample)
+
+
+# working pressures: below 1 bar or above 10 000 bar a value is a unit mistake (a bare
+# number is read in Pa, so "supply_pressure: 70" is 70 Pa, not 70 bar)
+_WORKING_PRESSURES = (
+    "supply_pressure",
+    "relief_cracking_pressure",
+    "rated_pressure_drop",
+    "nominal_pressure_drop",
+)
+
+
+def _check_plausible(
+    root: Node,
+    plant: PlantModel,
+    params: Any,
+    initial: dict[str, float],
+    scenarios: dict[str, Scenario],
+    sample_time: float,
+) -> None:
+    """Values every field accepts alone but no rig has: a sample period below 1 µs, a
+    working pressure outside 1 bar .. 10 kbar, a start outside the stroke, a run too long
+    to hold in memory, a scenario name that cannot be a file name."""
+    if period_problem(sample_time):
+        root.fail(period_problem(sample_time), key="controller.sample_time")
+    by_key = fields_by_key(plant.params_cls)
+    for key in _WORKING_PRESSURES:
+        if key in by_key:
+            value = getattr(params, by_key[key].name)
+            if not 1e5 <= value <= 1e9:
+                root.fail(
+                    f"{value:g} Pa ({value / 1e5:g} bar) is no working pressure (1 bar .. "
+                    "10 000 bar); a number without a unit is read in Pa: write it like "
+                    "{value: 70, unit: bar}",
+                    key=f"plant.parameters.{key}",
+                )
+    stroke = getattr(params, "stroke_limits_m", None)
+    for name, scenario in scenarios.items():
+        where = f"scenarios.{name}"
+        if name_problem(name):
+            root.fail(name_problem(name), key=where)
+        if duration_problem(scenario.duration_s, sample_time):
+            root.fail(duration_problem(scenario.duration_s, sample_time), key=f"{where}.duration")
+        if stroke is None:
+            continue
+        lo, hi = dataclasses.replace(params, **scenario.overrides).stroke_limits_m
+        for key, y in (("plant.initial", initial.get("y_m")), (where + ".initial", scenario.initial.get("y_m"))):  # fmt: skip
+            if y is not None and not lo <= y <= hi:
+                root.fail(
+                    f"{y:g} m lies outside the stroke {lo:g} .. {hi:g} m; give a start "
+                    "position inside it (check the unit)",
+                    key=f"{key}.position",
+                )
 
 
 def _read_valve_network(path: Path) -> tuple[float, ...]:

@@ -126,9 +126,11 @@ def load_study(path: str | Path) -> StudySpec:
     storage = root.data.get("storage")
     if storage is not None and not isinstance(storage, str):
         root.fail("must be a storage URL (e.g. postgresql://user@host/db) or null", key="storage")
+    if storage is not None:
+        _check_storage(root, storage)
     try:
         spec = StudySpec(
-            name=root.str("name", default=here.stem),
+            name=root.name("name", default=here.stem),
             description=root.str("description", default=""),
             rig_file=files["rig"],
             scenarios=tuple(scenarios),
@@ -150,6 +152,22 @@ def load_study(path: str | Path) -> StudySpec:
         raise ConfigError(str(exc), file=file) from None
     check_against_files(spec)
     return spec
+
+
+def _check_storage(root: Node, storage: str) -> None:
+    """A study file names a database server only: SQLite lives in the output folder
+    (the default), or where ``--storage`` puts it; nothing else is written elsewhere."""
+    from fuzzyservo.tuning.spec import storage_problem
+
+    if storage.startswith("sqlite"):
+        root.fail(
+            f"{storage!r}: a study file does not choose where SQLite files go (the output "
+            "folder holds it by default); delete the key, or pass --storage sqlite:///PATH",
+            key="storage",
+        )
+    problem = storage_problem(storage)
+    if problem:
+        root.fail(problem, key="storage")
 
 
 def _objective(node: Node) -> Objective:

@@ -9,7 +9,7 @@ aggregate metrics in report order, :data:`METRIC_DOCS` gives each one's formula 
 """
 
 from fuzzyservo.metrics._heave import compensation_pct, heave_metrics
-from fuzzyservo.metrics._step import result_metrics, step_metrics
+from fuzzyservo.metrics._step import applicable_metrics, result_metrics, step_metrics
 from fuzzyservo.metrics._types import METRIC_DOCS, METRIC_NAMES, Metrics, StepMetrics
 
 __all__ = [
@@ -17,6 +17,7 @@ __all__ = [
     "METRIC_NAMES",
     "Metrics",
     "StepMetrics",
+    "applicable_metrics",
     "compensation_pct",
     "heave_metrics",
     "result_metrics",

@@ -159,6 +159,23 @@ def result_metrics(result: SimResult) -> Metrics:
     )
 
 
+#: metrics defined by a reference step; a reference that moves continuously (a tracked
+#: wave) makes every sample a "step", and these numbers mean nothing there
+STEP_ONLY = ("rise_time_s", "settling_time_s", "overshoot_pct", "sse_abs", "sse_pct", "itae")
+#: a reference changing in more than this share of the scored samples is tracked, not stepped
+TRACKING_SHARE = 0.05
+
+
+def applicable_metrics(result: SimResult) -> tuple[str, ...]:
+    """The :data:`METRIC_NAMES` that mean something for ``result``'s reference: all of them
+    for steps and pulses, those not in :data:`STEP_ONLY` for a continuously moving one."""
+    scored = result.t >= result.t[0] + result.warmup_s
+    changes = np.count_nonzero(np.diff(result.reference_output[scored]))
+    if changes > TRACKING_SHARE * max(int(scored.sum()), 1):
+        return tuple(m for m in METRIC_NAMES if m not in STEP_ONLY)
+    return METRIC_NAMES
+
+
 def _checked(t, r, y, u, saturated, settling_band, rise_band):
     """Arrays as 1-D float (bool for ``saturated``) arrays; ``ValueError`` on bad input."""
     t = np.asarray(t, dtype=float)

@@ -36,7 +36,7 @@ moves Kl·(p3 − p4) from chamber 3 to 4; ``bulk_modulus`` replaces E; ``supply
 Qa at the pump's flow. The input effects act before ``i`` reaches eq. 13-16.
 
 End stops: the chamber lengths never fall below ``dead_length_m``; a stiff
-spring-damper acts beyond that point (the seed is silent; MODELLING.md "chamber
+spring-damper acts beyond that point (the seed is silent; docs/modelling.md "chamber
 volumes must never reach zero").
 """
 

@@ -18,7 +18,7 @@ Effects (components/effects.py, off unless declared) add friction to T_f, leakag
 L_e, a line drop 2·R·Q to the load pressure the valve sees, E_eff for K_h, and the
 pump's cap on |Q|. The square root is regularised near zero (``laminar_pressure_pa``), and the Coulomb
 friction is smoothed over ``coulomb_velocity_rad_s`` so the right-hand side is
-Lipschitz (MODELLING.md "Friction").
+Lipschitz (docs/modelling.md "Friction").
 """
 
 from __future__ import annotations

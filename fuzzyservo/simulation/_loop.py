@@ -4,7 +4,7 @@ The plant is integrated between samples by an adaptive linearly implicit
 Rosenbrock-W method, ROS34PW2 (order 3, embedded order 2), with a finite-difference
 Jacobian evaluated at the start of each control interval and refreshed when a step is
 rejected. It is L-stable, so the stiff valve-chamber modes of seed 002 (β/V·K/√p_lam
-up to ~1e6 1/s, MODELLING.md "Stiffness") cost no step-size restriction, and the
+up to ~1e6 1/s, docs/modelling.md "Stiffness") cost no step-size restriction, and the
 error estimate keeps the slow piston motion accurate. On the seed-002 pulses it needs
 40 % fewer steps than MATLAB's ode23s pair (tried first) for the same accuracy.
 Nothing in here raises: a failure ends the run with a status code the caller turns

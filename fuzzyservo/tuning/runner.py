@@ -12,10 +12,11 @@ from __future__ import annotations
 
 import math
 import multiprocessing as mp
+import sys
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Any, NoReturn
 
 from fuzzyservo.tuning.objective import Evaluation, Evaluator
 from fuzzyservo.tuning.spec import StudySpec
@@ -72,6 +73,16 @@ def _storage(url: str):
     )
 
 
+def _cannot_open(url: str, exc: BaseException | None) -> NoReturn:
+    from fuzzyservo.errors import ConfigError
+
+    reason = (str(exc).strip().splitlines() or [type(exc).__name__])[0]
+    raise ConfigError(
+        f"storage {url}: cannot open it ({reason}); check that the server runs and the URL "
+        "(--storage or the study's storage key), or leave it out for SQLite in the output folder"
+    ) from None
+
+
 def _constraints(trial) -> list[float]:
     return list(trial.user_attrs.get("constraints", [math.inf]))
 
@@ -106,7 +117,7 @@ def open_study(spec: StudySpec, url: str, worker: int = 0, *, shared: bool = Fal
     import warnings
 
     import optuna
-    from sqlalchemy.exc import IntegrityError, OperationalError, ProgrammingError
+    from sqlalchemy.exc import IntegrityError, OperationalError, ProgrammingError, SQLAlchemyError
 
     optuna.logging.set_verbosity(optuna.logging.WARNING)
     # the storage heartbeat is what fails trials of a killed process; it is marked experimental
@@ -127,8 +138,10 @@ def open_study(spec: StudySpec, url: str, worker: int = 0, *, shared: bool = Fal
         ):
             # two processes creating the tables or the study at once on an empty database
             if attempt == 4:
-                raise
+                _cannot_open(url, sys.exc_info()[1])
             time.sleep(0.2 + random.random())
+        except (SQLAlchemyError, ImportError) as exc:  # a driver or URL we cannot use
+            _cannot_open(url, exc)
     study.sampler = make_sampler(spec, seed_for(spec, study, worker, shared))
     return study
 

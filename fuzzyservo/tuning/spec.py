@@ -129,3 +129,23 @@ class StudySpec:
         paths = [p.path for p in self.parameters]
         if len(set(paths)) != len(paths):
             raise ValueError(f"parameters: each path once, got {paths}")
+
+
+STORAGE_SCHEMES = ("sqlite:///", "postgresql://", "postgres://", "postgresql+psycopg2://")
+
+
+def storage_problem(url: str) -> str | None:
+    """Why ``url`` is no storage fuzzyservo can open (SQLite, or PostgreSQL through the
+    psycopg2 driver it ships), or ``None``. Reachability is found out when connecting."""
+    if not url.startswith(STORAGE_SCHEMES):
+        return (
+            f"{url!r} is not a storage fuzzyservo can open (it ships SQLite and the PostgreSQL "
+            "driver); give postgresql://user@host/db or sqlite:///path/to/file.db"
+        )
+    if url.startswith("sqlite:///"):
+        from pathlib import Path
+
+        folder = Path(url[len("sqlite:///") :]).parent
+        if not folder.is_dir():
+            return f"{url!r}: folder {folder} does not exist; create it or name another"
+    return None

@@ -6,6 +6,8 @@ Layout of a rig file (every number as ``{value, unit, source}``; see ``rigs/``):
     title: ...
     source: ...
     plant:    {type: open_centre_cylinder, parameters: {...}, initial: {...}}
+      # or a composition of components (fuzzyservo.components.library):
+    plant:    {components: {valve: {type: servo_valve, parameters: {...}}, ...}, initial: {...}}
     feedback: {signal: y, offset: ..., gain: ..., ratio: ...}
     sensors:  {name: {signal, offset, gain, ratio}}          # optional extra readings
     actuator: {name: converter, gain: ..., lower: ..., upper: ...}
@@ -57,15 +59,21 @@ def load_rig(path: str | Path) -> Rig:
     root = Node(read_yaml(path), file)
     root.only(_TOP)
     plant_node = root.child("plant")
-    plant_node.only(("type", "parameters", "initial"))
-    type_name = plant_node.str("type")
-    if type_name not in PLANTS:
-        plant_node.fail(
-            f"unknown plant type {type_name!r}; choose one of {sorted(PLANTS)}", key="type"
-        )
-    plant = PLANTS[type_name]
     unknowns: dict[str, tuple[float, float]] = {}
-    params = _params(plant, plant_node.child("parameters"), unknowns)
+    if plant_node.has("components"):
+        plant_node.only(("components", "initial"))
+        plant, params = _composition(plant_node.child("components"), unknowns)
+    else:
+        plant_node.only(("type", "parameters", "initial"))
+        type_name = plant_node.str("type")
+        if type_name not in PLANTS:
+            plant_node.fail(
+                f"unknown plant type {type_name!r}; choose one of {sorted(PLANTS)} "
+                "or compose one under 'components:'",
+                key="type",
+            )
+        plant = PLANTS[type_name]
+        params = _params(plant, plant_node.child("parameters"), unknowns)
     initial = _initial(plant, plant_node.child("initial", default={}))
 
     feedback = _sensor(root.child("feedback"), plant)
@@ -144,6 +152,47 @@ def _params(
         if node.has(key):
             values[f.name] = _vector(node.child(key), f.metadata["format"])
     return _build_params(plant, values, node)
+
+
+def _composition(node: Node, unknowns: dict[str, tuple[float, float]]) -> tuple[PlantModel, Any]:
+    """``plant.components``: instance name -> {type, parameters, source, note}."""
+    from fuzzyservo.components._declare import registry
+    from fuzzyservo.plants.composed import CompositionError, compose
+
+    if not isinstance(node.data, dict) or not node.data:
+        node.fail(
+            "must map instance names to components ({type: ..., parameters: {...}}); "
+            "see rigs/servo_lift.yaml"
+        )
+    types = registry()
+    parts = []
+    for name in node.data:
+        child = node.child(str(name))
+        child.only(("type", "parameters", "source", "note"))
+        type_name = child.str("type")
+        if type_name not in types:
+            child.fail(
+                f"unknown component type {type_name!r}; choose one of {sorted(types)}",
+                key="type",
+            )
+        parts.append((str(name), type_name))
+    try:
+        plant = compose(tuple(parts))
+    except CompositionError as exc:
+        node.fail(str(exc))
+    by_key = fields_by_key(plant.params_cls)
+    values: dict[str, Any] = {}
+    for name, _ in parts:
+        params_node = node.child(name).child("parameters", default={})
+        prefix = f"{name}."
+        keys = {k[len(prefix) :]: f for k, f in by_key.items() if k.startswith(prefix)}
+        params_node.only(keys)
+        for key, f in keys.items():
+            default = None if f.default is dataclasses.MISSING else f.default
+            values[f.name] = _quantity(
+                params_node, key, f.metadata["unit"], f.name, unknowns, default
+            )
+    return plant, _build_params(plant, values, node)
 
 
 def _quantity(
@@ -284,6 +333,12 @@ def _build_params(plant: PlantModel, values: dict[str, float], node: Node) -> An
         check(params)
     except ValueError as exc:
         key, _, rest = str(exc).partition(": ")
+        if plant.components and key in fields_by_key(plant.params_cls):
+            # a composition's key "valve.rated_flow" lives at valve.parameters.rated_flow
+            name, _, sub = key.partition(".")
+            if node.has(name):
+                node.child(name).child("parameters", default={}).fail(rest, key=sub)
+            node.fail(rest, key=key)
         if key in fields_by_key(plant.params_cls) or key in vectors_by_key(plant.params_cls):
             node.fail(rest, key=key)
         node.fail(str(exc))
@@ -480,12 +535,27 @@ def write_calibrated_rig(
     src_dir = Path(source).resolve().parent
     out = Path(out)
     out.parent.mkdir(parents=True, exist_ok=True)
-    plant_params = data["plant"]["parameters"]
-    for entry in plant_params.values():
-        if isinstance(entry, dict) and "file" in entry:
-            target = (src_dir / entry["file"]).resolve()
-            entry["file"] = os.path.relpath(target, out.parent.resolve())
+    plant = data["plant"]
+    composed = "components" in plant
+    sections = (
+        [c.setdefault("parameters", {}) or {} for c in plant["components"].values()]
+        if composed
+        else [plant["parameters"]]
+    )
+    for entries in sections:
+        for entry in entries.values():
+            if isinstance(entry, dict) and "file" in entry:
+                target = (src_dir / entry["file"]).resolve()
+                entry["file"] = os.path.relpath(target, out.parent.resolve())
     for key, (value, unit, source_text) in parameters.items():
+        if composed:  # "valve.rated_flow" lives at components.valve.parameters.rated_flow
+            name, _, key = key.partition(".")
+            component = plant["components"][name]
+            if not component.get("parameters"):
+                component["parameters"] = {}
+            plant_params = component["parameters"]
+        else:
+            plant_params = plant["parameters"]
         old = plant_params.get(key, {})
         note = old.get("source") if isinstance(old, dict) else None
         plant_params[key] = {"value": float(value), "unit": unit, "source": source_text}

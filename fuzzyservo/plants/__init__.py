@@ -37,6 +37,7 @@ class PlantModel:
     mechanics: dict[str, str]  # SI units of "force" and "velocity" for effect parameters
     null_input: Callable[[Any], float]
     effect_scales: Callable[[Any, float, float], Any] | None
+    components: tuple[tuple[str, str], ...] = ()  # (instance, type) of a composition
 
     @classmethod
     def from_module(cls, type_name: str, module: ModuleType, description: str) -> PlantModel:

@@ -1,0 +1,31 @@
+"""The compiled maps and effect positions component code may call (``components/library``).
+
+The composed right-hand side (:mod:`fuzzyservo.plants.composed`) imports everything
+listed here, so a component's code reads ``signed_sqrt_flow(...)`` or ``p[E_LINE]``
+without imports of its own.
+"""
+
+from __future__ import annotations
+
+import math
+
+from fuzzyservo.components.effects import (
+    E_LEAK,
+    E_LINE,
+    bulk_modulus,
+    friction_force,
+    port_pressure,
+    pump_limited,
+)
+from fuzzyservo.components.orifice import signed_sqrt_flow
+
+__all__ = [
+    "E_LEAK",
+    "E_LINE",
+    "bulk_modulus",
+    "friction_force",
+    "math",
+    "port_pressure",
+    "pump_limited",
+    "signed_sqrt_flow",
+]

@@ -128,6 +128,7 @@ class Component:
     end_stop: str = ""
     check: Callable[[dict[str, float]], str | None] | None = None
     actuators: tuple[str, ...] = ()  # loads: the actuator types it applies to (empty: any)
+    refuses: Mapping[str, str] = field(default_factory=dict)  # effect -> why not meaningful
 
     def __post_init__(self) -> None:
         if self.role not in ROLES:

@@ -88,6 +88,19 @@ class PlantModel:
         """Why this plant cannot take ``effect``, or None when it models it."""
         if effect in self.effects:
             return None
+        if self.components:
+            from fuzzyservo.components._declare import registry
+
+            types = registry()
+            for name, type_name in self.components:
+                why = types[type_name].refuses.get(effect)
+                if why:
+                    return f"effect {effect!r} is not meaningful here: {name} ({type_name}) {why}"
+            readers = sorted(t for t, c in types.items() if effect in c.effects)
+            return (
+                f"effect {effect!r} is not modelled by this composition: none of its components "
+                f"reads it; components that do: {readers}"
+            )
         return (
             f"effect {effect!r} is not modelled for plant type {self.type_name!r}; "
             f"it models {list(self.effects)}"

@@ -118,11 +118,13 @@ def compose(parts: tuple[tuple[str, str], ...]) -> Any:
         fields,
         bases=(EffectParams,),
         frozen=True,
-        namespace={"__doc__": f"Parameters of the composition {label} (SI)."},
+        namespace={
+            "__doc__": f"Parameters of the composition {label} (SI).",
+            "__post_init__": _make_post_init(instances),
+        },
     )
     params_cls.__module__ = __name__
     params_cls.__qualname__ = f"ComposedParams[{label}]"
-    params_cls.__post_init__ = _make_post_init(instances)
     param_index = {
         (name, key): index_of(params_cls, f"{name}__{key}")
         for name, comp in instances

@@ -24,6 +24,10 @@ COMPONENTS = (
         code={"supply": "p_s = P.supply_pressure\np_t = P.tank_pressure"},
         initial=lambda v, ctx: {"p_s": v["supply_pressure"], "p_t": v["tank_pressure"]},
         scales=lambda v: {"pressure": v["supply_pressure"] - v["tank_pressure"]},
+        refuses={
+            "supply_droop": "holds its pressure whatever the flow; compose a pump_supply "
+            "(or restriction_supply) to model a pump's limit"
+        },
         check=lambda v: (
             None
             if v["supply_pressure"] > v["tank_pressure"]

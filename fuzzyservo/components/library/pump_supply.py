@@ -83,5 +83,6 @@ COMPONENTS = (
         },
         scales=lambda v: {"pressure": v["supply_pressure"] - v["tank_pressure"]},
         check=_check,
+        refuses={"supply_droop": "limits the flow to its pump_flow already; fit that instead"},
     ),
 )

@@ -18,13 +18,16 @@ from fuzzyservo.components.effects import (
     pump_limited,
 )
 from fuzzyservo.components.orifice import signed_sqrt_flow
+from fuzzyservo.components.valves import four_way_flows, polynomial_flow
 
 __all__ = [
     "E_LEAK",
     "E_LINE",
     "bulk_modulus",
+    "four_way_flows",
     "friction_force",
     "math",
+    "polynomial_flow",
     "port_pressure",
     "pump_limited",
     "signed_sqrt_flow",

@@ -290,7 +290,7 @@ def _scales(
             merged.update(comp.scales(instance_values(params, name, comp)))
     pressure = merged.get("pressure", float("nan"))
     area = merged.get("area", float("nan"))
-    flow = merged.get("flow", float("nan"))
+    flow = merged.get("flow", merged.get("flow_coefficient", float("nan")) * pressure**0.5)
     velocity = flow / area
     return Scales(
         force=pressure * area,

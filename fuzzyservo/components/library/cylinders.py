@@ -1,9 +1,9 @@
 """Hydraulic cylinders: single-rod (differential) and double-rod (equal areas).
 
-States: position ``y`` from the retracted end [m], velocity ``v`` [m/s], chamber
+States: position ``y`` [m] (0 at ``zero_position`` from the retracted end), velocity ``v`` [m/s], chamber
 pressures ``p_a`` (piston side, +y extends) and ``p_b`` [Pa]:
 
-    V_a = V_0a + A_a·y,  V_b = V_0b + A_b·(L − y)    (floored at 5 % of the dead volume)
+    V_a = V_0a + A_a·y_e,  V_b = V_0b + A_b·(L − y_e),  y_e = y + y_0   (floored at 5 % of V_0)
     dp_a/dt = E/V_a·(q_a − A_a·v − q_leak),  dp_b/dt = E/V_b·(q_b + A_b·v + q_leak)
     m·dv/dt = p_a·A_a − p_b·A_b − F_fric(v) − F_loads + F_stop
 
@@ -21,6 +21,8 @@ from fuzzyservo.components._declare import Component, Param, Signal, State
 
 _COMMON = (
     Param("stroke", "m", "stroke L", positive=True),
+    Param("zero_position", "m", "where the rig's y = 0 lies, from the retracted end",
+          default=0.0),
     Param("piston_mass", "kg", "piston and rod mass", positive=True),
     Param("dead_volume_a", "m^3", "oil in chamber A at y = 0 (ports, end cap, hose)",
           positive=True),
@@ -54,13 +56,14 @@ _ACTUATOR = """
     p_b = X.p_b
     area_a = {area_a}
     area_b = {area_b}
-    L.va = max(P.dead_volume_a + area_a * pos, 0.05 * P.dead_volume_a)
-    L.vb = max(P.dead_volume_b + area_b * (P.stroke - pos), 0.05 * P.dead_volume_b)
+    L.ye = pos + P.zero_position
+    L.va = max(P.dead_volume_a + area_a * L.ye, 0.05 * P.dead_volume_a)
+    L.vb = max(P.dead_volume_b + area_b * (P.stroke - L.ye), 0.05 * P.dead_volume_b)
     f_stop = 0.0
-    if pos < 0.0:
-        f_stop = -P.end_stop_stiffness * pos - (P.end_stop_damping * vel if vel < 0.0 else 0.0)
-    elif pos > P.stroke:
-        f_stop = -P.end_stop_stiffness * (pos - P.stroke) - (
+    if L.ye < 0.0:
+        f_stop = -P.end_stop_stiffness * L.ye - (P.end_stop_damping * vel if vel < 0.0 else 0.0)
+    elif L.ye > P.stroke:
+        f_stop = -P.end_stop_stiffness * (L.ye - P.stroke) - (
             P.end_stop_damping * vel if vel > 0.0 else 0.0
         )
     L.q_leak = p[E_LEAK] * (p_a - p_b)
@@ -139,7 +142,7 @@ def _cylinder(type_name: str, double: bool, doc: str) -> Component:
         scales=lambda v: {"area": _areas(v, double)[0]},
         load=("f_load", "N"),
         mechanics={"force": "N", "velocity": "m/s", "position": "m", "mass": "kg"},
-        end_stop="X.y < 0.0 or X.y > P.stroke",
+        end_stop="X.y + P.zero_position < 0.0 or X.y + P.zero_position > P.stroke",
         check=_check,
     )
 

@@ -115,3 +115,66 @@ def test_ros34pw2_is_third_order_on_a_linear_system() -> None:
     # W-method keeps its order with it; the observed order tends to 3 from above
     assert orders[-1] == pytest.approx(3.0, abs=0.25), (errors, orders)
     assert errors[-1] < 1e-5
+
+
+# ------------------------------------------------------------------ controller kinds
+
+
+def test_controller_kinds_are_unique_and_each_reaches_its_kernel() -> None:
+    from fuzzyservo.controllers.classical import PI, OpenLoop, P
+    from fuzzyservo.controllers.fuzzy.controller import FuzzyController
+    from fuzzyservo.controllers.kernels import controller_step
+    from fuzzyservo.controllers.kinds import KINDS
+
+    classes = (OpenLoop, P, PI, FuzzyController)
+    assert len(set(KINDS.values())) == len(KINDS)
+    assert sorted(c.kind for c in classes) == sorted(KINDS.values())
+    for name in ("p_k10", "pi_dinca", "open_loop", "flc2_reshaped"):
+        ctrl = controller_named(name)
+        cp, cs = ctrl.init(0.01)
+        u_python, _ = ctrl.step((cp, cs), 6.5, 6.2)
+        u_loop = controller_step(ctrl.kind, cp, cs.copy(), 6.5, 6.2)
+        assert u_loop == u_python
+
+
+def _imports(path, package_root):
+    """fuzzyservo modules a file imports, at top level or inside functions (AST)."""
+    import ast
+
+    names = set()
+    for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+        if isinstance(node, ast.ImportFrom) and node.module and node.level == 0:
+            names.add(node.module)
+        elif isinstance(node, ast.Import):
+            names.update(a.name for a in node.names)
+    return {n for n in names if n.startswith("fuzzyservo.")}
+
+
+def test_no_import_cycles_in_controllers() -> None:
+    """base ↔ kernels ↔ classical/fuzzy and fuzzy.system ↔ evaluate were cycles (issue 10);
+    every import, lazy ones included, now points one way."""
+    from pathlib import Path
+
+    import fuzzyservo
+
+    root = Path(fuzzyservo.__file__).parent
+    graph = {}
+    for path in (root / "controllers").rglob("*.py"):
+        if path.name == "__init__.py":
+            continue
+        module = "fuzzyservo." + ".".join(path.relative_to(root).with_suffix("").parts)
+        graph[module] = _imports(path, root)
+
+    def cycle_from(start, node, seen):
+        for nxt in graph.get(node, ()):
+            if nxt == start:
+                return [node, nxt]
+            if nxt not in seen:
+                seen.add(nxt)
+                found = cycle_from(start, nxt, seen)
+                if found:
+                    return [node, *found]
+        return None
+
+    for module in graph:
+        assert cycle_from(module, module, set()) is None, cycle_from(module, module, set())

@@ -12,6 +12,7 @@ composer (:mod:`fuzzyservo.plants.composed`) replaces:
 ``P.key``    the component's parameter ``key`` (an entry of the packed vector)
 ``X.name``   its state ``name``;  ``DX.name = ...`` sets that state's derivative
 ``L.name``   a variable local to this instance (prefixed with the instance name)
+``E.field``  an effect parameter (a field of :class:`~fuzzyservo.components.effects.EffectParams`)
 
 Signals are expressions in the same vocabulary, written to the signal table by name,
 so no table has to agree with another by position.

@@ -1,8 +1,8 @@
 """The compiled maps and effect positions component code may call (``components/library``).
 
 The composed right-hand side (:mod:`fuzzyservo.plants.composed`) imports everything
-listed here, so a component's code reads ``signed_sqrt_flow(...)`` or ``p[E_LINE]``
-without imports of its own.
+listed here, so a component's code reads ``signed_sqrt_flow(...)``
+without imports of its own; effect parameters it reads as ``E.<field>``.
 """
 
 from __future__ import annotations
@@ -10,8 +10,6 @@ from __future__ import annotations
 import math
 
 from fuzzyservo.components.effects import (
-    E_LEAK,
-    E_LINE,
     bulk_modulus,
     friction_force,
     port_pressure,
@@ -21,8 +19,6 @@ from fuzzyservo.components.orifice import signed_sqrt_flow
 from fuzzyservo.components.valves import four_way_flows, polynomial_flow
 
 __all__ = [
-    "E_LEAK",
-    "E_LINE",
     "bulk_modulus",
     "four_way_flows",
     "friction_force",

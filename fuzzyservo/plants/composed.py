@@ -32,7 +32,7 @@ from fuzzyservo.components._declare import (
 from fuzzyservo.components.effects import INPUT_EFFECTS, LIBRARY, EffectParams, Scales
 from fuzzyservo.params import index_of, pack, quantity
 
-_PREFIX = re.compile(r"\b(DX|X|P|L)\.([A-Za-z_]\w*)")
+_PREFIX = re.compile(r"\b(DX|X|P|L|E)\.([A-Za-z_]\w*)")
 _STATIC_FORCE = "static_force"
 
 
@@ -142,6 +142,13 @@ def compose(parts: tuple[tuple[str, str], ...]) -> Any:
     def subst(name: str, comp: Component, text: str) -> str:
         def repl(m: re.Match) -> str:
             prefix, ident = m.group(1), m.group(2)
+            if prefix == "E":
+                try:
+                    return f"p[{index_of(EffectParams, ident)}]"
+                except ValueError:
+                    raise CompositionError(
+                        f"component {comp.type!r}: code reads {ident!r}, not a field of EffectParams"
+                    ) from None
             if prefix == "P":
                 try:
                     return f"p[{param_index[(name, ident)]}]"

@@ -50,7 +50,6 @@ from fuzzyservo._jit import njit
 from fuzzyservo.components.effects import (
     E_LEAK,
     E_LINE,
-    LIBRARY,
     EffectParams,
     Scales,
     bulk_modulus,
@@ -387,8 +386,20 @@ def typical_state(params: CylinderParams) -> np.ndarray:
     )  # fmt: skip
 
 
-# Every effect of the library acts on this plant (components/effects.py).
-EFFECTS = tuple(LIBRARY)
+# The effects this plant's kernel reads (components/effects.py), named one by one so
+# that an effect added to the library later is refused here until the kernel reads it.
+EFFECTS = (
+    "coulomb_friction",
+    "stribeck_friction",
+    "line_resistance",
+    "internal_leakage",
+    "valve_deadband",
+    "valve_bias",
+    "valve_lag",
+    "transport_delay",
+    "bulk_modulus",
+    "supply_droop",
+)
 MECHANICS = {"force": "N", "velocity": "m/s"}
 
 

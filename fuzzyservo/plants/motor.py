@@ -32,7 +32,6 @@ from fuzzyservo._jit import njit
 from fuzzyservo.components.effects import (
     E_LEAK,
     E_LINE,
-    LIBRARY,
     EffectParams,
     Scales,
     bulk_modulus,
@@ -191,8 +190,20 @@ def initial_state(
     return np.array([0.0, w_rad_s, theta_rad, 0.0])
 
 
-# Every effect of the library acts on this plant (components/effects.py).
-EFFECTS = tuple(LIBRARY)
+# The effects this plant's kernel reads (components/effects.py), named one by one so
+# that an effect added to the library later is refused here until the kernel reads it.
+EFFECTS = (
+    "coulomb_friction",
+    "stribeck_friction",
+    "line_resistance",
+    "internal_leakage",
+    "valve_deadband",
+    "valve_bias",
+    "valve_lag",
+    "transport_delay",
+    "bulk_modulus",
+    "supply_droop",
+)
 MECHANICS = {"force": "N*m", "velocity": "rad/s"}
 
 

@@ -43,11 +43,11 @@ COMPONENTS = (
                 L.k = polynomial_flow(
                     L.uc, L.umax, P.flow_c0, P.flow_c1, P.flow_c2, P.flow_c3, P.flow_c4
                 ) / math.sqrt(P.nominal_pressure_drop)
-                if p[E_LINE] > 0.0:
+                if E.line_resistance_pa_s_m3 > 0.0:
                     L.kp = max(L.k, 0.0)
                     L.kn = max(-L.k, 0.0)
-                    L.pa = port_pressure(L.kp, p_s, L.kn, p_t, p_a_port, p[E_LINE], p_lam)
-                    L.pb = port_pressure(L.kn, p_s, L.kp, p_t, p_b_port, p[E_LINE], p_lam)
+                    L.pa = port_pressure(L.kp, p_s, L.kn, p_t, p_a_port, E.line_resistance_pa_s_m3, p_lam)
+                    L.pb = port_pressure(L.kn, p_s, L.kp, p_t, p_b_port, E.line_resistance_pa_s_m3, p_lam)
                 else:
                     L.pa = p_a_port
                     L.pb = p_b_port

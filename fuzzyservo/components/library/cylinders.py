@@ -66,7 +66,7 @@ _ACTUATOR = """
         f_stop = -P.end_stop_stiffness * (L.ye - P.stroke) - (
             P.end_stop_damping * vel if vel > 0.0 else 0.0
         )
-    L.q_leak = p[E_LEAK] * (p_a - p_b)
+    L.q_leak = E.internal_leakage_m3_s_pa * (p_a - p_b)
     L.f_fric = friction_force(vel, p)
 """
 _MOTION = """

@@ -56,7 +56,7 @@ COMPONENTS = (
                 area_a = P.displacement
                 area_b = P.displacement
                 f_stop = 0.0
-                L.q_leak = p[E_LEAK] * (p_a - p_b)
+                L.q_leak = E.internal_leakage_m3_s_pa * (p_a - p_b)
                 L.f_fric = friction_force(vel, p)
             """,
             "mass": "mass += P.inertia",

@@ -50,9 +50,9 @@ COMPONENTS = (
                     L.c14 = 0.0
                 L.c14 = max(L.c14, 0.0)
                 L.c23 = max(L.c23, 0.0)
-                if p[E_LINE] > 0.0:
-                    L.pa = port_pressure(L.c14, p_s, L.c23, p_t, p_a_port, p[E_LINE], p_lam)
-                    L.pb = port_pressure(L.c23, p_s, L.c14, p_t, p_b_port, p[E_LINE], p_lam)
+                if E.line_resistance_pa_s_m3 > 0.0:
+                    L.pa = port_pressure(L.c14, p_s, L.c23, p_t, p_a_port, E.line_resistance_pa_s_m3, p_lam)
+                    L.pb = port_pressure(L.c23, p_s, L.c14, p_t, p_b_port, E.line_resistance_pa_s_m3, p_lam)
                 else:
                     L.pa = p_a_port
                     L.pb = p_b_port

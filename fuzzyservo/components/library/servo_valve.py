@@ -56,9 +56,9 @@ _CODE = {
         L.k = P.rated_flow / ((1.0 - P.overlap) * math.sqrt(0.5 * P.rated_pressure_drop))
         L.c_pa = L.k * max(L.x - P.overlap, 0.0)
         L.c_pb = L.k * max(-L.x - P.overlap, 0.0)
-        if p[E_LINE] > 0.0:
-            L.pa = port_pressure(L.c_pa, p_s, L.c_pb, p_t, p_a_port, p[E_LINE], p_lam)
-            L.pb = port_pressure(L.c_pb, p_s, L.c_pa, p_t, p_b_port, p[E_LINE], p_lam)
+        if E.line_resistance_pa_s_m3 > 0.0:
+            L.pa = port_pressure(L.c_pa, p_s, L.c_pb, p_t, p_a_port, E.line_resistance_pa_s_m3, p_lam)
+            L.pb = port_pressure(L.c_pb, p_s, L.c_pa, p_t, p_b_port, E.line_resistance_pa_s_m3, p_lam)
         else:
             L.pa = p_a_port
             L.pb = p_b_port

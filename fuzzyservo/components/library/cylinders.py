@@ -10,7 +10,8 @@ pressures ``p_a`` (piston side, +y extends) and ``p_b`` [Pa]:
 ``m`` is the piston's mass plus every ``mass`` load; F_loads every load's force and
 the scenario's; F_stop a stiff spring-damper beyond 0 and the stroke L (the seeds are
 silent; MODELLING.md "chamber volumes must never reach zero"). Effects: friction
-(``coulomb_friction``, ``stribeck_friction``), ``internal_leakage`` q_leak = K_l·(p_a − p_b).
+(``coulomb_friction``, ``stribeck_friction``), ``internal_leakage`` q_leak = K_l·(p_a − p_b),
+``external_leakage`` K_e·p out of each chamber.
 """
 
 from __future__ import annotations
@@ -72,8 +73,8 @@ _ACTUATOR = """
 _MOTION = """
     DX.y = vel
     DX.v = (p_a * area_a - p_b * area_b - L.f_fric - f_load + f_stop) / mass
-    DX.p_a = beta / L.va * (q_a - area_a * vel - L.q_leak)
-    DX.p_b = beta / L.vb * (q_b + area_b * vel + L.q_leak)
+    DX.p_a = beta / L.va * (q_a - area_a * vel - L.q_leak - E.external_leakage_m3_s_pa * p_a)
+    DX.p_b = beta / L.vb * (q_b + area_b * vel + L.q_leak - E.external_leakage_m3_s_pa * p_b)
 """
 
 
@@ -131,7 +132,7 @@ def _cylinder(type_name: str, double: bool, doc: str) -> Component:
             "mass": "mass += P.piston_mass",
             "motion": _MOTION,
         },
-        effects=("coulomb_friction", "stribeck_friction", "internal_leakage"),
+        effects=("coulomb_friction", "stribeck_friction", "internal_leakage", "external_leakage"),
         initial=_initial(double),
         initial_keys={
             "position": ("position", "m"),

@@ -6,7 +6,8 @@ States: angle ``theta`` [rad], speed ``w`` [rad/s], port pressures ``p_a``, ``p_
     J·dw/dt = (p_a − p_b)·D − T_fric(w) − T_loads
 
 J is the shaft's inertia plus every ``mass`` load (kg·m² on a motor). Effects:
-friction and ``internal_leakage`` (cross-port, q_leak = K_l·(p_a − p_b)).
+friction, ``internal_leakage`` (cross-port, q_leak = K_l·(p_a − p_b)) and
+``external_leakage`` (case drain, K_e·p from each port).
 """
 
 from __future__ import annotations
@@ -63,11 +64,12 @@ COMPONENTS = (
             "motion": """
                 DX.theta = vel
                 DX.w = ((p_a - p_b) * area_a - L.f_fric - f_load) / mass
-                DX.p_a = beta / P.volume_a * (q_a - area_a * vel - L.q_leak)
-                DX.p_b = beta / P.volume_b * (q_b + area_b * vel + L.q_leak)
+                L.ke = E.external_leakage_m3_s_pa
+                DX.p_a = beta / P.volume_a * (q_a - area_a * vel - L.q_leak - L.ke * p_a)
+                DX.p_b = beta / P.volume_b * (q_b + area_b * vel + L.q_leak - L.ke * p_b)
             """,
         },
-        effects=("coulomb_friction", "stribeck_friction", "internal_leakage"),
+        effects=("coulomb_friction", "stribeck_friction", "internal_leakage", "external_leakage"),
         initial=_initial,
         initial_keys={
             "angle": ("angle", "rad"),

@@ -12,19 +12,17 @@ import math
 from fuzzyservo.components.effects import (
     bulk_modulus,
     friction_force,
-    port_pressure,
     pump_limited,
 )
 from fuzzyservo.components.orifice import signed_sqrt_flow
-from fuzzyservo.components.valves import four_way_flows, polynomial_flow
+from fuzzyservo.components.valves import metering_edges, polynomial_flow
 
 __all__ = [
     "bulk_modulus",
-    "four_way_flows",
     "friction_force",
     "math",
+    "metering_edges",
     "polynomial_flow",
-    "port_pressure",
     "pump_limited",
     "signed_sqrt_flow",
 ]

@@ -50,6 +50,7 @@ from fuzzyservo._jit import njit
 from fuzzyservo.components.effects import (
     E_LEAK,
     E_LINE,
+    FIRST_EFFECTS,
     EffectParams,
     Scales,
     bulk_modulus,
@@ -386,20 +387,9 @@ def typical_state(params: CylinderParams) -> np.ndarray:
     )  # fmt: skip
 
 
-# The effects this plant's kernel reads (components/effects.py), named one by one so
-# that an effect added to the library later is refused here until the kernel reads it.
-EFFECTS = (
-    "coulomb_friction",
-    "stribeck_friction",
-    "line_resistance",
-    "internal_leakage",
-    "valve_deadband",
-    "valve_bias",
-    "valve_lag",
-    "transport_delay",
-    "bulk_modulus",
-    "supply_droop",
-)
+# The effects this plant's kernel reads: the first ten of the library, so that an effect
+# added later is refused here until the kernel reads it.
+EFFECTS = FIRST_EFFECTS
 MECHANICS = {"force": "N", "velocity": "m/s"}
 
 

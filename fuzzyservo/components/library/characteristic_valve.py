@@ -43,15 +43,12 @@ COMPONENTS = (
                 L.k = polynomial_flow(
                     L.uc, L.umax, P.flow_c0, P.flow_c1, P.flow_c2, P.flow_c3, P.flow_c4
                 ) / math.sqrt(P.nominal_pressure_drop)
-                if E.line_resistance_pa_s_m3 > 0.0:
-                    L.kp = max(L.k, 0.0)
-                    L.kn = max(-L.k, 0.0)
-                    L.pa = port_pressure(L.kp, p_s, L.kn, p_t, p_a_port, E.line_resistance_pa_s_m3, p_lam)
-                    L.pb = port_pressure(L.kn, p_s, L.kp, p_t, p_b_port, E.line_resistance_pa_s_m3, p_lam)
-                else:
-                    L.pa = p_a_port
-                    L.pb = p_b_port
-                L.q_pa, L.q_bt, L.q_pb, L.q_at = four_way_flows(L.k, p_s, L.pa, L.pb, p_t, p_lam)
+                L.kp = max(L.k, 0.0)
+                L.kn = max(-L.k, 0.0)
+                L.q_pa, L.q_at, L.q_pb, L.q_bt = metering_edges(
+                    L.kp, L.kn, L.kn, L.kp, p_s, p_t, p_a_port, p_b_port,
+                    E.line_resistance_pa_s_m3, p_lam,
+                )
                 q_va = L.q_pa - L.q_at
                 q_vb = L.q_pb - L.q_bt
                 q_supply = L.q_pa + L.q_pb

@@ -50,16 +50,10 @@ COMPONENTS = (
                     L.c14 = 0.0
                 L.c14 = max(L.c14, 0.0)
                 L.c23 = max(L.c23, 0.0)
-                if E.line_resistance_pa_s_m3 > 0.0:
-                    L.pa = port_pressure(L.c14, p_s, L.c23, p_t, p_a_port, E.line_resistance_pa_s_m3, p_lam)
-                    L.pb = port_pressure(L.c23, p_s, L.c14, p_t, p_b_port, E.line_resistance_pa_s_m3, p_lam)
-                else:
-                    L.pa = p_a_port
-                    L.pb = p_b_port
-                L.q1 = signed_sqrt_flow(L.c14, p_s - L.pa, p_lam)
-                L.q2 = signed_sqrt_flow(L.c23, L.pa - p_t, p_lam)
-                L.q3 = signed_sqrt_flow(L.c23, p_s - L.pb, p_lam)
-                L.q4 = signed_sqrt_flow(L.c14, L.pb - p_t, p_lam)
+                L.q1, L.q2, L.q3, L.q4 = metering_edges(
+                    L.c14, L.c23, L.c23, L.c14, p_s, p_t, p_a_port, p_b_port,
+                    E.line_resistance_pa_s_m3, p_lam,
+                )
                 q_va = L.q1 - L.q2
                 q_vb = L.q3 - L.q4
                 q_supply = L.q1 + L.q3

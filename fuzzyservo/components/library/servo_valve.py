@@ -56,16 +56,10 @@ _CODE = {
         L.k = P.rated_flow / ((1.0 - P.overlap) * math.sqrt(0.5 * P.rated_pressure_drop))
         L.c_pa = L.k * max(L.x - P.overlap, 0.0)
         L.c_pb = L.k * max(-L.x - P.overlap, 0.0)
-        if E.line_resistance_pa_s_m3 > 0.0:
-            L.pa = port_pressure(L.c_pa, p_s, L.c_pb, p_t, p_a_port, E.line_resistance_pa_s_m3, p_lam)
-            L.pb = port_pressure(L.c_pb, p_s, L.c_pa, p_t, p_b_port, E.line_resistance_pa_s_m3, p_lam)
-        else:
-            L.pa = p_a_port
-            L.pb = p_b_port
-        L.q_pa = signed_sqrt_flow(L.c_pa, p_s - L.pa, p_lam)
-        L.q_at = signed_sqrt_flow(L.c_pb, L.pa - p_t, p_lam)
-        L.q_pb = signed_sqrt_flow(L.c_pb, p_s - L.pb, p_lam)
-        L.q_bt = signed_sqrt_flow(L.c_pa, L.pb - p_t, p_lam)
+        L.q_pa, L.q_at, L.q_pb, L.q_bt = metering_edges(
+            L.c_pa, L.c_pb, L.c_pb, L.c_pa, p_s, p_t, p_a_port, p_b_port,
+            E.line_resistance_pa_s_m3, p_lam,
+        )
         q_va = L.q_pa - L.q_at
         q_vb = L.q_pb - L.q_bt
         q_supply = L.q_pa + L.q_pb

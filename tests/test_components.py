@@ -207,3 +207,29 @@ def test_tune_the_lift(tmp_path: Path) -> None:
     assert data["best"]["status"] == "ok" and data["best"]["feasible"]
     assert set(data["best"]["params"]) == {"kp", "ki"}
     assert (out / "report.md").is_file()
+
+
+def test_a_load_force_measured_on_the_rig_drives_a_scenario(tmp_path: Path, lift, p20) -> None:
+    """``load: {type: measured, file, signal}`` replays a recorded force (zero-order hold)."""
+    t = np.arange(0.0, 2.0, 0.01)
+    force = np.where((t >= 0.5) & (t < 1.5), 0.5, 0.0)  # kN
+    (tmp_path / "push.csv").write_text(
+        "t_s,f_kN\n" + "".join(f"{a:.3f},{b}\n" for a, b in zip(t, force, strict=True))
+    )
+    spec = yaml.safe_load((ROOT / "rigs" / "servo_lift.yaml").read_text())
+    spec["scenarios"]["recorded"] = {
+        "duration": {"value": 2, "unit": "s"},
+        "reference": {"type": "constant", "unit": "mm", "value": 150},
+        "load": {"type": "measured", "file": "push.csv", "signal": "f"},
+    }
+    rig_file = tmp_path / "lift.yaml"
+    rig_file.write_text(yaml.safe_dump(spec, sort_keys=False))
+    rig = load_rig(rig_file)
+    recorded = simulate(rig, p20, "recorded")
+    stepped = simulate(rig, p20, "disturbed")  # the same 500 N push, written as steps
+    np.testing.assert_allclose(recorded.signals["f_load"], stepped.signals["f_load"])
+    np.testing.assert_allclose(recorded.signals["y"], stepped.signals["y"], atol=1e-9)
+    spec["scenarios"]["recorded"]["load"]["signal"] = "p"
+    rig_file.write_text(yaml.safe_dump(spec, sort_keys=False))
+    with pytest.raises(ConfigError, match=r"push\.csv"):
+        load_rig(rig_file)

@@ -29,6 +29,8 @@ import dataclasses
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
 from fuzzyservo.errors import ConfigError, DataError
 from fuzzyservo.io._yaml import Node, read_yaml
 from fuzzyservo.params import check, fields_by_key, vectors_by_key
@@ -421,7 +423,11 @@ def _scenario(
     load = Constant(0.0)
     if node.has("load"):
         _, load_unit = plant.load
-        load = _signal(node.child("load"), load_unit, lambda s: s)
+        load_node = node.child("load")
+        if isinstance(load_node.data, dict) and load_node.data.get("type") == "measured":
+            load = _measured_signal(load_node, load_unit)
+        else:
+            load = _signal(load_node, load_unit, lambda s: s)
     overrides = {}
     if node.has("overrides"):
         ov = node.child("overrides")
@@ -459,6 +465,24 @@ def _reference(node: Node, plant: PlantModel, feedback: LinearSensor) -> Signal:
         f"{feedback.signal!r} ({sensed_unit}); give the reference in one of them",
         key="unit",
     )
+
+
+def _measured_signal(node: Node, si_unit: str) -> Signal:
+    """``{type: measured, file: f.csv, signal: f}``: a recorded signal (e.g. a load force
+    measured on the rig), held between its samples; the file is read like measured data
+    (``<signal>_<unit>`` columns) relative to the rig file, time shifted to start at 0."""
+    from fuzzyservo.io.measured import read_measured
+    from fuzzyservo.signals import Sampled
+
+    node.only(("type", "file", "signal", "source", "note"))
+    name = node.str("signal")
+    path = Path(node.file).parent / node.str("file")
+    try:
+        data = read_measured(path, require=("t", name))
+    except DataError as exc:
+        node.fail(f"{exc}; fix the file or name another", key="file")
+    node.convert(1.0, data.units[name], si_unit, key="signal")
+    return Sampled(np.asarray(data.t - data.t[0]), np.asarray(data.signals[name]))
 
 
 _SIGNAL_KEYS = {

@@ -151,11 +151,16 @@ class Rig:
     def __post_init__(self) -> None:
         if not self.sample_time_s > 0:
             raise ValueError(f"sample_time must be > 0 s, got {self.sample_time_s}")
-        for sensor in (self.feedback, *self.sensors.values()):
-            if sensor.signal not in self.plant.states:
+        if self.feedback.signal not in self.plant.states:
+            raise ValueError(
+                f"feedback signal {self.feedback.signal!r} is not a state of "
+                f"{self.plant.type_name}; choose one of {list(self.plant.states)}"
+            )
+        for sensor in self.sensors.values():
+            if sensor.signal not in self.plant.signals and sensor.signal not in self.plant.states:
                 raise ValueError(
-                    f"sensor signal {sensor.signal!r} is not a state of {self.plant.type_name}; "
-                    f"choose one of {list(self.plant.states)}"
+                    f"sensor signal {sensor.signal!r} is not a signal of {self.plant.type_name}; "
+                    f"choose one of {list(self.plant.signals)}"
                 )
         if self.output not in self.plant.signals:
             raise ValueError(

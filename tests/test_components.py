@@ -233,3 +233,22 @@ def test_a_load_force_measured_on_the_rig_drives_a_scenario(tmp_path: Path, lift
     rig_file.write_text(yaml.safe_dump(spec, sort_keys=False))
     with pytest.raises(ConfigError, match=r"push\.csv"):
         load_rig(rig_file)
+
+
+def test_extra_sensors_read_any_signal_scaled_and_offset(tmp_path: Path, p20) -> None:
+    """A load cell (force) and a pressure transducer (4-20 mA over 0-250 bar) on the lift."""
+    spec = yaml.safe_load((ROOT / "rigs" / "servo_lift.yaml").read_text())
+    spec["sensors"] = {
+        "load_cell": {"signal": "f_loads", "gain": {"value": 1, "unit": "V/kN"}},
+        "p_a_sensor": {
+            "signal": "p_a", "unit": "mA",
+            "offset": {"value": 4, "unit": "mA"}, "gain": {"value": 0.064, "unit": "mA/bar"},
+        },
+    }  # fmt: skip
+    rig_file = tmp_path / "lift.yaml"
+    rig_file.write_text(yaml.safe_dump(spec, sort_keys=False))
+    r = simulate(load_rig(rig_file), p20, "disturbed")
+    np.testing.assert_allclose(r.signals["load_cell"], r.signals["f_loads"] / 1e3)
+    # a reading is in its sensor's unit (here mA), as a logger records it
+    np.testing.assert_allclose(r.signals["p_a_sensor"], 4.0 + 0.064 * r.signals["p_a"] / 1e5)
+    assert r.units["p_a_sensor"] == "mA"

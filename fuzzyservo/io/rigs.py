@@ -79,7 +79,10 @@ def load_rig(path: str | Path) -> Rig:
     initial = _initial(plant, plant_node.child("initial", default={}))
 
     feedback = _sensor(root.child("feedback"), plant)
-    sensors = {name: _sensor(node, plant) for name, node in root.children("sensors").items()}
+    sensors = {
+        name: _sensor(node, plant, feedback=False)
+        for name, node in root.children("sensors").items()
+    }
     actuator = _actuator(root.child("actuator"), plant)
     ctrl = root.child("controller")
     ctrl.only(("sample_time",))
@@ -356,12 +359,18 @@ def _initial(plant: PlantModel, node: Node) -> dict[str, float]:
     }
 
 
-def _sensor(node: Node, plant: PlantModel) -> LinearSensor:
+def _sensor(node: Node, plant: PlantModel, *, feedback: bool = True) -> LinearSensor:
+    """The feedback sensor reads a state (the compiled loop samples it); an extra sensor
+    reads any signal (position, velocity, pressure, force ...), scaled and offset."""
     node.only(("signal", "offset", "gain", "ratio", "unit"))
     signal = node.str("signal")
-    if signal not in plant.states:
+    readable = plant.states if feedback else (*plant.signals, *plant.states)
+    if signal not in readable:
+        what = "state" if feedback else "signal"
         node.fail(
-            f"unknown state {signal!r}; sensors read one of {list(plant.states)}", key="signal"
+            f"unknown {what} {signal!r}; {'the feedback sensor reads' if feedback else 'sensors read'} "
+            f"one of {list(dict.fromkeys(readable))}",
+            key="signal",
         )
     signal_unit = plant.signal_units[signal]
     unit = node.str("unit", default="V")

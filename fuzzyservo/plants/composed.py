@@ -121,6 +121,7 @@ def compose(parts: tuple[tuple[str, str], ...]) -> Any:
         namespace={
             "__doc__": f"Parameters of the composition {label} (SI).",
             "__post_init__": _make_post_init(instances),
+            **_stroke(instances),
         },
     )
     params_cls.__module__ = __name__
@@ -232,6 +233,19 @@ def compose(parts: tuple[tuple[str, str], ...]) -> Any:
         components=tuple((n, c.type) for n, c in instances),
     )
     return model
+
+
+def _stroke(instances: list[tuple[str, Component]]) -> dict[str, Any]:
+    """``stroke_limits_m`` (where the end stops engage, in the rig's y) for a cylinder."""
+    name = next((n for n, c in instances if c.role == "actuator" and c.end_stop), None)
+    if name is None:
+        return {}
+
+    def stroke_limits_m(self: Any) -> tuple[float, float]:
+        zero = getattr(self, f"{name}__zero_position")
+        return (-zero, getattr(self, f"{name}__stroke") - zero)
+
+    return {"stroke_limits_m": property(stroke_limits_m)}
 
 
 def instance_values(params: Any, name: str, comp: Component) -> dict[str, float]:

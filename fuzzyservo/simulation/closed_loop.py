@@ -170,7 +170,12 @@ def assemble(
     signals = {name: values[:, j] for j, name in enumerate(plant.signals)}
     units = dict(plant.signal_units)
     for name, sensor in rig.sensors.items():
-        signals[name] = np.asarray(sensor.read(states[:, plant.states.index(sensor.signal)]))
+        sensed = (
+            signals[sensor.signal]
+            if sensor.signal in plant.signals
+            else states[:, plant.states.index(sensor.signal)]
+        )
+        signals[name] = np.asarray(sensor.read(sensed))
         units[name] = sensor.unit
     for (name, unit), values in ((plant.load, prep.load), (plant.input, actuator)):
         signals[name] = values

@@ -22,13 +22,13 @@ from tests.conftest import controller_named, rig_named
 
 
 def test_reference_and_compiled_flag_the_same_saturation_at_a_negative_limit() -> None:
-    """The composed servo lift, P 20 V/V, `steps`: lowering by 100 mm drives the amplifier
+    """The composed servo lift, P 4 V/V, `steps`: lowering by 100 mm drives the amplifier
     to its −10 mA limit. Both paths flag the same samples and agree on every signal
     (position to 0.01 mm, pressures to 0.5 bar: the compiled tolerance, closed_loop.py)."""
     rig = rig_named("servo_lift")
-    p20 = controller_named("p_servo_lift")
-    fast = simulate(rig, p20, "steps", duration_s=1.8)
-    ref = simulate_reference(rig, p20, "steps", duration_s=1.8, rtol=1e-7)
+    p4 = controller_named("p_servo_lift")
+    fast = simulate(rig, p4, "steps", duration_s=3.4)
+    ref = simulate_reference(rig, p4, "steps", duration_s=3.4, rtol=1e-7)
     low = fast.actuator <= rig.actuator.lower
     assert low.sum() >= 5  # the step down saturates at the negative limit
     np.testing.assert_array_equal(fast.saturated, ref.saturated)
@@ -36,8 +36,8 @@ def test_reference_and_compiled_flag_the_same_saturation_at_a_negative_limit() -
     np.testing.assert_allclose(fast.signals["y"], ref.signals["y"], atol=1e-5)
     for k in ("p_s", "p_a", "p_b"):
         np.testing.assert_allclose(fast.signals[k], ref.signals[k], atol=0.5e5)
-    # the command is 20 V/V · 33.3 V/m of the position: 0.01 mm is 6.7 mV
-    np.testing.assert_allclose(fast.command, ref.command, atol=6.7e-3)
+    # the command is 4 V/V · 33.3 V/m of the position: 0.01 mm is 1.3 mV
+    np.testing.assert_allclose(fast.command, ref.command, atol=1.4e-3)
 
 
 def test_reference_runs_transport_delay_like_the_compiled_loop() -> None:

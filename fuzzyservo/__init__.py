@@ -9,6 +9,10 @@ YAML, matplotlib nor optuna::
     rig = load_rig(find_file("dinca_cylinder", "rigs", "rig"))
     p_k10 = load_controller(find_file("p_k10", "studies/controllers", "controller"))
     result = simulate(rig, p_k10, "pulses")
+
+Rigs, controllers and studies can also be built in code (``compose_rig``, ``P``,
+``PI``, ``StudySpec``), then simulated, compared, tuned and calibrated
+(``simulate``, ``compare``, ``tune``, ``calibrate``).
 """
 
 from __future__ import annotations
@@ -20,7 +24,25 @@ __version__ = "0.1.0"
 _LAZY = {
     "load_rig": ("fuzzyservo.io.rigs", "load_rig"),
     "load_controller": ("fuzzyservo.io.controllers", "load_controller"),
+    "load_study": ("fuzzyservo.io.studies", "load_study"),
+    "read_measured": ("fuzzyservo.io.measured", "read_measured"),
+    "Rig": ("fuzzyservo.rig", "Rig"),
+    "Scenario": ("fuzzyservo.rig", "Scenario"),
+    "LinearSensor": ("fuzzyservo.rig", "LinearSensor"),
+    "Actuator": ("fuzzyservo.rig", "Actuator"),
+    "compose_rig": ("fuzzyservo.rig", "compose_rig"),
+    "component_types": ("fuzzyservo.rig", "component_types"),
+    "Controller": ("fuzzyservo.controllers.base", "Controller"),
+    "P": ("fuzzyservo.controllers.classical", "P"),
+    "PI": ("fuzzyservo.controllers.classical", "PI"),
+    "FuzzyController": ("fuzzyservo.controllers.fuzzy", "FuzzyController"),
+    "StudySpec": ("fuzzyservo.tuning.spec", "StudySpec"),
+    "ParamSpec": ("fuzzyservo.tuning.spec", "ParamSpec"),
+    "Objective": ("fuzzyservo.tuning.spec", "Objective"),
     "simulate": ("fuzzyservo.simulation", "simulate"),
+    "compare": ("fuzzyservo.simulation", "compare"),
+    "tune": ("fuzzyservo.tuning", "tune"),
+    "calibrate": ("fuzzyservo.calibration", "calibrate"),
     "SimResult": ("fuzzyservo.simulation", "SimResult"),
     "simulate_reference": ("fuzzyservo.simulation.reference", "simulate_reference"),
     "result_metrics": ("fuzzyservo.metrics", "result_metrics"),
@@ -28,6 +50,10 @@ _LAZY = {
 }
 
 __all__ = sorted(_LAZY)
+
+
+def __dir__() -> list[str]:
+    return sorted({*globals(), *_LAZY})
 
 
 def __getattr__(name: str) -> Any:

@@ -156,6 +156,23 @@ def vector_offset(cls: type, name: str) -> int:
     raise ValueError(f"{name}: not a vector field of {cls.__name__}")
 
 
+def param_index(cls: type) -> Any:
+    """A namedtuple of every quantity field's position in :func:`pack`'s vector, by field
+    name: compiled kernels read ``p[P.bulk_modulus_pa]`` (numba reads it as a constant)."""
+    from collections import namedtuple
+
+    names = [f.name for f in dataclasses.fields(cls) if "key" in f.metadata]
+    return namedtuple(f"{cls.__name__}Index", names)(*range(len(names)))
+
+
+def name_index(names: tuple[str, ...], typename: str = "Signals") -> Any:
+    """A namedtuple of each name's position: ``out[S.p1] = p1`` writes a signal table by
+    name, generated from the one tuple that declares the names."""
+    from collections import namedtuple
+
+    return namedtuple(typename, names)(*range(len(names)))
+
+
 def index_of(cls: type, name: str) -> int:
     """Position of field ``name`` in :func:`pack`'s vector (for ``P_*`` constants)."""
     names = [f.name for f in dataclasses.fields(cls) if "key" in f.metadata]

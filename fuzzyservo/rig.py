@@ -151,11 +151,16 @@ class Rig:
     def __post_init__(self) -> None:
         if not self.sample_time_s > 0:
             raise ValueError(f"sample_time must be > 0 s, got {self.sample_time_s}")
-        for sensor in (self.feedback, *self.sensors.values()):
-            if sensor.signal not in self.plant.states:
+        if self.feedback.signal not in self.plant.states:
+            raise ValueError(
+                f"feedback signal {self.feedback.signal!r} is not a state of "
+                f"{self.plant.type_name}; choose one of {list(self.plant.states)}"
+            )
+        for sensor in self.sensors.values():
+            if sensor.signal not in self.plant.signals and sensor.signal not in self.plant.states:
                 raise ValueError(
-                    f"sensor signal {sensor.signal!r} is not a state of {self.plant.type_name}; "
-                    f"choose one of {list(self.plant.states)}"
+                    f"sensor signal {sensor.signal!r} is not a signal of {self.plant.type_name}; "
+                    f"choose one of {list(self.plant.signals)}"
                 )
         if self.output not in self.plant.signals:
             raise ValueError(
@@ -213,3 +218,82 @@ class Rig:
     def effect_values(self, name: str) -> dict[str, float]:
         """The declared parameters of effect ``name`` by key (SI)."""
         return {p.key: float(getattr(self.params, p.field)) for p in LIBRARY[name].params}
+
+
+def compose_rig(
+    name: str,
+    components: dict[str, tuple[str, dict[str, float]]],
+    *,
+    feedback: LinearSensor,
+    actuator: Actuator,
+    sample_time_s: float,
+    scenarios: dict[str, Scenario] | list[Scenario],
+    output: str = "y",
+    initial: dict[str, float] | None = None,
+    sensors: dict[str, LinearSensor] | None = None,
+    title: str = "",
+) -> Rig:
+    """A rig composed in code, as a rig file's ``plant.components`` does.
+
+    ``components``: instance name -> (component type, parameter values by key, SI); the
+    types are those of ``fuzzyservo/components/library`` (:func:`component_types`).
+    ``initial``: initial-state keys (``position``, ``pressure_a``, ...) in SI. Raises
+    ``ValueError`` naming the instance and key when something does not fit.
+    """
+    from fuzzyservo.plants.composed import compose
+
+    plant = compose(tuple((inst, type_name) for inst, (type_name, _) in components.items()))
+    by_key = {f.metadata["key"]: f.name for f in dataclasses.fields(plant.params_cls)
+              if "key" in f.metadata and not f.metadata.get("effect")}  # fmt: skip
+    values = {}
+    for inst, (_, given) in components.items():
+        for key, value in given.items():
+            field_name = by_key.get(f"{inst}.{key}")
+            if field_name is None:
+                known = sorted(k.partition(".")[2] for k in by_key if k.startswith(f"{inst}."))
+                raise ValueError(f"{inst}.{key}: unknown parameter; {inst} has {known}")
+            values[field_name] = float(value)
+    missing = [
+        f.metadata["key"]
+        for f in dataclasses.fields(plant.params_cls)
+        if "key" in f.metadata and f.default is dataclasses.MISSING and f.name not in values
+    ]
+    if missing:
+        raise ValueError(f"{missing[0]}: missing; give a value in {_unit_of(plant, missing[0])}")
+    params = plant.params_cls(**values)
+    check(params)
+    if isinstance(scenarios, list):
+        scenarios = {s.name: s for s in scenarios}
+    unknown = set(initial or {}) - {kw for kw, _ in plant.initial_keys.values()}
+    if unknown:
+        raise ValueError(
+            f"initial: unknown key {sorted(unknown)[0]!r}; this composition takes "
+            f"{sorted(kw for kw, _ in plant.initial_keys.values())}"
+        )
+    return Rig(
+        name=name,
+        title=title,
+        plant=plant,
+        params=params,
+        feedback=feedback,
+        actuator=actuator,
+        sample_time_s=sample_time_s,
+        output=output,
+        scenarios=scenarios,
+        initial=dict(initial or {}),
+        sensors=dict(sensors or {}),
+    )
+
+
+def _unit_of(plant: PlantModel, key: str) -> str:
+    for f in dataclasses.fields(plant.params_cls):
+        if f.metadata.get("key") == key:
+            return f.metadata["unit"]
+    return "SI"
+
+
+def component_types() -> dict[str, str]:
+    """Every component type a rig can compose, with what it models."""
+    from fuzzyservo.components._declare import registry
+
+    return {name: f"{c.role}: {c.doc}" for name, c in sorted(registry().items())}

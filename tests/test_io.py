@@ -507,7 +507,12 @@ def _numbers_outside_quantities(node: Any, path: tuple) -> list[str]:
 def test_shipped_rig_numbers_carry_unit_and_source(path):
     data = yaml.safe_load(path.read_text(encoding="utf-8"))
     assert _numbers_outside_quantities(data, ()) == []
-    sections = [data["plant"]["parameters"], data["plant"].get("initial", {})]
+    plant = data["plant"]
+    if "components" in plant:  # a composition: each component's parameters
+        sections = [c.get("parameters", {}) for c in plant["components"].values()]
+    else:
+        sections = [plant["parameters"]]
+    sections.append(plant.get("initial", {}))
     sections += [data["actuator"], data["controller"], data["feedback"]]
     sections += list(data.get("sensors", {}).values())
     for section in sections:

@@ -31,6 +31,7 @@ valve_lag           τ·di_s/dt = i − i_s (first-order spool dynamics)        
 transport_delay     i_eff(t) = i(t − d)                                        d [s]
 bulk_modulus        E_eff replaces the oil's E (air, hoses)                    E_eff [Pa]
 supply_droop        q_supply = min(q_demand, Qp): pump flow limit with relief   Qp [m³/s]
+external_leakage    q = Ke·p out of each chamber to the drain (seals, case)    Ke [m³/(s·Pa)]
 ==================  =========================================================  ==============
 """
 
@@ -94,6 +95,9 @@ class EffectParams:
     )
     pump_flow_m3_s: float = _effect_field(
         "supply_droop.pump_flow", "m^3/s", "pump flow limit (0: unlimited)", nonnegative=True
+    )
+    external_leakage_m3_s_pa: float = _effect_field(
+        "external_leakage.coefficient", "m^3/(s*Pa)", "leakage to the drain", nonnegative=True
     )
 
 
@@ -436,10 +440,27 @@ LIBRARY: dict[str, Effect] = {
             "the supply pressure sags when the valve asks for more",
             "docs/modelling.md supply droop; seed 003 eq. 1 (pump with relief)",
         ),
+        Effect(
+            "external_leakage",
+            "plant",
+            (
+                EffectParam(
+                    "coefficient", "external_leakage_m3_s_pa", "m^3/(s*Pa)",
+                    lambda s: (0.0, 0.1 * s.flow / s.pressure), log=True,
+                ),
+            ),
+            "q = Ke·p out of each chamber to the drain (rod seals, a motor's case drain) "
+            "[m³/s]; composed cylinders and motors",
+            "docs/modelling.md typical ranges (leakage 1e-14..1e-11 m³/(s·Pa)); seed 000 eq. 17 "
+            "(a motor's external leakage), seed 001 eq. 1-9",
+        ),
     )
 }  # fmt: skip
 
 INPUT_EFFECTS = tuple(name for name, e in LIBRARY.items() if e.stage == "input")
+# The library as the hand-written seed 002 and seed 000 kernels read it (external_leakage
+# came later, with the composed actuators).
+FIRST_EFFECTS = tuple(name for name in LIBRARY if name != "external_leakage")
 
 
 def fixed_defaults(

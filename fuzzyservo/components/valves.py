@@ -18,6 +18,7 @@ import math
 import numpy as np
 
 from fuzzyservo._jit import njit
+from fuzzyservo.components.effects import port_pressure
 from fuzzyservo.components.orifice import signed_sqrt_flow
 
 NN_INPUTS = 4
@@ -70,6 +71,38 @@ def four_way_flows(
         signed_sqrt_flow(kp, pb - pt, p_lam),
         signed_sqrt_flow(kn, ps - pb, p_lam),
         signed_sqrt_flow(kn, pa - pt, p_lam),
+    )
+
+
+@njit(cache=True, inline="always")
+def metering_edges(
+    c_pa: float,
+    c_at: float,
+    c_pb: float,
+    c_bt: float,
+    ps: float,
+    pt: float,
+    pa: float,
+    pb: float,
+    r_line: float,
+    p_lam: float,
+) -> tuple[float, float, float, float]:
+    """Flows of a 4-way valve's edges P→A, A→T, P→B, B→T [m³/s] for their coefficients
+    ``c_*`` [m³/(s·√Pa)] (the regularised orifice law of each edge).
+
+    ``pa``, ``pb`` are the pressures at the actuator side of ports A and B; with a
+    laminar line of resistance ``r_line`` > 0 between port and chamber (the
+    ``line_resistance`` effect) each port's pressure is solved from its flow balance
+    (:func:`~fuzzyservo.components.effects.port_pressure`) first.
+    """
+    if r_line > 0.0:
+        pa = port_pressure(c_pa, ps, c_at, pt, pa, r_line, p_lam)
+        pb = port_pressure(c_pb, ps, c_bt, pt, pb, r_line, p_lam)
+    return (
+        signed_sqrt_flow(c_pa, ps - pa, p_lam),
+        signed_sqrt_flow(c_at, pa - pt, p_lam),
+        signed_sqrt_flow(c_pb, ps - pb, p_lam),
+        signed_sqrt_flow(c_bt, pb - pt, p_lam),
     )
 
 

@@ -17,7 +17,8 @@ import numpy as np
 class Controller:
     """Base of the controllers; subclasses are frozen dataclasses with a ``kind`` code."""
 
-    kind: ClassVar[int]
+    kind: ClassVar[int]  # controllers/kinds.py
+    kernel: ClassVar  # the compiled step(cp, cs, r, y) -> u (a staticmethod)
     name: str
     u_min: float
     u_max: float
@@ -48,9 +49,7 @@ class Controller:
         self, state: tuple[np.ndarray, np.ndarray], r: float, y: float
     ) -> tuple[float, tuple[np.ndarray, np.ndarray]]:
         """One sample: command ``u`` for reference ``r`` and measurement ``y``, and the new state."""
-        from fuzzyservo.controllers.kernels import controller_step
-
         cp, cs = state
         cs = cs.copy()
-        u = controller_step(self.kind, cp, cs, float(r), float(y))
+        u = self.kernel(cp, cs, float(r), float(y))
         return float(u), (cp, cs)

@@ -14,10 +14,7 @@ import numpy as np
 
 from fuzzyservo._jit import njit
 from fuzzyservo.controllers.base import Controller
-
-KIND_OPEN_LOOP = 0
-KIND_P = 1
-KIND_PI = 2
+from fuzzyservo.controllers.kinds import KIND_OPEN_LOOP, KIND_P, KIND_PI
 
 
 @njit(cache=True, inline="always")
@@ -65,6 +62,7 @@ class P(Controller):
     name: str = "P"
 
     kind = KIND_P
+    kernel = staticmethod(p_step)
 
     def pack(self, sample_time_s: float) -> tuple[np.ndarray, np.ndarray]:
         return np.array([self.gain, self.u_min, self.u_max]), np.zeros(1)
@@ -77,6 +75,7 @@ class OpenLoop(P):
     name: str = "open_loop"
 
     kind = KIND_OPEN_LOOP
+    kernel = staticmethod(open_loop_step)
 
 
 @dataclass(frozen=True)
@@ -90,6 +89,7 @@ class PI(Controller):
     name: str = "PI"
 
     kind = KIND_PI
+    kernel = staticmethod(pi_step)
 
     def pack(self, sample_time_s: float) -> tuple[np.ndarray, np.ndarray]:
         return np.array([self.kp, self.ki, self.u_min, self.u_max, sample_time_s]), np.zeros(1)

@@ -1,7 +1,8 @@
 """Dispatch from a controller's ``kind`` code to its compiled step kernel.
 
-One place lists every controller kind the compiled loop knows; a new controller adds
-its kernel here.
+One place lists every controller kind the compiled loop knows (codes in :mod:`.kinds`);
+a new controller adds its kernel here. The Python face (``Controller.step``) calls each
+class's own ``kernel``, so nothing imports this module back.
 """
 
 from __future__ import annotations
@@ -9,15 +10,9 @@ from __future__ import annotations
 import numpy as np
 
 from fuzzyservo._jit import njit
-from fuzzyservo.controllers.classical import (
-    KIND_OPEN_LOOP,
-    KIND_P,
-    KIND_PI,
-    open_loop_step,
-    p_step,
-    pi_step,
-)
-from fuzzyservo.controllers.fuzzy.controller import KIND_FUZZY, fuzzy_step
+from fuzzyservo.controllers.classical import open_loop_step, p_step, pi_step
+from fuzzyservo.controllers.fuzzy.controller import fuzzy_step
+from fuzzyservo.controllers.kinds import KIND_FUZZY, KIND_OPEN_LOOP, KIND_P, KIND_PI
 
 
 @njit(cache=True)

@@ -6,6 +6,8 @@ Layout of a rig file (every number as ``{value, unit, source}``; see ``rigs/``):
     title: ...
     source: ...
     plant:    {type: open_centre_cylinder, parameters: {...}, initial: {...}}
+      # or a composition of components (fuzzyservo.components.library):
+    plant:    {components: {valve: {type: servo_valve, parameters: {...}}, ...}, initial: {...}}
     feedback: {signal: y, offset: ..., gain: ..., ratio: ...}
     sensors:  {name: {signal, offset, gain, ratio}}          # optional extra readings
     actuator: {name: converter, gain: ..., lower: ..., upper: ...}
@@ -26,6 +28,8 @@ from __future__ import annotations
 import dataclasses
 from pathlib import Path
 from typing import Any
+
+import numpy as np
 
 from fuzzyservo.errors import ConfigError, DataError
 from fuzzyservo.io._yaml import Node, read_yaml
@@ -59,19 +63,28 @@ def load_rig(path: str | Path) -> Rig:
     root = Node(read_yaml(path), file)
     root.only(_TOP)
     plant_node = root.child("plant")
-    plant_node.only(("type", "parameters", "initial"))
-    type_name = plant_node.str("type")
-    if type_name not in PLANTS:
-        plant_node.fail(
-            f"unknown plant type {type_name!r}; choose one of {sorted(PLANTS)}", key="type"
-        )
-    plant = PLANTS[type_name]
     unknowns: dict[str, tuple[float, float]] = {}
-    params = _params(plant, plant_node.child("parameters"), unknowns)
+    if plant_node.has("components"):
+        plant_node.only(("components", "initial"))
+        plant, params = _composition(plant_node.child("components"), unknowns)
+    else:
+        plant_node.only(("type", "parameters", "initial"))
+        type_name = plant_node.str("type")
+        if type_name not in PLANTS:
+            plant_node.fail(
+                f"unknown plant type {type_name!r}; choose one of {sorted(PLANTS)} "
+                "or compose one under 'components:'",
+                key="type",
+            )
+        plant = PLANTS[type_name]
+        params = _params(plant, plant_node.child("parameters"), unknowns)
     initial = _initial(plant, plant_node.child("initial", default={}))
 
     feedback = _sensor(root.child("feedback"), plant)
-    sensors = {name: _sensor(node, plant) for name, node in root.children("sensors").items()}
+    sensors = {
+        name: _sensor(node, plant, feedback=False)
+        for name, node in root.children("sensors").items()
+    }
     actuator = _actuator(root.child("actuator"), plant)
     ctrl = root.child("controller")
     ctrl.only(("sample_time",))
@@ -147,6 +160,47 @@ def _params(
         if node.has(key):
             values[f.name] = _vector(node.child(key), f.metadata["format"])
     return _build_params(plant, values, node)
+
+
+def _composition(node: Node, unknowns: dict[str, tuple[float, float]]) -> tuple[PlantModel, Any]:
+    """``plant.components``: instance name -> {type, parameters, source, note}."""
+    from fuzzyservo.components._declare import registry
+    from fuzzyservo.plants.composed import CompositionError, compose
+
+    if not isinstance(node.data, dict) or not node.data:
+        node.fail(
+            "must map instance names to components ({type: ..., parameters: {...}}); "
+            "see rigs/servo_lift.yaml"
+        )
+    types = registry()
+    parts = []
+    for name in node.data:
+        child = node.child(str(name))
+        child.only(("type", "parameters", "source", "note"))
+        type_name = child.str("type")
+        if type_name not in types:
+            child.fail(
+                f"unknown component type {type_name!r}; choose one of {sorted(types)}",
+                key="type",
+            )
+        parts.append((str(name), type_name))
+    try:
+        plant = compose(tuple(parts))
+    except CompositionError as exc:
+        node.fail(str(exc))
+    by_key = fields_by_key(plant.params_cls)
+    values: dict[str, Any] = {}
+    for name, _ in parts:
+        params_node = node.child(name).child("parameters", default={})
+        prefix = f"{name}."
+        keys = {k[len(prefix) :]: f for k, f in by_key.items() if k.startswith(prefix)}
+        params_node.only(keys)
+        for key, f in keys.items():
+            default = None if f.default is dataclasses.MISSING else f.default
+            values[f.name] = _quantity(
+                params_node, key, f.metadata["unit"], f.name, unknowns, default
+            )
+    return plant, _build_params(plant, values, node)
 
 
 def _quantity(
@@ -340,6 +394,12 @@ def _build_params(plant: PlantModel, values: dict[str, float], node: Node) -> An
         check(params)
     except ValueError as exc:
         key, _, rest = str(exc).partition(": ")
+        if plant.components and key in fields_by_key(plant.params_cls):
+            # a composition's key "valve.rated_flow" lives at valve.parameters.rated_flow
+            name, _, sub = key.partition(".")
+            if node.has(name):
+                node.child(name).child("parameters", default={}).fail(rest, key=sub)
+            node.fail(rest, key=key)
         if key in fields_by_key(plant.params_cls) or key in vectors_by_key(plant.params_cls):
             node.fail(rest, key=key)
         node.fail(str(exc))
@@ -355,12 +415,18 @@ def _initial(plant: PlantModel, node: Node) -> dict[str, float]:
     }
 
 
-def _sensor(node: Node, plant: PlantModel) -> LinearSensor:
+def _sensor(node: Node, plant: PlantModel, *, feedback: bool = True) -> LinearSensor:
+    """The feedback sensor reads a state (the compiled loop samples it); an extra sensor
+    reads any signal (position, velocity, pressure, force ...), scaled and offset."""
     node.only(("signal", "offset", "gain", "ratio", "unit"))
     signal = node.str("signal")
-    if signal not in plant.states:
+    readable = plant.states if feedback else (*plant.signals, *plant.states)
+    if signal not in readable:
+        what = "state" if feedback else "signal"
         node.fail(
-            f"unknown state {signal!r}; sensors read one of {list(plant.states)}", key="signal"
+            f"unknown {what} {signal!r}; {'the feedback sensor reads' if feedback else 'sensors read'} "
+            f"one of {list(dict.fromkeys(readable))}",
+            key="signal",
         )
     signal_unit = plant.signal_units[signal]
     unit = node.str("unit", default="V")
@@ -422,7 +488,11 @@ def _scenario(
     load = Constant(0.0)
     if node.has("load"):
         _, load_unit = plant.load
-        load = _signal(node.child("load"), load_unit, lambda s: s)
+        load_node = node.child("load")
+        if isinstance(load_node.data, dict) and load_node.data.get("type") == "measured":
+            load = _measured_signal(load_node, load_unit)
+        else:
+            load = _signal(load_node, load_unit, lambda s: s)
     overrides = {}
     if node.has("overrides"):
         ov = node.child("overrides")
@@ -460,6 +530,24 @@ def _reference(node: Node, plant: PlantModel, feedback: LinearSensor) -> Signal:
         f"{feedback.signal!r} ({sensed_unit}); give the reference in one of them",
         key="unit",
     )
+
+
+def _measured_signal(node: Node, si_unit: str) -> Signal:
+    """``{type: measured, file: f.csv, signal: f}``: a recorded signal (e.g. a load force
+    measured on the rig), held between its samples; the file is read like measured data
+    (``<signal>_<unit>`` columns) relative to the rig file, time shifted to start at 0."""
+    from fuzzyservo.io.measured import read_measured
+    from fuzzyservo.signals import Sampled
+
+    node.only(("type", "file", "signal", "source", "note"))
+    name = node.str("signal")
+    path = Path(node.file).parent / node.str("file")
+    try:
+        data = read_measured(path, require=("t", name))
+    except DataError as exc:
+        node.fail(f"{exc}; fix the file or name another", key="file")
+    node.convert(1.0, data.units[name], si_unit, key="signal")
+    return Sampled(np.asarray(data.t - data.t[0]), np.asarray(data.signals[name]))
 
 
 _SIGNAL_KEYS = {
@@ -536,12 +624,27 @@ def write_calibrated_rig(
     src_dir = Path(source).resolve().parent
     out = Path(out)
     out.parent.mkdir(parents=True, exist_ok=True)
-    plant_params = data["plant"]["parameters"]
-    for entry in plant_params.values():
-        if isinstance(entry, dict) and "file" in entry:
-            target = (src_dir / entry["file"]).resolve()
-            entry["file"] = os.path.relpath(target, out.parent.resolve())
+    plant = data["plant"]
+    composed = "components" in plant
+    sections = (
+        [c.setdefault("parameters", {}) or {} for c in plant["components"].values()]
+        if composed
+        else [plant["parameters"]]
+    )
+    for entries in sections:
+        for entry in entries.values():
+            if isinstance(entry, dict) and "file" in entry:
+                target = (src_dir / entry["file"]).resolve()
+                entry["file"] = os.path.relpath(target, out.parent.resolve())
     for key, (value, unit, source_text) in parameters.items():
+        if composed:  # "valve.rated_flow" lives at components.valve.parameters.rated_flow
+            name, _, key = key.partition(".")
+            component = plant["components"][name]
+            if not component.get("parameters"):
+                component["parameters"] = {}
+            plant_params = component["parameters"]
+        else:
+            plant_params = plant["parameters"]
         old = plant_params.get(key, {})
         note = old.get("source") if isinstance(old, dict) else None
         plant_params[key] = {"value": float(value), "unit": unit, "source": source_text}

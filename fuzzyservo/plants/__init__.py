@@ -14,13 +14,6 @@ import numpy as np
 
 from fuzzyservo.components.effects import INPUT_EFFECTS, Scales
 from fuzzyservo.plants import ahc_cylinder, ahc_motor, cylinder, hydroprax, motor
-from fuzzyservo.plants.kernels import (
-    KIND_AHC_CYLINDER,
-    KIND_AHC_MOTOR,
-    KIND_CYLINDER,
-    KIND_HYDROPRAX,
-    KIND_MOTOR,
-)
 
 
 @dataclass(frozen=True)
@@ -28,7 +21,7 @@ class PlantModel:
     """Everything the simulator and the file reader need to know about a plant family."""
 
     type_name: str
-    kind: int
+    binding: str  # source that binds plant_rhs/plant_signals/plant_in_end_stop (_jit.bind_plant)
     params_cls: type
     states: tuple[str, ...]
     signals: tuple[str, ...]
@@ -44,15 +37,14 @@ class PlantModel:
     mechanics: dict[str, str]  # SI units of "force" and "velocity" for effect parameters
     null_input: Callable[[Any], float]
     effect_scales: Callable[[Any, float, float], Any] | None
+    components: tuple[tuple[str, str], ...] = ()  # (instance, type) of a composition
 
     @classmethod
-    def from_module(
-        cls, type_name: str, kind: int, module: ModuleType, description: str
-    ) -> PlantModel:
+    def from_module(cls, type_name: str, module: ModuleType, description: str) -> PlantModel:
         """Collect a plant module's declarations (STATES, SIGNALS, ..., initial_state)."""
         return cls(
             type_name=type_name,
-            kind=kind,
+            binding=_binding(module.__name__),
             params_cls=module.PARAMS,
             states=module.STATES,
             signals=module.SIGNALS,
@@ -70,6 +62,13 @@ class PlantModel:
             null_input=getattr(module, "null_input", _zero_null),
             effect_scales=getattr(module, "effect_scales", None),
         )
+
+    @property
+    def loop(self) -> ModuleType:
+        """The closed loop compiled for this plant (``simulation/_plant_loop.py``)."""
+        from fuzzyservo._jit import bind_plant
+
+        return bind_plant(self.binding)
 
     def scales(self, params: Any, rated_input: float, sample_time_s: float) -> Scales:
         """Sizes effect bounds scale with (components/effects.py); a plant without
@@ -89,10 +88,30 @@ class PlantModel:
         """Why this plant cannot take ``effect``, or None when it models it."""
         if effect in self.effects:
             return None
+        if self.components:
+            from fuzzyservo.components._declare import registry
+
+            types = registry()
+            for name, type_name in self.components:
+                why = types[type_name].refuses.get(effect)
+                if why:
+                    return f"effect {effect!r} is not meaningful here: {name} ({type_name}) {why}"
+            readers = sorted(t for t, c in types.items() if effect in c.effects)
+            return (
+                f"effect {effect!r} is not modelled by this composition: none of its components "
+                f"reads it; components that do: {readers}"
+            )
         return (
             f"effect {effect!r} is not modelled for plant type {self.type_name!r}; "
             f"it models {list(self.effects)}"
         )
+
+
+def _binding(module: str) -> str:
+    return "\n".join(
+        f"from {module} import {name} as plant_{alias}"
+        for name, alias in (("in_end_stop", "in_end_stop"), ("rhs", "rhs"), ("signals", "signals"))
+    )
 
 
 def _zero_null(params: Any) -> float:
@@ -105,31 +124,26 @@ PLANTS: dict[str, PlantModel] = {
     for model in (
         PlantModel.from_module(
             "open_centre_cylinder",
-            KIND_CYLINDER,
             cylinder,
             "open-centre servo-valve + asymmetric cylinder (seed 002)",
         ),
         PlantModel.from_module(
             "servo_motor",
-            KIND_MOTOR,
             motor,
             "servo-valve + axial-piston motor, velocity loop (seed 000)",
         ),
         PlantModel.from_module(
             "hydroprax_pdcv",
-            KIND_HYDROPRAX,
             hydroprax,
             "proportional valve + single-rod cylinder, spring load, pump with relief (seed 003)",
         ),
         PlantModel.from_module(
             "ahc_cylinder",
-            KIND_AHC_CYLINDER,
             ahc_cylinder,
             "servo-valve + double-acting cylinder, AHC wave simulator (seed 001)",
         ),
         PlantModel.from_module(
             "ahc_motor",
-            KIND_AHC_MOTOR,
             ahc_motor,
             "servo-valve + hydraulic motor with cable drum and load, AHC compensator (seed 001)",
         ),

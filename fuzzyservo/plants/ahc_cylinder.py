@@ -30,7 +30,7 @@ from fuzzyservo._jit import njit
 from fuzzyservo.components.effects import EffectParams
 from fuzzyservo.components.geometry import circle_area
 from fuzzyservo.components.servo_valve import port_flow, return_flow, supply_flow
-from fuzzyservo.params import index_of, quantity
+from fuzzyservo.params import name_index, param_index, quantity
 
 STATES = ("spool", "y", "v", "p_a", "p_b")
 SIGNALS = (
@@ -106,27 +106,9 @@ class AhcCylinderParams(EffectParams):
 
 
 PARAMS = AhcCylinderParams
-_P = {name: index_of(AhcCylinderParams, name) for name in AhcCylinderParams.__dataclass_fields__}
-P_TAU = _P["valve_time_constant_s"]
-P_UN = _P["rated_command_v"]
-P_QN = _P["rated_flow_m3_s"]
-P_DPN = _P["rated_pressure_drop_pa"]
-P_KL = _P["valve_leakage_m3_s_pa"]
-P_PS = _P["supply_pressure_pa"]
-P_PT = _P["tank_pressure_pa"]
-P_DP = _P["piston_diameter_m"]
-P_DR = _P["rod_diameter_m"]
-P_STROKE = _P["stroke_m"]
-P_VA0 = _P["dead_volume_a_m3"]
-P_VB0 = _P["dead_volume_b_m3"]
-P_M = _P["mass_kg"]
-P_D = _P["viscous_friction_n_s_m"]
-P_KV = _P["piston_leakage_m3_s_pa"]
-P_KVB = _P["rod_leakage_m3_s_pa"]
-P_E = _P["bulk_modulus_pa"]
-P_PLAM = _P["laminar_pressure_pa"]
-P_KSTOP = _P["end_stop_stiffness_n_m"]
-P_CSTOP = _P["end_stop_damping_n_s_m"]
+P = param_index(PARAMS)  # p[P.<field>]: positions generated from the dataclass
+S = name_index(SIGNALS)  # out[S.<signal>]: positions generated from SIGNALS
+X = name_index(STATES, "States")  # x[X.<state>], dx[X.<state>]
 
 # Chamber volumes never fall below this fraction of their dead volume, even deep in an
 # end stop, so that no volume reaches zero whatever the integrator tries.
@@ -138,49 +120,58 @@ def _evaluate(
     x: np.ndarray, u: float, f_load: float, p: np.ndarray, dx: np.ndarray, out: np.ndarray
 ) -> None:
     """The whole model in one flat function; writes dx/dt and, when ``out`` has room, SIGNALS."""
-    s = x[0]
-    y = x[1]
-    v = x[2]
-    pa = x[3]
-    pb = x[4]
-    area_a = circle_area(p[P_DP])
-    area_b = area_a - circle_area(p[P_DR])
-    va = max(p[P_VA0] + area_a * y, _MIN_VOLUME_FRACTION * p[P_VA0])
-    vb = max(p[P_VB0] + area_b * (p[P_STROKE] - y), _MIN_VOLUME_FRACTION * p[P_VB0])
-    k = p[P_QN] / math.sqrt(0.5 * p[P_DPN])
-    ps = p[P_PS]
-    pt = p[P_PT]
-    lam = p[P_PLAM]
-    kl = p[P_KL]
+    s = x[X.spool]
+    y = x[X.y]
+    v = x[X.v]
+    pa = x[X.p_a]
+    pb = x[X.p_b]
+    area_a = circle_area(p[P.piston_diameter_m])
+    area_b = area_a - circle_area(p[P.rod_diameter_m])
+    va = max(p[P.dead_volume_a_m3] + area_a * y, _MIN_VOLUME_FRACTION * p[P.dead_volume_a_m3])
+    vb = max(
+        p[P.dead_volume_b_m3] + area_b * (p[P.stroke_m] - y),
+        _MIN_VOLUME_FRACTION * p[P.dead_volume_b_m3],
+    )
+    k = p[P.rated_flow_m3_s] / math.sqrt(0.5 * p[P.rated_pressure_drop_pa])
+    ps = p[P.supply_pressure_pa]
+    pt = p[P.tank_pressure_pa]
+    lam = p[P.laminar_pressure_pa]
+    kl = p[P.valve_leakage_m3_s_pa]
     qa = port_flow(s, k, kl, ps, pt, pa, lam)  # eq. 3
     qb = port_flow(-s, k, kl, ps, pt, pb, lam)  # eq. 4
-    qv = p[P_KV] * (pa - pb)  # eq. 7
-    qvb = p[P_KVB] * (pb - pt)  # eq. 8 (pressures over tank = atmosphere)
+    qv = p[P.piston_leakage_m3_s_pa] * (pa - pb)  # eq. 7
+    qvb = p[P.rod_leakage_m3_s_pa] * (pb - pt)  # eq. 8 (pressures over tank = atmosphere)
     if y < 0.0:
-        f_stop = -p[P_KSTOP] * y - (p[P_CSTOP] * v if v < 0.0 else 0.0)
-    elif y > p[P_STROKE]:
-        f_stop = -p[P_KSTOP] * (y - p[P_STROKE]) - (p[P_CSTOP] * v if v > 0.0 else 0.0)
+        f_stop = -p[P.end_stop_stiffness_n_m] * y - (
+            p[P.end_stop_damping_n_s_m] * v if v < 0.0 else 0.0
+        )
+    elif y > p[P.stroke_m]:
+        f_stop = -p[P.end_stop_stiffness_n_m] * (y - p[P.stroke_m]) - (
+            p[P.end_stop_damping_n_s_m] * v if v > 0.0 else 0.0
+        )
     else:
         f_stop = 0.0
-    e = p[P_E]
-    dx[0] = (u / p[P_UN] - s) / p[P_TAU]
-    dx[1] = v
-    dx[2] = (area_a * pa - area_b * pb - p[P_D] * v - f_load + f_stop) / p[P_M]  # eq. 9
-    dx[3] = e / va * (qa - area_a * v - qv)  # eq. 1, 5, 6
-    dx[4] = e / vb * (qb + area_b * v + qv - qvb)  # eq. 2, 5, 6
+    e = p[P.bulk_modulus_pa]
+    dx[X.spool] = (u / p[P.rated_command_v] - s) / p[P.valve_time_constant_s]
+    dx[X.y] = v
+    dx[X.v] = (area_a * pa - area_b * pb - p[P.viscous_friction_n_s_m] * v - f_load + f_stop) / p[
+        P.mass_kg
+    ]  # eq. 9
+    dx[X.p_a] = e / va * (qa - area_a * v - qv)  # eq. 1, 5, 6
+    dx[X.p_b] = e / vb * (qb + area_b * v + qv - qvb)  # eq. 2, 5, 6
     if out.size >= 12:
-        out[0] = s
-        out[1] = y
-        out[2] = v
-        out[3] = pa
-        out[4] = pb
-        out[5] = qa
-        out[6] = qb
-        out[7] = qv
-        out[8] = qvb
-        out[9] = supply_flow(s, k, kl, ps, pa, lam) + supply_flow(-s, k, kl, ps, pb, lam)
-        out[10] = return_flow(s, k, kl, pt, pa, lam) + return_flow(-s, k, kl, pt, pb, lam)
-        out[11] = f_stop
+        out[S.spool] = s
+        out[S.y] = y
+        out[S.v] = v
+        out[S.p_a] = pa
+        out[S.p_b] = pb
+        out[S.q_a] = qa
+        out[S.q_b] = qb
+        out[S.q_v] = qv
+        out[S.q_vb] = qvb
+        out[S.q_supply] = supply_flow(s, k, kl, ps, pa, lam) + supply_flow(-s, k, kl, ps, pb, lam)
+        out[S.q_return] = return_flow(s, k, kl, pt, pa, lam) + return_flow(-s, k, kl, pt, pb, lam)
+        out[S.f_stop] = f_stop
 
 
 @njit(cache=True, inline="always")
@@ -203,7 +194,7 @@ def signals(x: np.ndarray, u: float, f_load: float, p: np.ndarray, out: np.ndarr
 @njit(cache=True)
 def in_end_stop(x: np.ndarray, p: np.ndarray) -> bool:
     """True when the rod is beyond either end of the stroke."""
-    return x[1] < 0.0 or x[1] > p[P_STROKE]
+    return x[X.y] < 0.0 or x[X.y] > p[P.stroke_m]
 
 
 def state_scale(params: AhcCylinderParams) -> np.ndarray:

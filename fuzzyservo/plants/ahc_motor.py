@@ -36,7 +36,7 @@ import numpy as np
 from fuzzyservo._jit import njit
 from fuzzyservo.components.effects import EffectParams
 from fuzzyservo.components.servo_valve import port_flow, return_flow, supply_flow
-from fuzzyservo.params import index_of, quantity
+from fuzzyservo.params import name_index, param_index, quantity
 
 STATES = ("spool", "w", "theta", "p_a", "p_b")
 SIGNALS = (
@@ -99,27 +99,9 @@ class AhcMotorParams(EffectParams):
 
 
 PARAMS = AhcMotorParams
-_P = {name: index_of(AhcMotorParams, name) for name in AhcMotorParams.__dataclass_fields__}
-P_TAU = _P["valve_time_constant_s"]
-P_UN = _P["rated_command_v"]
-P_QN = _P["rated_flow_m3_s"]
-P_DPN = _P["rated_pressure_drop_pa"]
-P_KL = _P["valve_leakage_m3_s_pa"]
-P_PS = _P["supply_pressure_pa"]
-P_PT = _P["tank_pressure_pa"]
-P_DM = _P["displacement_m3_rad"]
-P_V = _P["port_volume_m3"]
-P_KLEA = _P["motor_leakage_m3_s_pa"]
-P_ETA = _P["hydromechanical_efficiency"]
-P_BW = _P["viscous_friction_n_m_s"]
-P_TC = _P["coulomb_torque_n_m"]
-P_WC = _P["coulomb_velocity_rad_s"]
-P_J = _P["inertia_kg_m2"]
-P_R = _P["drum_radius_m"]
-P_ML = _P["load_mass_kg"]
-P_G = _P["gravity_m_s2"]
-P_E = _P["bulk_modulus_pa"]
-P_PLAM = _P["laminar_pressure_pa"]
+P = param_index(PARAMS)  # p[P.<field>]: positions generated from the dataclass
+S = name_index(SIGNALS)  # out[S.<signal>]: positions generated from SIGNALS
+X = name_index(STATES, "States")  # x[X.<state>], dx[X.<state>]
 
 
 @njit(cache=True, inline="always")
@@ -127,42 +109,46 @@ def _evaluate(
     x: np.ndarray, u: float, z_wave: float, p: np.ndarray, dx: np.ndarray, out: np.ndarray
 ) -> None:
     """The whole model in one flat function; writes dx/dt and, when ``out`` has room, SIGNALS."""
-    s = x[0]
-    w = x[1]
-    pa = x[3]
-    pb = x[4]
-    k = p[P_QN] / math.sqrt(0.5 * p[P_DPN])
-    ps = p[P_PS]
-    pt = p[P_PT]
-    lam = p[P_PLAM]
-    kl = p[P_KL]
-    dm = p[P_DM]
-    r = p[P_R]
+    s = x[X.spool]
+    w = x[X.w]
+    pa = x[X.p_a]
+    pb = x[X.p_b]
+    k = p[P.rated_flow_m3_s] / math.sqrt(0.5 * p[P.rated_pressure_drop_pa])
+    ps = p[P.supply_pressure_pa]
+    pt = p[P.tank_pressure_pa]
+    lam = p[P.laminar_pressure_pa]
+    kl = p[P.valve_leakage_m3_s_pa]
+    dm = p[P.displacement_m3_rad]
+    r = p[P.drum_radius_m]
     qa = port_flow(s, k, kl, ps, pt, pa, lam)
     qb = port_flow(-s, k, kl, ps, pt, pb, lam)
-    qlea = p[P_KLEA] * (pa - pb)  # volumetric losses (eq. 12-13)
-    t_loss = p[P_BW] * w + p[P_TC] * math.tanh(w / p[P_WC])
-    t_load = p[P_ML] * p[P_G] * r
-    e_v = p[P_E] / p[P_V]
-    dx[0] = (u / p[P_UN] - s) / p[P_TAU]
-    dx[1] = (p[P_ETA] * dm * (pa - pb) - t_loss + t_load) / (p[P_J] + p[P_ML] * r * r)
-    dx[2] = w
-    dx[3] = e_v * (qa - dm * w - qlea)
-    dx[4] = e_v * (qb + dm * w + qlea)
+    qlea = p[P.motor_leakage_m3_s_pa] * (pa - pb)  # volumetric losses (eq. 12-13)
+    t_loss = p[P.viscous_friction_n_m_s] * w + p[P.coulomb_torque_n_m] * math.tanh(
+        w / p[P.coulomb_velocity_rad_s]
+    )
+    t_load = p[P.load_mass_kg] * p[P.gravity_m_s2] * r
+    e_v = p[P.bulk_modulus_pa] / p[P.port_volume_m3]
+    dx[X.spool] = (u / p[P.rated_command_v] - s) / p[P.valve_time_constant_s]
+    dx[X.w] = (p[P.hydromechanical_efficiency] * dm * (pa - pb) - t_loss + t_load) / (
+        p[P.inertia_kg_m2] + p[P.load_mass_kg] * r * r
+    )
+    dx[X.theta] = w
+    dx[X.p_a] = e_v * (qa - dm * w - qlea)
+    dx[X.p_b] = e_v * (qb + dm * w + qlea)
     if out.size >= 13:
-        out[0] = s
-        out[1] = w
-        out[2] = x[2]
-        out[3] = pa
-        out[4] = pb
-        out[5] = qa
-        out[6] = qb
-        out[7] = qlea
-        out[8] = supply_flow(s, k, kl, ps, pa, lam) + supply_flow(-s, k, kl, ps, pb, lam)
-        out[9] = return_flow(s, k, kl, pt, pa, lam) + return_flow(-s, k, kl, pt, pb, lam)
-        out[10] = t_loss
-        out[11] = r * x[2]
-        out[12] = z_wave - r * x[2]
+        out[S.spool] = s
+        out[S.w] = w
+        out[S.theta] = x[X.theta]
+        out[S.p_a] = pa
+        out[S.p_b] = pb
+        out[S.q_a] = qa
+        out[S.q_b] = qb
+        out[S.q_lea] = qlea
+        out[S.q_supply] = supply_flow(s, k, kl, ps, pa, lam) + supply_flow(-s, k, kl, ps, pb, lam)
+        out[S.q_return] = return_flow(s, k, kl, pt, pa, lam) + return_flow(-s, k, kl, pt, pb, lam)
+        out[S.t_loss] = t_loss
+        out[S.payout] = r * x[X.theta]
+        out[S.z_load] = z_wave - r * x[X.theta]
 
 
 @njit(cache=True, inline="always")

@@ -50,7 +50,7 @@ from fuzzyservo._jit import njit
 from fuzzyservo.components.effects import (
     E_LEAK,
     E_LINE,
-    LIBRARY,
+    FIRST_EFFECTS,
     EffectParams,
     Scales,
     bulk_modulus,
@@ -61,7 +61,7 @@ from fuzzyservo.components.effects import (
 )
 from fuzzyservo.components.geometry import circle_area
 from fuzzyservo.components.orifice import signed_sqrt_flow
-from fuzzyservo.params import index_of, quantity
+from fuzzyservo.params import name_index, param_index, quantity
 
 STATES = ("y", "v", "xi1", "xi2", "xi3", "xi4")
 SIGNALS = (
@@ -159,29 +159,9 @@ class CylinderParams(EffectParams):
 
 
 PARAMS = CylinderParams
-_P = {name: index_of(CylinderParams, name) for name in CylinderParams.__dataclass_fields__}
-P_DP = _P["piston_diameter_m"]
-P_DT = _P["rod_diameter_m"]
-P_L30 = _P["chamber_length_3_m"]
-P_L40 = _P["chamber_length_4_m"]
-P_M = _P["piston_mass_kg"]
-P_F = _P["viscous_friction_n_s_m"]
-P_V1 = _P["valve_volume_1_m3"]
-P_V2 = _P["valve_volume_2_m3"]
-P_A = _P["slot_coeff_a_m3_s_sqrtpa"]
-P_B = _P["slot_coeff_b_m3_s_a_sqrtpa"]
-P_ICL = _P["closing_current_a"]
-P_IBIAS = _P["bias_current_a"]
-P_E = _P["bulk_modulus_pa"]
-P_RA = _P["supply_resistance_m3_s_sqrtpa"]
-P_RR = _P["return_resistance_m3_s_sqrtpa"]
-P_PA = _P["supply_pressure_pa"]
-P_PR = _P["return_pressure_pa"]
-P_PLAM = _P["laminar_pressure_pa"]
-P_LDEAD = _P["dead_length_m"]
-P_KSTOP = _P["end_stop_stiffness_n_m"]
-P_CSTOP = _P["end_stop_damping_n_s_m"]
-P_KLOAD = _P["load_stiffness_n_m"]
+P = param_index(PARAMS)  # p[P.<field>]: positions generated from the dataclass
+S = name_index(SIGNALS)  # out[S.<signal>]: positions generated from SIGNALS
+X = name_index(STATES, "States")  # x[X.<state>], dx[X.<state>]
 
 # Chamber lengths never fall below this fraction of the dead length, even deep in an
 # end stop, so that a volume can never reach zero whatever the integrator tries.
@@ -191,12 +171,16 @@ _MIN_LENGTH_FRACTION = 0.05
 @njit(cache=True, inline="always")
 def _stop_force(y: float, v: float, p: np.ndarray) -> float:
     """End-stop force [N]: spring-damper beyond the dead length, zero inside the stroke."""
-    lo = p[P_LDEAD] - p[P_L30]
-    hi = p[P_L40] - p[P_LDEAD]
+    lo = p[P.dead_length_m] - p[P.chamber_length_3_m]
+    hi = p[P.chamber_length_4_m] - p[P.dead_length_m]
     if y < lo:
-        return p[P_KSTOP] * (lo - y) - (p[P_CSTOP] * v if v < 0.0 else 0.0)
+        return p[P.end_stop_stiffness_n_m] * (lo - y) - (
+            p[P.end_stop_damping_n_s_m] * v if v < 0.0 else 0.0
+        )
     if y > hi:
-        return -p[P_KSTOP] * (y - hi) - (p[P_CSTOP] * v if v > 0.0 else 0.0)
+        return -p[P.end_stop_stiffness_n_m] * (y - hi) - (
+            p[P.end_stop_damping_n_s_m] * v if v > 0.0 else 0.0
+        )
     return 0.0
 
 
@@ -208,33 +192,35 @@ def _evaluate(
 
     Writes dx/dt into ``dx`` and, when ``out`` has room, every signal of SIGNALS.
     """
-    y = x[0]
-    v = x[1]
+    y = x[X.y]
+    v = x[X.v]
     # geometry (eq. 7); chamber lengths floored so that no volume reaches zero
-    s3 = circle_area(p[P_DP])
-    s4 = s3 - circle_area(p[P_DT])
-    lmin = _MIN_LENGTH_FRACTION * p[P_LDEAD]
-    l3 = max(p[P_L30] + y, lmin)
-    l4 = max(p[P_L40] - y, lmin)
+    s3 = circle_area(p[P.piston_diameter_m])
+    s4 = s3 - circle_area(p[P.rod_diameter_m])
+    lmin = _MIN_LENGTH_FRACTION * p[P.dead_length_m]
+    l3 = max(p[P.chamber_length_3_m] + y, lmin)
+    l4 = max(p[P.chamber_length_4_m] - y, lmin)
     # pressures from liquid volumes (eq. 5, 6, 10, 11)
-    e = bulk_modulus(p, p[P_E])
-    p1 = e * (x[2] / p[P_V1] - 1.0)
-    p2 = e * (x[3] / p[P_V2] - 1.0)
-    p3 = e * (x[4] / (s3 * l3) - 1.0)
-    p4 = e * (x[5] / (s4 * l4) - 1.0)
+    e = bulk_modulus(p, p[P.bulk_modulus_pa])
+    p1 = e * (x[X.xi1] / p[P.valve_volume_1_m3] - 1.0)
+    p2 = e * (x[X.xi2] / p[P.valve_volume_2_m3] - 1.0)
+    p3 = e * (x[X.xi3] / (s3 * l3) - 1.0)
+    p4 = e * (x[X.xi4] / (s4 * l4) - 1.0)
     # slot coefficients with the closing-current logic (eq. 13-16)
-    di = i - p[P_IBIAS]
-    c14 = p[P_A] + p[P_B] * di
-    c23 = p[P_A] - p[P_B] * di
-    if di >= p[P_ICL]:
+    di = i - p[P.bias_current_a]
+    c14 = p[P.slot_coeff_a_m3_s_sqrtpa] + p[P.slot_coeff_b_m3_s_a_sqrtpa] * di
+    c23 = p[P.slot_coeff_a_m3_s_sqrtpa] - p[P.slot_coeff_b_m3_s_a_sqrtpa] * di
+    if di >= p[P.closing_current_a]:
         c23 = 0.0
-    if di <= -p[P_ICL]:
+    if di <= -p[P.closing_current_a]:
         c14 = 0.0
     c14 = max(c14, 0.0)
     c23 = max(c23, 0.0)
-    lam = p[P_PLAM]
-    qa = pump_limited(signed_sqrt_flow(p[P_RA], p[P_PA] - p1, lam), p)  # supply_droop
-    qr = signed_sqrt_flow(p[P_RR], p2 - p[P_PR], lam)
+    lam = p[P.laminar_pressure_pa]
+    qa = pump_limited(
+        signed_sqrt_flow(p[P.supply_resistance_m3_s_sqrtpa], p[P.supply_pressure_pa] - p1, lam), p
+    )  # supply_droop
+    qr = signed_sqrt_flow(p[P.return_resistance_m3_s_sqrtpa], p2 - p[P.return_pressure_pa], lam)
     # valve ports: the chambers themselves, or line_resistance's port nodes
     pa_port = p3
     pb_port = p4
@@ -249,31 +235,31 @@ def _evaluate(
     q_leak = p[E_LEAK] * (p3 - p4)  # internal_leakage across the piston
     f_fric = friction_force(v, p)  # coulomb_friction, stribeck_friction
     f_stop = _stop_force(y, v, p)
-    dx[0] = v
-    f_spring = p[P_KLOAD] * y  # a spring-like load (0 in seed 002)
-    dx[1] = (p3 * s3 - p4 * s4 - p[P_F] * v - f_fric - f_spring - f_load + f_stop) / p[
-        P_M
-    ]  # eq. 12
-    dx[2] = qa - q1 - q3  # eq. 3
-    dx[3] = q2 + q4 - qr  # eq. 4
-    dx[4] = q1 - q2 - q_leak  # eq. 8
-    dx[5] = q3 - q4 + q_leak  # eq. 9
+    dx[X.y] = v
+    f_spring = p[P.load_stiffness_n_m] * y  # a spring-like load (0 in seed 002)
+    dx[X.v] = (
+        p3 * s3 - p4 * s4 - p[P.viscous_friction_n_s_m] * v - f_fric - f_spring - f_load + f_stop
+    ) / p[P.piston_mass_kg]  # eq. 12
+    dx[X.xi1] = qa - q1 - q3  # eq. 3
+    dx[X.xi2] = q2 + q4 - qr  # eq. 4
+    dx[X.xi3] = q1 - q2 - q_leak  # eq. 8
+    dx[X.xi4] = q3 - q4 + q_leak  # eq. 9
     if out.size >= 15:
-        out[0] = y
-        out[1] = v
-        out[2] = p1
-        out[3] = p2
-        out[4] = p3
-        out[5] = p4
-        out[6] = qa
-        out[7] = qr
-        out[8] = q1
-        out[9] = q2
-        out[10] = q3
-        out[11] = q4
-        out[12] = f_stop
-        out[13] = f_fric
-        out[14] = q_leak
+        out[S.y] = y
+        out[S.v] = v
+        out[S.p1] = p1
+        out[S.p2] = p2
+        out[S.p3] = p3
+        out[S.p4] = p4
+        out[S.q_a] = qa
+        out[S.q_r] = qr
+        out[S.q1] = q1
+        out[S.q2] = q2
+        out[S.q3] = q3
+        out[S.q4] = q4
+        out[S.f_stop] = f_stop
+        out[S.f_friction] = f_fric
+        out[S.q_leak] = q_leak
 
 
 @njit(cache=True, inline="always")
@@ -297,7 +283,7 @@ def pressures(x: np.ndarray, p: np.ndarray) -> tuple[float, float, float, float]
     """Pressures p1..p4 [Pa] from the liquid volumes (seed 002 eq. 5, 6, 10, 11)."""
     out = np.empty(len(SIGNALS))
     signals(np.asarray(x, dtype=np.float64), 0.0, 0.0, p, out)
-    return out[2], out[3], out[4], out[5]
+    return out[S.p1], out[S.p2], out[S.p3], out[S.p4]
 
 
 def flows(
@@ -312,7 +298,10 @@ def flows(
 @njit(cache=True)
 def in_end_stop(x: np.ndarray, p: np.ndarray) -> bool:
     """True when the piston is beyond either end-stop position."""
-    return x[0] < p[P_LDEAD] - p[P_L30] or x[0] > p[P_L40] - p[P_LDEAD]
+    return (
+        x[X.y] < p[P.dead_length_m] - p[P.chamber_length_3_m]
+        or x[X.y] > p[P.chamber_length_4_m] - p[P.dead_length_m]
+    )
 
 
 def state_scale(params: CylinderParams) -> np.ndarray:
@@ -387,8 +376,9 @@ def typical_state(params: CylinderParams) -> np.ndarray:
     )  # fmt: skip
 
 
-# Every effect of the library acts on this plant (components/effects.py).
-EFFECTS = tuple(LIBRARY)
+# The effects this plant's kernel reads: the first ten of the library, so that an effect
+# added later is refused here until the kernel reads it.
+EFFECTS = FIRST_EFFECTS
 MECHANICS = {"force": "N", "velocity": "m/s"}
 
 

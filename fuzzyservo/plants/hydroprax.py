@@ -42,7 +42,7 @@ from fuzzyservo._jit import njit
 from fuzzyservo.components.effects import EffectParams
 from fuzzyservo.components.geometry import circle_area
 from fuzzyservo.components.valves import NN_SIZE, four_way_flows, nn_forward, polynomial_flow
-from fuzzyservo.params import index_of, pack, quantity, vector, vector_offset
+from fuzzyservo.params import name_index, pack, param_index, quantity, vector, vector_offset
 
 STATES = ("y", "v", "p_s", "p_a", "p_b")
 SIGNALS = (
@@ -167,40 +167,9 @@ class HydropraxParams(EffectParams):
 
 
 PARAMS = HydropraxParams
-_P = {
-    f.name: index_of(HydropraxParams, f.name)
-    for f in dataclasses.fields(HydropraxParams)
-    if "key" in f.metadata
-}
-P_AP = _P["piston_area_m2"]
-P_DR = _P["rod_diameter_m"]
-P_L = _P["stroke_m"]
-P_M = _P["piston_mass_kg"]
-P_FV = _P["viscous_friction_n_s_m"]
-P_FC = _P["coulomb_friction_n"]
-P_VC = _P["coulomb_velocity_m_s"]
-P_KL = _P["load_stiffness_n_m"]
-P_E = _P["bulk_modulus_pa"]
-P_VT = _P["supply_volume_m3"]
-P_QP = _P["pump_flow_m3_s"]
-P_PS = _P["supply_pressure_pa"]
-P_PCR = _P["relief_cracking_pressure_pa"]
-P_KNEE = _P["relief_knee_pa"]
-P_PT = _P["tank_pressure_pa"]
-P_VDA = _P["dead_volume_a_m3"]
-P_VDB = _P["dead_volume_b_m3"]
-P_VM = _P["valve_model"]
-P_UMAX = _P["control_voltage_max_v"]
-P_C0 = _P["flow_c0_m3_s"]
-P_C1 = _P["flow_c1_m3_s_v"]
-P_C2 = _P["flow_c2_m3_s_v2"]
-P_C3 = _P["flow_c3_m3_s_v3"]
-P_C4 = _P["flow_c4_m3_s_v4"]
-P_DPN = _P["nominal_pressure_drop_pa"]
-P_CO = _P["orifice_coefficient_m3_s_sqrtpa"]
-P_PLAM = _P["laminar_pressure_pa"]
-P_KSTOP = _P["end_stop_stiffness_n_m"]
-P_CSTOP = _P["end_stop_damping_n_s_m"]
+P = param_index(PARAMS)  # p[P.<field>]: positions generated from the dataclass
+S = name_index(SIGNALS)  # out[S.<signal>]: positions generated from SIGNALS
+X = name_index(STATES, "States")  # x[X.<state>], dx[X.<state>]
 P_NN = vector_offset(HydropraxParams, "nn_weights")
 
 # Chamber volumes never fall below this fraction of their dead volume (cylinder.py)
@@ -212,66 +181,83 @@ def _evaluate(
     x: np.ndarray, u: float, f_load: float, p: np.ndarray, dx: np.ndarray, out: np.ndarray
 ) -> None:
     """The whole model in one flat function; writes dx/dt and, when ``out`` has room, SIGNALS."""
-    y = x[0]
-    v = x[1]
-    ps = x[2]
-    pa = x[3]
-    pb = x[4]
-    pt = p[P_PT]
-    aa = p[P_AP]
-    ab = aa - circle_area(p[P_DR])
-    va = max(p[P_VDA] + aa * y, _MIN_VOLUME_FRACTION * p[P_VDA])
-    vb = max(p[P_VDB] + ab * (p[P_L] - y), _MIN_VOLUME_FRACTION * p[P_VDB])
+    y = x[X.y]
+    v = x[X.v]
+    ps = x[X.p_s]
+    pa = x[X.p_a]
+    pb = x[X.p_b]
+    pt = p[P.tank_pressure_pa]
+    aa = p[P.piston_area_m2]
+    ab = aa - circle_area(p[P.rod_diameter_m])
+    va = max(p[P.dead_volume_a_m3] + aa * y, _MIN_VOLUME_FRACTION * p[P.dead_volume_a_m3])
+    vb = max(
+        p[P.dead_volume_b_m3] + ab * (p[P.stroke_m] - y),
+        _MIN_VOLUME_FRACTION * p[P.dead_volume_b_m3],
+    )
     # valve (eq. 7 / Fig. 7 / ideal orifice)
-    umax = p[P_UMAX]
+    umax = p[P.control_voltage_max_v]
     uc = min(max(u, -umax), umax)
-    vm = p[P_VM]
+    vm = p[P.valve_model]
     if vm > 1.5 and vm < 2.5:
         q_a, q_b = nn_forward(p, P_NN, ps, uc, pa, pb)
         q_l = q_a if uc >= 0.0 else q_b
     else:
         if vm < 1.5:
-            k = polynomial_flow(uc, umax, p[P_C0], p[P_C1], p[P_C2], p[P_C3], p[P_C4]) / math.sqrt(
-                p[P_DPN]
-            )
+            k = polynomial_flow(
+                uc,
+                umax,
+                p[P.flow_c0_m3_s],
+                p[P.flow_c1_m3_s_v],
+                p[P.flow_c2_m3_s_v2],
+                p[P.flow_c3_m3_s_v3],
+                p[P.flow_c4_m3_s_v4],
+            ) / math.sqrt(p[P.nominal_pressure_drop_pa])
         else:
-            k = p[P_CO] * uc / umax
-        q_pa, q_bt, q_pb, q_at = four_way_flows(k, ps, pa, pb, pt, p[P_PLAM])
+            k = p[P.orifice_coefficient_m3_s_sqrtpa] * uc / umax
+        q_pa, q_bt, q_pb, q_at = four_way_flows(k, ps, pa, pb, pt, p[P.laminar_pressure_pa])
         q_a = q_pa - q_at
         q_b = q_pb - q_bt
         q_l = q_pa + q_pb
     q_t = q_l - q_a - q_b
     # pump and relief (eq. 1)
-    d = ps - p[P_PCR]
-    kr = p[P_QP] / (p[P_PS] - p[P_PCR])
-    q_r = 0.5 * kr * (d + math.sqrt(d * d + p[P_KNEE] * p[P_KNEE]))
+    d = ps - p[P.relief_cracking_pressure_pa]
+    kr = p[P.pump_flow_m3_s] / (p[P.supply_pressure_pa] - p[P.relief_cracking_pressure_pa])
+    q_r = 0.5 * kr * (d + math.sqrt(d * d + p[P.relief_knee_pa] * p[P.relief_knee_pa]))
     # piston (eq. 6) with smooth Coulomb friction and the end stops
-    f_fric = p[P_FV] * v + p[P_FC] * math.tanh(v / p[P_VC])
+    f_fric = p[P.viscous_friction_n_s_m] * v + p[P.coulomb_friction_n] * math.tanh(
+        v / p[P.coulomb_velocity_m_s]
+    )
     f_stop = 0.0
     if y < 0.0:
-        f_stop = -p[P_KSTOP] * y - (p[P_CSTOP] * v if v < 0.0 else 0.0)
-    elif y > p[P_L]:
-        f_stop = -p[P_KSTOP] * (y - p[P_L]) - (p[P_CSTOP] * v if v > 0.0 else 0.0)
-    e = p[P_E]
-    dx[0] = v
-    dx[1] = (pa * aa - pb * ab - f_fric - p[P_KL] * y - f_load + f_stop) / p[P_M]
-    dx[2] = e / p[P_VT] * (p[P_QP] - q_r - q_l)
-    dx[3] = e / va * (q_a - aa * v)
-    dx[4] = e / vb * (q_b + ab * v)
+        f_stop = -p[P.end_stop_stiffness_n_m] * y - (
+            p[P.end_stop_damping_n_s_m] * v if v < 0.0 else 0.0
+        )
+    elif y > p[P.stroke_m]:
+        f_stop = -p[P.end_stop_stiffness_n_m] * (y - p[P.stroke_m]) - (
+            p[P.end_stop_damping_n_s_m] * v if v > 0.0 else 0.0
+        )
+    e = p[P.bulk_modulus_pa]
+    dx[X.y] = v
+    dx[X.v] = (pa * aa - pb * ab - f_fric - p[P.load_stiffness_n_m] * y - f_load + f_stop) / p[
+        P.piston_mass_kg
+    ]
+    dx[X.p_s] = e / p[P.supply_volume_m3] * (p[P.pump_flow_m3_s] - q_r - q_l)
+    dx[X.p_a] = e / va * (q_a - aa * v)
+    dx[X.p_b] = e / vb * (q_b + ab * v)
     if out.size >= 13:
-        out[0] = y
-        out[1] = v
-        out[2] = ps
-        out[3] = pa
-        out[4] = pb
-        out[5] = p[P_QP]
-        out[6] = q_r
-        out[7] = q_l
-        out[8] = q_a
-        out[9] = q_b
-        out[10] = q_t
-        out[11] = f_fric
-        out[12] = f_stop
+        out[S.y] = y
+        out[S.v] = v
+        out[S.p_s] = ps
+        out[S.p_a] = pa
+        out[S.p_b] = pb
+        out[S.q_pump] = p[P.pump_flow_m3_s]
+        out[S.q_relief] = q_r
+        out[S.q_supply] = q_l
+        out[S.q_a] = q_a
+        out[S.q_b] = q_b
+        out[S.q_tank] = q_t
+        out[S.f_friction] = f_fric
+        out[S.f_stop] = f_stop
 
 
 @njit(cache=True, inline="always")
@@ -294,7 +280,7 @@ def signals(x: np.ndarray, u: float, f_load: float, p: np.ndarray, out: np.ndarr
 @njit(cache=True)
 def in_end_stop(x: np.ndarray, p: np.ndarray) -> bool:
     """True when the piston is beyond either end of its stroke."""
-    return x[0] < 0.0 or x[0] > p[P_L]
+    return x[X.y] < 0.0 or x[X.y] > p[P.stroke_m]
 
 
 def state_scale(params: HydropraxParams) -> np.ndarray:
@@ -345,9 +331,9 @@ def valve_flows(
     x = initial_state(params, y_m=0.5 * params.stroke_m)
     flows = np.empty((np.size(ps), 2))
     for i, row in enumerate(np.broadcast(ps, u, pa, pb)):
-        x[2], x[3], x[4] = row[0], row[2], row[3]
+        x[X.p_s], x[X.p_a], x[X.p_b] = row[0], row[2], row[3]
         signals(x, row[1], 0.0, p, out)
-        flows[i] = out[8], out[9]
+        flows[i] = out[S.q_a], out[S.q_b]
     return flows
 
 

@@ -32,14 +32,14 @@ from fuzzyservo._jit import njit
 from fuzzyservo.components.effects import (
     E_LEAK,
     E_LINE,
-    LIBRARY,
+    FIRST_EFFECTS,
     EffectParams,
     Scales,
     bulk_modulus,
     friction_force,
     pump_limited,
 )
-from fuzzyservo.params import index_of, quantity
+from fuzzyservo.params import name_index, param_index, quantity
 
 STATES = ("spool", "w", "theta", "p_load")
 SIGNALS = ("spool", "w", "theta", "p_load", "q_valve", "t_friction", "q_leak")
@@ -76,30 +76,19 @@ class MotorParams(EffectParams):
 
 
 PARAMS = MotorParams
-_P = {name: index_of(MotorParams, name) for name in MotorParams.__dataclass_fields__}
-P_TAU = _P["valve_time_constant_s"]
-P_KA = _P["amplifier_gain"]
-P_KX = _P["valve_flow_gain_m3_s_v"]
-P_PS = _P["supply_pressure_pa"]
-P_VM = _P["motor_displacement_m3_rad"]
-P_VC = _P["oil_volume_m3"]
-P_LE = _P["leakage_m5_n_s"]
-P_KH = _P["bulk_modulus_pa"]
-P_B = _P["viscous_friction_n_m_s"]
-P_J = _P["inertia_kg_m2"]
-P_TF = _P["coulomb_torque_n_m"]
-P_WC = _P["coulomb_velocity_rad_s"]
-P_PLAM = _P["laminar_pressure_pa"]
+P = param_index(PARAMS)  # p[P.<field>]: positions generated from the dataclass
+S = name_index(SIGNALS)  # out[S.<signal>]: positions generated from SIGNALS
+X = name_index(STATES, "States")  # x[X.<state>], dx[X.<state>]
 
 
 @njit(cache=True)
 def valve_flow(spool: float, p_load: float, p: np.ndarray) -> float:
     """Servo-valve flow Q [m³/s] (seed 000 eq. 9), regularised near P_x = ±P_s."""
-    q0 = p[P_KX] * spool
-    dp = p[P_PS] - (p_load if q0 >= 0.0 else -p_load)
-    lam = p[P_PLAM]
+    q0 = p[P.valve_flow_gain_m3_s_v] * spool
+    dp = p[P.supply_pressure_pa] - (p_load if q0 >= 0.0 else -p_load)
+    lam = p[P.laminar_pressure_pa]
     # dp/(dp²+lam²)^(1/4) ≈ sqrt(dp) for dp ≫ lam, linear through zero below
-    return q0 * dp / math.sqrt(math.sqrt(dp * dp + lam * lam) * p[P_PS])
+    return q0 * dp / math.sqrt(math.sqrt(dp * dp + lam * lam) * p[P.supply_pressure_pa])
 
 
 @njit(cache=True)
@@ -132,7 +121,11 @@ def line_flow(spool: float, p_load: float, p: np.ndarray) -> float:
 def friction_torque(w: float, p: np.ndarray) -> float:
     """Viscous plus smoothed Coulomb friction torque [N·m] (seed 000 eq. 10, Table 2),
     plus the friction effects when declared."""
-    return p[P_B] * w + p[P_TF] * math.tanh(w / p[P_WC]) + friction_force(w, p)
+    return (
+        p[P.viscous_friction_n_m_s] * w
+        + p[P.coulomb_torque_n_m] * math.tanh(w / p[P.coulomb_velocity_rad_s])
+        + friction_force(w, p)
+    )
 
 
 @njit(cache=True)
@@ -142,27 +135,34 @@ def rhs(x: np.ndarray, u: float, t_load: float, p: np.ndarray, dx: np.ndarray) -
     ``x`` states (STATES), ``u`` amplifier input [V], ``t_load`` load torque [N·m],
     ``p`` packed :class:`MotorParams`; writes ``dx``.
     """
-    spool = x[0]
-    w = x[1]
-    pl = x[3]
+    spool = x[X.spool]
+    w = x[X.w]
+    pl = x[X.p_load]
     q = line_flow(spool, pl, p)
-    dx[0] = (p[P_KA] * u - spool) / p[P_TAU]
-    dx[1] = (p[P_VM] * pl - friction_torque(w, p) - t_load) / p[P_J]
-    dx[2] = w
-    leak = (p[P_LE] + p[E_LEAK]) * pl  # eq. 17 plus internal_leakage
-    dx[3] = 4.0 * bulk_modulus(p, p[P_KH]) / p[P_VC] * (q - p[P_VM] * w - leak)
+    dx[X.spool] = (p[P.amplifier_gain] * u - spool) / p[P.valve_time_constant_s]
+    dx[X.w] = (p[P.motor_displacement_m3_rad] * pl - friction_torque(w, p) - t_load) / p[
+        P.inertia_kg_m2
+    ]
+    dx[X.theta] = w
+    leak = (p[P.leakage_m5_n_s] + p[E_LEAK]) * pl  # eq. 17 plus internal_leakage
+    dx[X.p_load] = (
+        4.0
+        * bulk_modulus(p, p[P.bulk_modulus_pa])
+        / p[P.oil_volume_m3]
+        * (q - p[P.motor_displacement_m3_rad] * w - leak)
+    )
 
 
 @njit(cache=True)
 def signals(x: np.ndarray, u: float, t_load: float, p: np.ndarray, out: np.ndarray) -> None:
     """Every signal of SIGNALS for state ``x``; writes ``out``."""
-    out[0] = x[0]
-    out[1] = x[1]
-    out[2] = x[2]
-    out[3] = x[3]
-    out[4] = line_flow(x[0], x[3], p)
-    out[5] = friction_torque(x[1], p)
-    out[6] = p[E_LEAK] * x[3]
+    out[S.spool] = x[X.spool]
+    out[S.w] = x[X.w]
+    out[S.theta] = x[X.theta]
+    out[S.p_load] = x[X.p_load]
+    out[S.q_valve] = line_flow(x[X.spool], x[X.p_load], p)
+    out[S.t_friction] = friction_torque(x[X.w], p)
+    out[S.q_leak] = p[E_LEAK] * x[X.p_load]
 
 
 @njit(cache=True)
@@ -191,8 +191,9 @@ def initial_state(
     return np.array([0.0, w_rad_s, theta_rad, 0.0])
 
 
-# Every effect of the library acts on this plant (components/effects.py).
-EFFECTS = tuple(LIBRARY)
+# The effects this plant's kernel reads: the first ten of the library, so that an effect
+# added later is refused here until the kernel reads it.
+EFFECTS = FIRST_EFFECTS
 MECHANICS = {"force": "N*m", "velocity": "rad/s"}
 
 

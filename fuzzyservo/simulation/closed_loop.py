@@ -7,7 +7,6 @@ from dataclasses import dataclass
 import numpy as np
 
 from fuzzyservo.controllers.base import Controller
-from fuzzyservo.plants.kernels import plant_signal_table
 from fuzzyservo.rig import Rig, Scenario
 from fuzzyservo.simulation import _loop
 from fuzzyservo.simulation.result import SimResult
@@ -116,9 +115,7 @@ def simulate(
     actuator = np.empty(n)
     saturated = np.zeros(n, dtype=np.bool_)
     cp, cs = prep.controller.init(rig.sample_time_s)
-    fb = rig.feedback
-    status, where, steps = _loop.closed_loop(
-        rig.plant.kind,
+    status, where, steps = rig.plant.loop.closed_loop(
         prep.p,
         prep.null,
         prep.x0,
@@ -127,14 +124,7 @@ def simulate(
         cs,
         prep.ref,
         prep.load,
-        rig.sample_time_s,
-        rig.plant.states.index(fb.signal),
-        fb.offset,
-        fb.slope,
-        rig.actuator.gain,
-        rig.actuator.lower,
-        rig.actuator.upper,
-        tol,
+        loop_settings(rig, tol),
         prep.scale,
         prep.typical,
         states,
@@ -143,6 +133,21 @@ def simulate(
         saturated,
     )
     return assemble(prep, states, command, actuator, saturated, _STATUS[status], where, steps)
+
+
+def loop_settings(rig: Rig, tol: float = DEFAULT_TOL) -> _loop.LoopSettings:
+    """The loop's scalars for ``rig``: sample time, feedback sensor, actuator, tolerance."""
+    fb, act = rig.feedback, rig.actuator
+    return _loop.LoopSettings(
+        dt=float(rig.sample_time_s),
+        sensor_index=rig.plant.states.index(fb.signal),
+        sensor_offset=float(fb.offset),
+        sensor_gain=float(fb.slope),
+        act_gain=float(act.gain),
+        act_lo=float(act.lower),
+        act_hi=float(act.upper),
+        tol=float(tol),
+    )
 
 
 def assemble(
@@ -161,11 +166,16 @@ def assemble(
     n = prep.t.size
     values = np.empty((n, len(plant.signals)))
     states = np.ascontiguousarray(states[:, : prep.plant_states])
-    plant_signal_table(plant.kind, states, actuator, prep.load, prep.p, values)
+    plant.loop.signal_table(states, actuator, prep.load, prep.p, values)
     signals = {name: values[:, j] for j, name in enumerate(plant.signals)}
     units = dict(plant.signal_units)
     for name, sensor in rig.sensors.items():
-        signals[name] = np.asarray(sensor.read(states[:, plant.states.index(sensor.signal)]))
+        sensed = (
+            signals[sensor.signal]
+            if sensor.signal in plant.signals
+            else states[:, plant.states.index(sensor.signal)]
+        )
+        signals[name] = np.asarray(sensor.read(sensed))
         units[name] = sensor.unit
     for (name, unit), values in ((plant.load, prep.load), (plant.input, actuator)):
         signals[name] = values

@@ -18,6 +18,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, NoReturn
 
+from fuzzyservo.rig import Rig
 from fuzzyservo.tuning.objective import Evaluation, Evaluator
 from fuzzyservo.tuning.spec import StudySpec
 
@@ -160,13 +161,17 @@ def seed_for(spec: StudySpec, study, worker: int, shared: bool) -> int | None:
     return (spec.seed + 1009 * worker + 7919 * done + salt) % (2**32)
 
 
-def build_evaluator(spec: StudySpec) -> Evaluator:
+def build_evaluator(spec: StudySpec, rig: Rig | None = None) -> Evaluator:
+    """The trial evaluator: the study's rig (``rig`` when given, else ``spec.rig_file``)."""
     from fuzzyservo.io.controllers import load_controller
     from fuzzyservo.io.rigs import load_rig
     from fuzzyservo.io.studies import template_data
 
     return Evaluator(
-        spec, load_rig(spec.rig_file), template_data(spec), load_controller(spec.baseline_file)
+        spec,
+        rig if rig is not None else load_rig(spec.rig_file),
+        template_data(spec),
+        load_controller(spec.baseline_file),
     )
 
 
@@ -206,7 +211,9 @@ def count_complete(study) -> int:
     return len(study.get_trials(deepcopy=False, states=(TrialState.COMPLETE,)))
 
 
-def _optimize(spec: StudySpec, study, total: int, extra_callbacks: list) -> None:
+def _optimize(
+    spec: StudySpec, study, total: int, extra_callbacks: list, rig: Rig | None = None
+) -> None:
     """``study.optimize`` until ``total`` complete trials; Ctrl-C finishes the running trial
     and stops (a second Ctrl-C stops at once), then raises KeyboardInterrupt."""
     import signal
@@ -216,7 +223,7 @@ def _optimize(spec: StudySpec, study, total: int, extra_callbacks: list) -> None
 
     if count_complete(study) >= total:
         return
-    evaluator = build_evaluator(spec)
+    evaluator = build_evaluator(spec, rig)
     interrupted = False
 
     def on_sigint(signum, frame) -> None:
@@ -256,8 +263,17 @@ def run_study(
     storage: str | None = None,
     workers: int = 1,
     progress: bool = True,
+    rig: Rig | None = None,
 ) -> Outcome:
-    """Run (or resume) the study until it holds ``trials`` complete trials; return the outcome."""
+    """Run (or resume) the study until it holds ``trials`` complete trials; return the outcome.
+
+    ``rig``: a rig built in code to tune on instead of ``spec.rig_file`` (one worker:
+    worker processes read the rig file themselves)."""
+    if rig is not None and workers > 1:
+        raise ValueError(
+            f"workers: a rig built in code runs in this process only, got workers={workers}; "
+            "write it to a rig file for worker processes, or use workers=1"
+        )
     out_dir.mkdir(parents=True, exist_ok=True)
     url = storage_url(spec, out_dir, storage)
     # a storage named by the user may be shared with other processes or machines
@@ -269,7 +285,7 @@ def run_study(
     bar = _bar(total, done_before, spec.name, progress)
     try:
         if workers <= 1:
-            _run_inline(spec, url, total, bar, shared)
+            _run_inline(spec, url, total, bar, shared, rig)
         else:
             _run_processes(spec, url, total, workers, bar, shared)
     finally:
@@ -278,7 +294,9 @@ def run_study(
     return collect(spec, url, wall_s=wall)
 
 
-def _run_inline(spec: StudySpec, url: str, total: int, bar, shared: bool) -> None:
+def _run_inline(
+    spec: StudySpec, url: str, total: int, bar, shared: bool, rig: Rig | None = None
+) -> None:
     from optuna.trial import TrialState
 
     study = open_study(spec, url, shared=shared)
@@ -288,7 +306,7 @@ def _run_inline(spec: StudySpec, url: str, total: int, bar, shared: bool) -> Non
             bar.update(1)
             _postfix(bar, study)
 
-    _optimize(spec, study, total, [update])
+    _optimize(spec, study, total, [update], rig)
 
 
 def _run_processes(spec: StudySpec, url: str, total: int, workers: int, bar, shared: bool) -> None:

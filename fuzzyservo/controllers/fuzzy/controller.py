@@ -22,8 +22,8 @@ from fuzzyservo._jit import njit
 from fuzzyservo.controllers.base import Controller
 from fuzzyservo.controllers.fuzzy.evaluate import evaluate, pack_system
 from fuzzyservo.controllers.fuzzy.system import FuzzySystem
+from fuzzyservo.controllers.kinds import KIND_FUZZY
 
-KIND_FUZZY = 3
 FORMS = ("p", "pd", "pi")
 
 # cp: [form, G_e, G_ė, G_u, u_min, u_max, T_s, n_inputs, <system block>]
@@ -67,6 +67,7 @@ class FuzzyController(Controller):
     description: str = field(default="", compare=False)
 
     kind = KIND_FUZZY
+    kernel = staticmethod(fuzzy_step)
 
     def __post_init__(self) -> None:
         super().__post_init__()

@@ -51,37 +51,6 @@ _T_SEM, _T_NIN, _T_NOUT, _T_BLOCKS = 0, 1, 2, 3
 SAMPLED, EXACT = 0, 1
 
 
-def _interp_np(universe: np.ndarray, table: np.ndarray, x: np.ndarray) -> np.ndarray:
-    return np.array([np.interp(x, universe, row) for row in table])
-
-
-def reference_firing(system: FuzzySystem, points: np.ndarray) -> np.ndarray:
-    """Rule firing strengths (weight included) at input ``points`` (m, n_inputs), numpy.
-
-    Used to check coverage when a controller is built.
-    """
-    mus = []
-    for i, var in enumerate(system.inputs):
-        u, table = var.table()
-        x = np.clip(points[:, i], var.low, var.high)
-        mus.append(_interp_np(u, table, x))
-    out = np.empty((points.shape[0], len(system.rules)))
-    for r, rule in enumerate(system.rules):
-        acc = None
-        for i, idx in enumerate(rule.antecedent):
-            if idx == -1:
-                continue
-            mu = mus[i][idx] if idx >= 0 else 1.0 - mus[i][-idx - 2]
-            if acc is None:
-                acc = mu
-            elif rule.connective == "and":
-                acc = np.minimum(acc, mu) if system.and_method == "min" else acc * mu
-            else:
-                acc = np.maximum(acc, mu) if system.or_method == "max" else acc + mu - acc * mu
-        out[:, r] = acc * rule.weight
-    return out
-
-
 def pack_system(system: FuzzySystem) -> tuple[np.ndarray, int]:
     """Flatten a system into a float64 vector for :func:`evaluate`; also the scratch size needed.
 

@@ -1,0 +1,89 @@
+"""Loads on the actuator: mass, spring, damper, gravity, constant force, friction.
+
+Each adds to the moving mass or to the force opposing +y (or torque opposing +θ on a
+motor). A load force measured on the rig is the scenario's ``load`` (any signal type,
+``samples`` for a recorded series), which every composition takes.
+"""
+
+from __future__ import annotations
+
+from fuzzyservo.components._declare import Component, Param, Signal
+
+_STANDARD_GRAVITY = 9.80665  # m/s², ISO 80000-3
+
+COMPONENTS = (
+    Component(
+        type="mass",
+        role="load",
+        doc="a mass moved with the actuator (kg; kg·m² of inertia on a motor)",
+        source="Newton's second law; Hopsan MechanicTranslationalMass",
+        params=(Param("mass", "mass", "moving mass or inertia", positive=True),),
+        code={"mass": "mass += P.mass"},
+    ),
+    Component(
+        type="spring",
+        role="load",
+        doc="F = k·(y − y_0): a spring pushing back against extension",
+        source="seed 003 Table 1 (K_L); Hopsan MechanicTranslationalSpring",
+        params=(
+            Param("stiffness", "force/position", "k", nonnegative=True),
+            Param("free_position", "position", "y_0 where the spring is relaxed", default=0.0),
+        ),
+        signals=(Signal("f_spring", "force", "L.f"),),
+        code={"load": "L.f = P.stiffness * (pos - P.free_position)\nf_load += L.f"},
+    ),
+    Component(
+        type="damper",
+        role="load",
+        doc="F = c·v: viscous friction of the guides and the load",
+        source="seed 002 §4 (f), seed 003 Table 1 (F_vo)",
+        params=(Param("coefficient", "force/velocity", "c", nonnegative=True),),
+        signals=(Signal("f_damper", "force", "L.f"),),
+        code={"load": "L.f = P.coefficient * vel\nf_load += L.f"},
+    ),
+    Component(
+        type="gravity",
+        role="load",
+        doc="F = m·g·sin(α): the weight of every moving mass along an axis inclined α "
+        "above the horizontal (π/2: vertical, extension lifts)",
+        source="Newton; the moving mass is the actuator's plus every mass load",
+        params=(
+            Param(
+                "incline",
+                "rad",
+                "α: axis above the horizontal",
+                default=1.5707963267948966,
+                minimum=-1.5707963267948966,
+                maximum=1.5707963267948966,
+            ),
+            Param("acceleration", "m/s^2", "g", default=_STANDARD_GRAVITY, positive=True),
+        ),
+        signals=(Signal("f_gravity", "force", "L.f"),),
+        code={"load": "L.f = mass * P.acceleration * math.sin(P.incline)\nf_load += L.f"},
+        actuators=("single_rod_cylinder", "double_rod_cylinder"),
+    ),
+    Component(
+        type="constant_force",
+        role="load",
+        doc="a constant force opposing extension (a preload, a weight on a cable)",
+        source="Hopsan MechanicForceTransformer",
+        params=(Param("force", "force", "F opposing +y", default=0.0),),
+        code={"load": "f_load += P.force"},
+    ),
+    Component(
+        type="friction",
+        role="load",
+        doc="F = F_c·tanh(v/v_c) + c·v: Coulomb friction smoothed over v_c, plus viscous",
+        source="docs/modelling.md Friction (smooth form); seed 003 eq. 6 (F_co, F_vo)",
+        params=(
+            Param("coulomb_force", "force", "F_c", nonnegative=True),
+            Param("smoothing_velocity", "velocity", "v_c of tanh(v/v_c)", positive=True),
+            Param("viscous_coefficient", "force/velocity", "c", default=0.0, nonnegative=True),
+        ),
+        signals=(Signal("f_load_friction", "force", "L.f"),),
+        code={
+            "load": "L.f = P.viscous_coefficient * vel + P.coulomb_force * math.tanh("
+            "vel / P.smoothing_velocity)\nf_load += L.f"
+        },
+    ),
+)

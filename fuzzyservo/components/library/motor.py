@@ -1,0 +1,84 @@
+"""A hydraulic motor: displacement D, chamber volumes, shaft inertia (seed 000 eq. 14-17).
+
+States: angle ``theta`` [rad], speed ``w`` [rad/s], port pressures ``p_a``, ``p_b`` [Pa]:
+
+    dp_a/dt = E/V_a·(q_a − D·w − q_leak),  dp_b/dt = E/V_b·(q_b + D·w + q_leak)
+    J·dw/dt = (p_a − p_b)·D − T_fric(w) − T_loads
+
+J is the shaft's inertia plus every ``mass`` load (kg·m² on a motor). Effects:
+friction, ``internal_leakage`` (cross-port, q_leak = K_l·(p_a − p_b)) and
+``external_leakage`` (case drain, K_e·p from each port).
+"""
+
+from __future__ import annotations
+
+from fuzzyservo.components._declare import Component, Param, Signal, State
+
+
+def _initial(v: dict[str, float], ctx: dict[str, float]) -> dict[str, float]:
+    p_s, p_t = ctx.get("p_s", 0.0), ctx.get("p_t", 0.0)
+    pb = ctx.get("pressure_b", p_t + 0.5 * (p_s - p_t))
+    pa = ctx.get("pressure_a", pb + ctx.get("static_force", 0.0) / v["displacement"])
+    return {"theta": ctx.get("angle", 0.0), "w": ctx.get("speed", 0.0), "p_a": pa, "p_b": pb}
+
+
+COMPONENTS = (
+    Component(
+        type="motor",
+        role="actuator",
+        doc="hydraulic motor: displacement D per radian, chamber volumes, shaft inertia",
+        source="seed 000 eq. 14-17 (Selim et al.); seed 001 eq. 1-9; Hopsan HydraulicMotorC",
+        params=(
+            Param("displacement", "m^3/rad", "D: volume per radian", positive=True),
+            Param("volume_a", "m^3", "oil volume of port A and its line", positive=True),
+            Param("volume_b", "m^3", "oil volume of port B and its line", positive=True),
+            Param("inertia", "kg*m^2", "shaft inertia", positive=True),
+        ),
+        states=(
+            State("theta", "rad", "shaft angle", "motion", 1e-3, 1.0),
+            State("w", "rad/s", "shaft speed", "motion", 1e-2, 10.0),
+            State("p_a", "Pa", "pressure at port A", "chamber", 1e3, 1e6),
+            State("p_b", "Pa", "pressure at port B", "chamber", 1e3, 1e6),
+        ),
+        signals=(
+            Signal("theta", "rad", "pos"),
+            Signal("w", "rad/s", "vel"),
+            Signal("p_a", "Pa", "p_a"),
+            Signal("p_b", "Pa", "p_b"),
+            Signal("t_friction", "N*m", "L.f_fric", "friction of the friction effects"),
+            Signal("q_leak", "m^3/s", "L.q_leak", "cross-port leakage A→B"),
+        ),
+        code={
+            "actuator": """
+                pos = X.theta
+                vel = X.w
+                p_a = X.p_a
+                p_b = X.p_b
+                area_a = P.displacement
+                area_b = P.displacement
+                f_stop = 0.0
+                L.q_leak = E.internal_leakage_m3_s_pa * (p_a - p_b)
+                L.f_fric = friction_force(vel, p)
+            """,
+            "mass": "mass += P.inertia",
+            "motion": """
+                DX.theta = vel
+                DX.w = ((p_a - p_b) * area_a - L.f_fric - f_load) / mass
+                L.ke = E.external_leakage_m3_s_pa
+                DX.p_a = beta / P.volume_a * (q_a - area_a * vel - L.q_leak - L.ke * p_a)
+                DX.p_b = beta / P.volume_b * (q_b + area_b * vel + L.q_leak - L.ke * p_b)
+            """,
+        },
+        effects=("coulomb_friction", "stribeck_friction", "internal_leakage", "external_leakage"),
+        initial=_initial,
+        initial_keys={
+            "angle": ("angle", "rad"),
+            "speed": ("speed", "rad/s"),
+            "pressure_a": ("pressure_a", "Pa"),
+            "pressure_b": ("pressure_b", "Pa"),
+        },
+        scales=lambda v: {"area": v["displacement"]},
+        load=("t_load", "N*m"),
+        mechanics={"force": "N*m", "velocity": "rad/s", "position": "rad", "mass": "kg*m^2"},
+    ),
+)

@@ -1,0 +1,64 @@
+"""Supply and return through restrictions into the valve's own chambers (seed 002 eq. 17-18).
+
+    dp_s/dt = E/V_s·(q_in − q_supply),   q_in = R_a·√(p_a − p_s)
+    dp_t/dt = E/V_t·(q_tank − q_ret),    q_ret = R_r·√(p_t − p_r)
+
+``supply_droop`` caps q_in at the pump's delivery.
+"""
+
+from __future__ import annotations
+
+from fuzzyservo.components._declare import Component, Param, Signal, State
+
+COMPONENTS = (
+    Component(
+        type="restriction_supply",
+        role="supply",
+        doc="constant pressures behind turbulent restrictions R_a, R_r into the valve's "
+        "supply and return chambers (volumes V_s, V_t)",
+        source="seed 002 eq. 3-4, 17-18 (Dinca & Corcau)",
+        params=(
+            Param("supply_pressure", "Pa", "pressure upstream of R_a", positive=True),
+            Param(
+                "return_pressure", "Pa", "pressure downstream of R_r", default=0.0, nonnegative=True
+            ),
+            Param("supply_resistance", "m^3/(s*sqrt(Pa))", "R_a: q = R_a·√Δp", positive=True),
+            Param("return_resistance", "m^3/(s*sqrt(Pa))", "R_r: q = R_r·√Δp", positive=True),
+            Param("supply_volume", "m^3", "valve supply chamber V_s", positive=True),
+            Param("return_volume", "m^3", "valve return chamber V_t", positive=True),
+        ),
+        states=(
+            State("p_s", "Pa", "supply chamber pressure", "supply", 1e3, 1e6),
+            State("p_t", "Pa", "return chamber pressure", "supply", 1e3, 1e6),
+        ),
+        signals=(
+            Signal("p_s", "Pa", "p_s"),
+            Signal("p_t", "Pa", "p_t"),
+            Signal("q_in", "m^3/s", "L.q_in", "flow through R_a"),
+            Signal("q_ret", "m^3/s", "L.q_ret", "flow through R_r"),
+        ),
+        code={
+            "supply": "p_s = X.p_s\np_t = X.p_t",
+            "supply_flow": """
+                L.q_in = pump_limited(
+                    signed_sqrt_flow(P.supply_resistance, P.supply_pressure - p_s, p_lam), p
+                )
+                L.q_ret = signed_sqrt_flow(P.return_resistance, p_t - P.return_pressure, p_lam)
+                DX.p_s = beta / P.supply_volume * (L.q_in - q_supply)
+                DX.p_t = beta / P.return_volume * (q_tank - L.q_ret)
+            """,
+        },
+        effects=("supply_droop",),
+        initial_keys={"pressure_s": ("p_s", "Pa"), "pressure_t": ("p_t", "Pa")},
+        initial=lambda v, ctx: {
+            "p_s": ctx.get("p_s", v["supply_pressure"]),
+            "p_t": ctx.get("p_t", v["return_pressure"]),
+        },
+        scales=lambda v: {"pressure": v["supply_pressure"] - v["return_pressure"]},
+        check=lambda v: (
+            None
+            if v["supply_pressure"] > v["return_pressure"]
+            else "supply_pressure: must exceed return_pressure; check both values and their units"
+        ),
+    ),
+)

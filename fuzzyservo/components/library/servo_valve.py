@@ -1,0 +1,117 @@
+"""A 4-way servo or proportional valve from its catalogue data, with spool dynamics.
+
+Rated flow Q_N at the rated valve pressure drop Δp_N (both metering edges, e.g. 70 bar)
+and the rated signal u_N. The spool ``x`` is normalised (1 at rated signal) and
+follows the command ``x_c = clip(u/u_N, ±x_max)``:
+
+    second order (f_n > 0):  ẍ = ω²(x_c − x) − 2ζω·ẋ,  ω = 2π·f_n
+    first order (τ > 0):     τ·ẋ = x_c − x
+    static (both 0):         x = x_c
+
+and the openings are limited to the stroke ±x_max. The four metering edges with lap
+``o`` (fraction of rated stroke: > 0 overlapped, 0 critically lapped, < 0 underlapped)
+open as a_PA = a_BT = max(x − o, 0) and a_PB = a_AT = max(−x − o, 0); each passes
+q = K·a·√Δp (the regularised orifice law), K = Q_N / ((1 − o)·√(Δp_N/2)) so that the
+rated opening passes Q_N with Δp_N split over two edges. ``line_resistance`` puts a
+laminar line behind ports A and B (the port pressure balances edge and line flows).
+"""
+
+from __future__ import annotations
+
+from fuzzyservo.components._declare import Component, Param, Signal, State
+
+_PARAMS = (
+    Param("rated_flow", "m^3/s", "Q_N at rated signal and rated pressure drop", positive=True),
+    Param("rated_pressure_drop", "Pa", "Δp_N over both metering edges (catalogue: 70 bar)",
+          positive=True),
+    Param("rated_signal", "input", "u_N: the signal that opens the valve fully", positive=True),
+    Param("overlap", "1", "lap o as a fraction of rated stroke (> 0 overlap, < 0 underlap)",
+          default=0.0, minimum=-0.5, maximum=0.5),
+    Param("spool_natural_frequency", "Hz", "f_n of a second-order spool (0: not second order)",
+          default=0.0, nonnegative=True),
+    Param("spool_damping", "1", "ζ of the second-order spool", default=0.7, positive=True),
+    Param("spool_time_constant", "s", "τ of a first-order spool (used when f_n = 0)",
+          default=0.0, nonnegative=True),
+    Param("stroke_limit", "1", "x_max: the spool's stroke as a fraction of rated",
+          default=1.0, positive=True),
+)  # fmt: skip
+
+_CODE = {
+    "valve": """
+        L.lim = P.stroke_limit
+        L.xc = min(max(u / P.rated_signal, -L.lim), L.lim)
+        if P.spool_natural_frequency > 0.0:
+            L.w = 2.0 * math.pi * P.spool_natural_frequency
+            DX.xs = X.vs
+            DX.vs = L.w * L.w * (L.xc - X.xs) - 2.0 * P.spool_damping * L.w * X.vs
+            L.x = min(max(X.xs, -L.lim), L.lim)
+        elif P.spool_time_constant > 0.0:
+            DX.xs = (L.xc - X.xs) / P.spool_time_constant
+            DX.vs = 0.0
+            L.x = min(max(X.xs, -L.lim), L.lim)
+        else:
+            DX.xs = 0.0
+            DX.vs = 0.0
+            L.x = L.xc
+        L.k = P.rated_flow / ((1.0 - P.overlap) * math.sqrt(0.5 * P.rated_pressure_drop))
+        L.c_pa = L.k * max(L.x - P.overlap, 0.0)
+        L.c_pb = L.k * max(-L.x - P.overlap, 0.0)
+        L.q_pa, L.q_at, L.q_pb, L.q_bt = metering_edges(
+            L.c_pa, L.c_pb, L.c_pb, L.c_pa, p_s, p_t, p_a_port, p_b_port,
+            E.line_resistance_pa_s_m3, p_lam,
+        )
+        q_va = L.q_pa - L.q_at
+        q_vb = L.q_pb - L.q_bt
+        q_supply = L.q_pa + L.q_pb
+        q_tank = L.q_at + L.q_bt
+    """
+}
+
+_STATES = (
+    State("xs", "1", "spool position (1 = rated opening)", "valve", 1e-5, 1.0),
+    State("vs", "1/s", "spool velocity", "valve", 1e-2, 100.0),
+)
+_SIGNALS = (
+    Signal("x_spool", "1", "L.x", "spool opening, limited to the stroke"),
+    Signal("q_a", "m^3/s", "q_va", "flow out of port A"),
+    Signal("q_b", "m^3/s", "q_vb", "flow out of port B"),
+    Signal("q_supply", "m^3/s", "q_supply", "flow drawn from P"),
+    Signal("q_tank", "m^3/s", "q_tank", "flow returned to T"),
+)
+
+
+def _valve(type_name: str, input_: tuple[str, str], doc: str) -> Component:
+    return Component(
+        type=type_name,
+        role="valve",
+        doc=doc,
+        source="Hopsan Hydraulic43Valve (four edges with overlaps, second-order spool with a "
+        "stroke limit); ISO 10770-1 rated flow at 70 bar valve drop",
+        params=_PARAMS,
+        states=_STATES,
+        signals=_SIGNALS,
+        code=_CODE,
+        effects=("line_resistance",),
+        initial=lambda v, ctx: {"xs": 0.0, "vs": 0.0},
+        scales=lambda v: {
+            "flow": v["rated_flow"] * v["stroke_limit"],
+            "input": v["rated_signal"],
+        },
+        input=input_,
+    )
+
+
+COMPONENTS = (
+    _valve(
+        "servo_valve",
+        ("i", "A"),
+        "4-way servo-valve driven by a current: rated flow, pressure drop and current, "
+        "lap, first- or second-order spool, stroke limit",
+    ),
+    _valve(
+        "proportional_valve",
+        ("u_c", "V"),
+        "4-way proportional valve driven by a voltage (the amplifier's input): rated flow, "
+        "pressure drop and voltage, lap, first- or second-order spool, stroke limit",
+    ),
+)

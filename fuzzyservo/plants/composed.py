@@ -1,0 +1,368 @@
+"""A plant composed from components (``plant.components`` in a rig file).
+
+:func:`compose` turns instances of component types (:mod:`fuzzyservo.components._declare`)
+into a :class:`~fuzzyservo.plants.PlantModel`: a frozen parameter class whose fields
+are the instances' parameters (file key ``<instance>.<key>``), the state vector laid
+out by state group, and the Python source of one flat right-hand side, which the
+closed loop is compiled against (:func:`fuzzyservo._jit.bind_plant`). Every index in
+that source is generated from the declarations; none is written by hand.
+
+The circuit has one fluid, one supply, one 4-way valve, at most one pair of lines,
+one actuator and any number of loads; the phases of :data:`~fuzzyservo.components._declare.PHASES`
+run in order, each instance's code in the order the rig file lists them.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import re
+from collections.abc import Mapping
+from functools import cache
+from typing import Any
+
+import numpy as np
+
+from fuzzyservo.components._declare import (
+    PHASES,
+    ROLES,
+    STATE_GROUPS,
+    Component,
+    registry,
+)
+from fuzzyservo.components.effects import INPUT_EFFECTS, LIBRARY, EffectParams, Scales
+from fuzzyservo.params import index_of, pack, quantity
+
+_PREFIX = re.compile(r"\b(DX|X|P|L|E)\.([A-Za-z_]\w*)")
+_STATIC_FORCE = "static_force"
+
+
+class CompositionError(ValueError):
+    """A composition that cannot be built; the message names the instance and the fix."""
+
+
+_TOKENS = re.compile(r"\b(force|velocity|position|mass|input)\b")
+
+
+def _resolve_unit(unit: str, mechanics: Mapping[str, str], input_unit: str) -> str:
+    """A declared unit with its tokens resolved: ``force/velocity`` -> ``(N)/(m/s)``."""
+    table = {**mechanics, "input": input_unit}
+    if unit in table:
+        return table[unit]
+    return _TOKENS.sub(lambda m: f"({table[m.group(1)]})", unit)
+
+
+@cache
+def compose(parts: tuple[tuple[str, str], ...]) -> Any:
+    """The plant of the instances ``parts`` = ((instance name, component type), ...).
+
+    Cached: the same composition gives the same plant (and parameter class) every time.
+    Raises :class:`CompositionError` naming the instance when the circuit is incomplete.
+    """
+    from fuzzyservo.plants import PlantModel
+
+    types = registry()
+    instances: list[tuple[str, Component]] = []
+    for name, type_name in parts:
+        if not name.isidentifier():
+            raise CompositionError(
+                f"{name}: an instance name must be a Python identifier (letters, digits, _)"
+            )
+        if type_name not in types:
+            raise CompositionError(
+                f"{name}: unknown component type {type_name!r}; choose one of {sorted(types)}"
+            )
+        instances.append((name, types[type_name]))
+    for role, (lo, hi) in ROLES.items():
+        count = sum(1 for _, c in instances if c.role == role)
+        if not lo <= count <= hi:
+            which = sorted(t for t, c in types.items() if c.role == role)
+            need = f"exactly {lo}" if lo == hi else f"{lo} to {hi}"
+            raise CompositionError(
+                f"a composition needs {need} {role} component(s), got {count}; "
+                f"add or remove one of {which}"
+            )
+    valve = next(c for _, c in instances if c.role == "valve")
+    actuator = next(c for _, c in instances if c.role == "actuator")
+    for name, comp in instances:
+        if comp.actuators and actuator.type not in comp.actuators:
+            raise CompositionError(
+                f"{name}: a {comp.type} load is not meaningful on a {actuator.type}; "
+                f"it applies to {list(comp.actuators)}"
+            )
+    mechanics = dict(actuator.mechanics or {"force": "N", "velocity": "m/s", "position": "m"})
+    input_name, input_unit = valve.input or ("u", "V")
+
+    # parameters: one frozen dataclass, fields <instance>__<key>, file keys <instance>.<key>
+    fields = []
+    owner: dict[str, tuple[str, Component, str]] = {}  # field -> (instance, component, key)
+    for name, comp in instances:
+        for prm in comp.params:
+            field_name = f"{name}__{prm.key}"
+            unit = _resolve_unit(prm.unit, mechanics, input_unit)
+            kwargs: dict[str, Any] = {
+                "positive": prm.positive,
+                "nonnegative": prm.nonnegative,
+                "minimum": prm.minimum,
+                "maximum": prm.maximum,
+                "doc": prm.doc,
+            }
+            if prm.default is not None:
+                kwargs["default"] = prm.default
+            fields.append((field_name, float, quantity(f"{name}.{prm.key}", unit, **kwargs)))
+            owner[field_name] = (name, comp, prm.key)
+    # required fields before defaulted ones (dataclass rule); the order packs the vector
+    fields.sort(key=lambda f: f[2].default is not dataclasses.MISSING)
+    label = "_".join(t for _, t in parts)
+    params_cls = dataclasses.make_dataclass(
+        "ComposedParams",
+        fields,
+        bases=(EffectParams,),
+        frozen=True,
+        namespace={
+            "__doc__": f"Parameters of the composition {label} (SI).",
+            "__post_init__": _make_post_init(instances),
+            **_stroke(instances),
+        },
+    )
+    params_cls.__module__ = __name__
+    params_cls.__qualname__ = f"ComposedParams[{label}]"
+    param_index = {
+        (name, key): index_of(params_cls, f"{name}__{key}")
+        for name, comp in instances
+        for key in (p.key for p in comp.params)
+    }
+
+    # states, grouped in STATE_GROUPS order
+    declared = [(name, comp, st) for name, comp in instances for st in comp.states]
+    declared.sort(key=lambda item: STATE_GROUPS.index(item[2].group))
+    state_index = {(name, st.name): i for i, (name, _, st) in enumerate(declared)}
+    state_names = tuple(st.name for _, _, st in declared)
+    if len(set(state_names)) != len(state_names):
+        raise CompositionError(f"two components declare the same state name: {state_names}")
+
+    def subst(name: str, comp: Component, text: str) -> str:
+        def repl(m: re.Match) -> str:
+            prefix, ident = m.group(1), m.group(2)
+            if prefix == "E":
+                try:
+                    return f"p[{index_of(EffectParams, ident)}]"
+                except ValueError:
+                    raise CompositionError(
+                        f"component {comp.type!r}: code reads {ident!r}, not a field of EffectParams"
+                    ) from None
+            if prefix == "P":
+                try:
+                    return f"p[{param_index[(name, ident)]}]"
+                except KeyError:
+                    raise CompositionError(
+                        f"component {comp.type!r}: code reads undeclared parameter {ident!r}"
+                    ) from None
+            if prefix in ("X", "DX"):
+                try:
+                    i = state_index[(name, ident)]
+                except KeyError:
+                    raise CompositionError(
+                        f"component {comp.type!r}: code uses undeclared state {ident!r}"
+                    ) from None
+                return f"{'dx' if prefix == 'DX' else 'x'}[{i}]"
+            return f"{name}_{ident}"
+
+        return _PREFIX.sub(repl, text)
+
+    # the body: phases in order, instances in file order; defaults where a role is absent
+    body: list[str] = ["mass = 0.0", "f_load = f_ext"]
+    has_line = any(c.role == "line" for _, c in instances)
+    for phase in PHASES:
+        if phase == "line" and not has_line:
+            body += ["p_a_port = p_a", "p_b_port = p_b"]
+        if phase == "line_flow" and not has_line:
+            body += ["q_a = q_va", "q_b = q_vb"]
+        for name, comp in instances:
+            code = comp.code.get(phase)
+            if code:
+                body.append(f"# {name} ({comp.type}): {phase}")
+                body += [line for line in subst(name, comp, _dedent(code)).splitlines()]
+    signals = [(name, comp, sig) for name, comp in instances for sig in comp.signals]
+    signals.append(("", None, _LOAD_SIGNAL))
+    signal_names = tuple(sig.name for _, _, sig in signals)
+    if len(set(signal_names)) != len(signal_names):
+        raise CompositionError(f"two components declare the same signal name: {signal_names}")
+    writes = [
+        f"out[{k}] = {subst(name, comp, sig.expr) if comp else sig.expr}"
+        for k, (name, comp, sig) in enumerate(signals)
+    ]
+    stops = [f"({subst(name, comp, comp.end_stop)})" for name, comp in instances if comp.end_stop]
+    binding = _SOURCE.format(
+        label=label,
+        body=_indent(body),
+        writes=_indent(writes),
+        n=len(state_names),
+        stop=" or ".join(stops) or "False",
+    )
+
+    effects = tuple(
+        name
+        for name in LIBRARY
+        if name in INPUT_EFFECTS or any(name in c.effects for _, c in instances)
+    )
+    units = {sig.name: _resolve_unit(sig.unit, mechanics, input_unit) for _, _, sig in signals}
+    initial_keys: dict[str, tuple[str, str]] = {}
+    for _, comp in instances:
+        for key, (kw, unit) in comp.initial_keys.items():
+            initial_keys[key] = (kw, _resolve_unit(unit, mechanics, input_unit))
+    scale = np.array([st.scale for _, _, st in declared])
+    typical = np.array([st.typical for _, _, st in declared])
+    model = PlantModel(
+        type_name="composition",
+        binding=binding,
+        params_cls=params_cls,
+        states=state_names,
+        signals=signal_names,
+        signal_units=units,
+        input=(input_name, input_unit),
+        load=actuator.load or ("f_load", "N"),
+        initial_keys=initial_keys,
+        initial_state=lambda params, **kw: _initial_state(model, instances, params, kw),
+        state_scale=lambda params: scale.copy(),
+        typical_state=lambda params: typical.copy(),
+        description=" + ".join(f"{n} ({c.type})" for n, c in instances),
+        effects=effects,
+        mechanics=mechanics,
+        null_input=lambda params: _null(valve, instances, params),
+        effect_scales=lambda params, rated, dt: _scales(instances, params, rated, dt),
+        components=tuple((n, c.type) for n, c in instances),
+    )
+    return model
+
+
+def _stroke(instances: list[tuple[str, Component]]) -> dict[str, Any]:
+    """``stroke_limits_m`` (where the end stops engage, in the rig's y) for a cylinder."""
+    name = next((n for n, c in instances if c.role == "actuator" and c.end_stop), None)
+    if name is None:
+        return {}
+
+    def stroke_limits_m(self: Any) -> tuple[float, float]:
+        zero = getattr(self, f"{name}__zero_position")
+        return (-zero, getattr(self, f"{name}__stroke") - zero)
+
+    return {"stroke_limits_m": property(stroke_limits_m)}
+
+
+def instance_values(params: Any, name: str, comp: Component) -> dict[str, float]:
+    """One instance's parameter values by key (SI)."""
+    return {p.key: float(getattr(params, f"{name}__{p.key}")) for p in comp.params}
+
+
+def _make_post_init(instances: list[tuple[str, Component]]):
+    def __post_init__(self: Any) -> None:
+        for name, comp in instances:
+            if comp.check is None:
+                continue
+            problem = comp.check(instance_values(self, name, comp))
+            if problem:
+                key, _, rest = problem.partition(": ")
+                raise ValueError(f"{name}.{key}: {rest}")
+
+    return __post_init__
+
+
+def _initial_state(
+    model: Any, instances: list[tuple[str, Component]], params: Any, given: dict[str, float]
+) -> np.ndarray:
+    """States at rest: each component's ``initial`` in phase order, sharing the circuit
+    values (``p_s``, ``p_t``, ...); then, unless the chamber pressures are given, once more
+    with the load's static force at that state so that the piston starts in balance."""
+
+    def once(static_force: float) -> np.ndarray:
+        ctx: dict[str, float] = {**given, _STATIC_FORCE: static_force}
+        values: dict[str, float] = {}
+        order = sorted(
+            instances, key=lambda item: min((PHASES.index(ph) for ph in item[1].code), default=0)
+        )
+        for name, comp in order:
+            if comp.initial is None:
+                continue
+            out = comp.initial(instance_values(params, name, comp), ctx)
+            ctx.update(out)
+            values.update({k: v for k, v in out.items() if k in model.states})
+        return np.array([values.get(s, 0.0) for s in model.states], dtype=np.float64)
+
+    x0 = once(0.0)
+    out = np.empty(len(model.signals))
+    model.loop.plant_signals(x0, model.null_input(params), 0.0, pack(params), out)
+    force = float(out[model.signals.index(_LOAD_SIGNAL.name)])
+    return once(force) if np.isfinite(force) and force != 0.0 else x0
+
+
+def _null(valve: Component, instances: list[tuple[str, Component]], params: Any) -> float:
+    if valve.null is None:
+        return 0.0
+    name = next(n for n, c in instances if c is valve)
+    return float(valve.null(instance_values(params, name, valve)))
+
+
+def _scales(
+    instances: list[tuple[str, Component]], params: Any, rated: float, sample_time_s: float
+) -> Scales:
+    """Sizes effect bounds scale with: stall force p·A, the valve's flow, its speed."""
+    merged: dict[str, float] = {}
+    for name, comp in instances:
+        if comp.scales is not None:
+            merged.update(comp.scales(instance_values(params, name, comp)))
+    pressure = merged.get("pressure", float("nan"))
+    area = merged.get("area", float("nan"))
+    flow = merged.get("flow", merged.get("flow_coefficient", float("nan")) * pressure**0.5)
+    velocity = flow / area
+    return Scales(
+        force=pressure * area,
+        velocity=velocity,
+        flow=flow,
+        pressure=pressure,
+        input=rated,
+        bulk_modulus=merged.get("bulk_modulus", float("nan")),
+        sample_time=sample_time_s,
+        smoothing_velocity=5e-3 * velocity,
+    )
+
+
+def _dedent(code: str) -> str:
+    import textwrap
+
+    return textwrap.dedent(code).strip("\n")
+
+
+def _indent(lines: list[str]) -> str:
+    return "\n".join("    " + line if line else "" for line in lines)
+
+
+# the signal every composition records: what the loads push back with (incl. f_ext)
+from fuzzyservo.components._declare import Signal as _Signal  # noqa: E402
+
+_LOAD_SIGNAL = _Signal("f_loads", "force", "f_load", "every load's force opposing +pos")
+
+_SOURCE = """
+# generated by fuzzyservo.plants.composed for: {label}
+import math
+
+import numpy as np
+
+from fuzzyservo._jit import njit
+from fuzzyservo.components.kernels import *  # noqa: F403  (the components' shared maps)
+
+
+@njit(cache=True, inline="always")
+def plant_rhs(x, u, f_ext, p, dx):
+{body}
+
+
+@njit(cache=True)
+def plant_signals(x, u, f_ext, p, out):
+    dx = np.empty({n})
+{body}
+{writes}
+
+
+@njit(cache=True)
+def plant_in_end_stop(x, p):
+    return {stop}
+"""

@@ -1,0 +1,313 @@
+"""The compiled closed loop, compiled once per plant: this file is a template.
+
+:func:`fuzzyservo._jit.bind_plant` writes a copy of it whose binding block imports (or
+defines) one plant's ``plant_rhs``, ``plant_signals`` and ``plant_in_end_stop``, and
+numba compiles and caches that copy. A loop thus inlines exactly one plant, with no
+dispatch on a plant code, and a plant composed from components at run time is as fast
+as a hand-written one. As it stands (bound to the seed-002 cylinder) the file is a
+valid module, so linters and readers see ordinary Python.
+
+The plant is integrated between samples by an adaptive linearly implicit
+Rosenbrock-W method, ROS34PW2 (order 3, embedded order 2), with a finite-difference
+Jacobian evaluated at the start of each control interval and refreshed when a step is
+rejected (tableau and linear algebra in :mod:`fuzzyservo.simulation._loop`). It is
+L-stable, so the stiff valve-chamber modes of seed 002 (β/V·K/√p_lam up to ~1e6 1/s,
+docs/modelling.md "Stiffness") cost no step-size restriction. Nothing in here raises: a
+failure ends the run with a status code the caller turns into a result.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from fuzzyservo._jit import njit
+from fuzzyservo.components.effects import E_LAG
+from fuzzyservo.simulation._loop import (
+    _A,
+    _B,
+    _E,
+    _G,
+    _GAMMA,
+    _MAX_STEPS_PER_INTERVAL,
+    _STAGES,
+    STATUS_DIVERGED,
+    STATUS_END_STOP,
+    STATUS_OK,
+    STATUS_STEP_FAILURE,
+    LoopSettings,
+    _lu_factor,
+    _lu_solve,
+    delay_split,
+    held_inputs,
+    input_stage,
+    plant_states,
+    sample,
+    spool_start,
+    workspace,
+)
+
+# isort: split
+# >>> plant binding
+from fuzzyservo.plants.cylinder import in_end_stop as plant_in_end_stop
+from fuzzyservo.plants.cylinder import rhs as plant_rhs
+from fuzzyservo.plants.cylinder import signals as plant_signals
+
+# <<< plant binding
+
+
+@njit(cache=True, inline="always")
+def loop_rhs(
+    x: np.ndarray, a: float, load: float, p: np.ndarray, null: float, dx: np.ndarray
+) -> None:
+    """dx/dt of the plant behind the input effects (:func:`_loop.input_stage`), for held
+    actuator value ``a``."""
+    u = input_stage(x, a, p, null, dx)
+    n = plant_states(x, p)
+    plant_rhs(x[:n], u, load, p, dx[:n])
+
+
+@njit(cache=True)
+def integrate_interval(
+    p: np.ndarray,
+    null: float,
+    x: np.ndarray,
+    u: float,
+    load: float,
+    duration: float,
+    h: float,
+    tol: float,
+    scale: np.ndarray,
+    typical: np.ndarray,
+    work: np.ndarray,
+    mats: np.ndarray,
+    piv: np.ndarray,
+) -> tuple[int, float, int]:
+    """Advance ``x`` in place over ``duration`` seconds with constant input ``u`` and load.
+
+    ``u`` is the actuator value before the input effects (:func:`loop_rhs`, plant
+    null input ``null``). Returns ``(status, h_next, steps)``; ``h`` is the proposed first step. The local
+    error of each state is kept below ``tol·scale[i]`` (absolute units per state).
+    ``work``, ``mats`` and ``piv`` are scratch space from :func:`workspace`, allocated
+    once per run rather than once per interval.
+
+    Stage equations (Hairer & Wanner, Solving ODEs II, §IV.7, autonomous form):
+    ``(I − hγJ)·k_i = h·f(x + Σ_j a_ij k_j) + h·J·Σ_j γ_ij k_j``, ``x1 = x + Σ b_i k_i``.
+    """
+    n = x.size
+    k = work[:_STAGES]
+    f0 = work[_STAGES]
+    xs = work[_STAGES + 1]
+    xn = work[_STAGES + 2]
+    ftmp = work[_STAGES + 3]
+    gk = work[_STAGES + 4]
+    jac = mats[0]
+    w = mats[1]
+
+    t = 0.0
+    steps = 0
+    h = min(h, duration)
+    h_min = 1e-14 * duration
+    loop_rhs(x, u, load, p, null, f0)
+    need_jac = True
+    jac_fresh = False
+    while t < duration * (1.0 - 1e-12):
+        if steps >= _MAX_STEPS_PER_INTERVAL:
+            return STATUS_STEP_FAILURE, h, steps
+        h_step = min(h, duration - t)
+        if need_jac:
+            for j in range(n):
+                xj = x[j]
+                dj = 1.4901161193847656e-08 * max(abs(xj), typical[j])
+                x[j] = xj + dj
+                loop_rhs(x, u, load, p, null, ftmp)
+                x[j] = xj
+                for i in range(n):
+                    jac[i, j] = (ftmp[i] - f0[i]) / dj
+            need_jac = False
+            jac_fresh = True
+        hg = h_step * _GAMMA
+        for i in range(n):
+            for j in range(n):
+                w[i, j] = -hg * jac[i, j]
+            w[i, i] += 1.0
+        if not _lu_factor(w, piv):
+            return STATUS_DIVERGED, h, steps
+        for st in range(_STAGES):
+            # stage state and the J·Σγ_ij·k_j correction
+            for i in range(n):
+                acc = x[i]
+                g = 0.0
+                for j in range(st):
+                    acc += _A[st, j] * k[j, i]
+                    g += _G[st, j] * k[j, i]
+                xs[i] = acc
+                gk[i] = g
+            if st == 0:
+                for i in range(n):
+                    ftmp[i] = f0[i]
+            else:
+                loop_rhs(xs, u, load, p, null, ftmp)
+            for i in range(n):
+                acc = ftmp[i]
+                if st > 0:
+                    for j in range(n):
+                        acc += jac[i, j] * gk[j]
+                k[st, i] = h_step * acc
+            _lu_solve(w, piv, k[st])
+        err = 0.0
+        finite = True
+        for i in range(n):
+            acc = x[i]
+            e = 0.0
+            for st in range(_STAGES):
+                acc += _B[st] * k[st, i]
+                e += _E[st] * k[st, i]
+            xn[i] = acc
+            e = abs(e) / (tol * scale[i])
+            if not math.isfinite(acc) or not math.isfinite(e):
+                finite = False
+            elif e > err:
+                err = e
+        steps += 1
+        if finite and err <= 1.0:
+            t += h_step
+            for i in range(n):
+                x[i] = xn[i]
+            loop_rhs(x, u, load, p, null, f0)
+            jac_fresh = False
+            fac = 5.0 if err == 0.0 else min(5.0, max(0.2, 0.8 * err ** (-1.0 / 3.0)))
+            if h_step < h:
+                # a step cut short to land on the sample time says little about h
+                if fac < 1.0:
+                    h = min(h, h_step * fac)
+            else:
+                h = min(h_step * fac, duration)
+        else:
+            if not jac_fresh:
+                # retry with the Jacobian at this state before cutting the step
+                need_jac = True
+                continue
+            fac = 0.2 if not finite else max(0.2, 0.8 * err ** (-1.0 / 3.0))
+            h = h_step * fac
+            if h < h_min:
+                return STATUS_DIVERGED, h, steps
+    return STATUS_OK, h, steps
+
+
+@njit(cache=True)
+def closed_loop(
+    p: np.ndarray,
+    null: float,
+    x0: np.ndarray,
+    ctrl_kind: int,
+    cp: np.ndarray,
+    cs: np.ndarray,
+    ref: np.ndarray,
+    load: np.ndarray,
+    s: LoopSettings,
+    scale: np.ndarray,
+    typical: np.ndarray,
+    states: np.ndarray,
+    command: np.ndarray,
+    actuator: np.ndarray,
+    saturated: np.ndarray,
+) -> tuple[int, int, int]:
+    """Run the sampled loop over ``ref.size`` control intervals of ``s.dt`` seconds.
+
+    At sample k: :func:`_loop.sample` (measure, control, limit), then the held value
+    is applied (zero-order hold, behind ``transport_delay``) while the plant is
+    integrated to the next sample. ``x0`` carries one more state than the plant when
+    ``valve_lag`` is on: the spool, which starts where the first command puts it.
+    ``actuator`` records the value the controller commanded, before the input effects.
+    Fills ``states[k]``, ``command[k]``, ``actuator[k]``, ``saturated[k]`` and returns
+    ``(status, sample of the first problem or -1, integration steps)``. After a
+    failure the remaining samples are NaN.
+    """
+    n = ref.size
+    x = x0.copy()
+    work, mats, piv = workspace(x.size)
+    dt = s.dt
+    h = dt * 1e-3
+    status = STATUS_OK
+    where = -1
+    total = 0
+    lag = p[E_LAG] > 0.0
+    n_plant = plant_states(x, p)
+    whole, part = delay_split(p, dt)
+    for k in range(n):
+        for i in range(x.size):
+            states[k, i] = x[i]
+        u, a, sat = sample(ctrl_kind, cp, cs, ref[k], x, s)
+        command[k] = u
+        actuator[k] = a
+        saturated[k] = sat
+        if not math.isfinite(a):
+            status = STATUS_DIVERGED
+            where = k
+            break
+        if k == 0 and lag:
+            x[x.size - 1] = spool_start(p, a)
+            states[0, x.size - 1] = x[x.size - 1]
+        a_before, a_now = held_inputs(actuator, k, whole)
+        code = STATUS_OK
+        if part > 0.0:
+            code, h, steps = integrate_interval(
+                p, null, x, a_before, load[k], part * dt, h, s.tol, scale, typical,
+                work, mats, piv,
+            )  # fmt: skip
+            total += steps
+        if code == STATUS_OK:
+            code, h, steps = integrate_interval(
+                p, null, x, a_now, load[k], (1.0 - part) * dt, h, s.tol, scale,
+                typical, work, mats, piv,
+            )  # fmt: skip
+            total += steps
+        if code != STATUS_OK:
+            status = code
+            where = k
+            break
+        if status == STATUS_OK and plant_in_end_stop(x[:n_plant], p):
+            status = STATUS_END_STOP
+            where = k + 1
+    if status == STATUS_DIVERGED or status == STATUS_STEP_FAILURE:
+        for k in range(where + 1, n):
+            for i in range(x.size):
+                states[k, i] = np.nan
+            command[k] = np.nan
+            actuator[k] = np.nan
+            saturated[k] = False
+    return status, where, total
+
+
+@njit(cache=True)
+def signal_table(
+    states: np.ndarray, inputs: np.ndarray, loads: np.ndarray, p: np.ndarray, out: np.ndarray
+) -> None:
+    """Signals of every recorded sample (rows of ``states``); rows with a NaN state stay NaN."""
+    row = np.empty(out.shape[1])
+    for k in range(states.shape[0]):
+        finite = True
+        for i in range(states.shape[1]):
+            if not math.isfinite(states[k, i]):
+                finite = False
+        if finite:
+            plant_signals(states[k], inputs[k], loads[k], p, row)
+            out[k, :] = row
+        else:
+            out[k, :] = np.nan
+
+
+@njit(cache=True)
+def rhs_with_inputs(x: np.ndarray, a: float, load: float, p: np.ndarray, null: float) -> np.ndarray:
+    """:func:`loop_rhs` as a function (the reference path's right-hand side)."""
+    dx = np.empty(x.size)
+    loop_rhs(x, a, load, p, null, dx)
+    return dx
+
+
+@njit(cache=True)
+def in_end_stop(x: np.ndarray, p: np.ndarray) -> bool:
+    """True when the plant part of ``x`` sits beyond a mechanical end stop."""
+    return plant_in_end_stop(x[: plant_states(x, p)], p)

@@ -3,11 +3,15 @@
 States: angle ``theta`` [rad], speed ``w`` [rad/s], port pressures ``p_a``, ``p_b`` [Pa]:
 
     dp_a/dt = E/V_a·(q_a − D·w − q_leak),  dp_b/dt = E/V_b·(q_b + D·w + q_leak)
-    J·dw/dt = (p_a − p_b)·D − T_fric(w) − T_loads
+    J·dw/dt = η_hm·(p_a − p_b)·D − T_fric(w) − T_loads
 
-J is the shaft's inertia plus every ``mass`` load (kg·m² on a motor). Effects:
-friction, ``internal_leakage`` (cross-port, q_leak = K_l·(p_a − p_b)) and
-``external_leakage`` (case drain, K_e·p from each port).
+J is the shaft's inertia plus every ``mass`` load (kg·m² on a motor). η_hm is the
+hydro-mechanical efficiency (seed 001 eq. 14-15; 1 by default), a constant factor on
+the ideal torque in both directions of power flow. At rest the port pressures hold
+the loads' static torque symmetric about the middle of supply and tank, where a
+symmetric valve holds an equal-area motor. Effects: friction, ``internal_leakage``
+(cross-port, q_leak = K_l·(p_a − p_b)) and ``external_leakage`` (case drain, K_e·p
+from each port).
 """
 
 from __future__ import annotations
@@ -17,8 +21,16 @@ from fuzzyservo.components._declare import Component, Param, Signal, State
 
 def _initial(v: dict[str, float], ctx: dict[str, float]) -> dict[str, float]:
     p_s, p_t = ctx.get("p_s", 0.0), ctx.get("p_t", 0.0)
-    pb = ctx.get("pressure_b", p_t + 0.5 * (p_s - p_t))
-    pa = ctx.get("pressure_a", pb + ctx.get("static_force", 0.0) / v["displacement"])
+    dp = ctx.get("static_force", 0.0) / (v["hydromechanical_efficiency"] * v["displacement"])
+    if "pressure_b" in ctx:
+        pb = ctx["pressure_b"]
+        pa = ctx.get("pressure_a", pb + dp)
+    elif "pressure_a" in ctx:
+        pa = ctx["pressure_a"]
+        pb = pa - dp
+    else:
+        pa = p_t + 0.5 * (p_s - p_t) + 0.5 * dp
+        pb = pa - dp
     return {"theta": ctx.get("angle", 0.0), "w": ctx.get("speed", 0.0), "p_a": pa, "p_b": pb}
 
 
@@ -27,12 +39,20 @@ COMPONENTS = (
         type="motor",
         role="actuator",
         doc="hydraulic motor: displacement D per radian, chamber volumes, shaft inertia",
-        source="seed 000 eq. 14-17 (Selim et al.); seed 001 eq. 1-9; Hopsan HydraulicMotorC",
+        source="seed 000 eq. 14-17 (Selim et al.); seed 001 eq. 1-9, 14-15; Hopsan HydraulicMotorC",
         params=(
             Param("displacement", "m^3/rad", "D: volume per radian", positive=True),
             Param("volume_a", "m^3", "oil volume of port A and its line", positive=True),
             Param("volume_b", "m^3", "oil volume of port B and its line", positive=True),
             Param("inertia", "kg*m^2", "shaft inertia", positive=True),
+            Param(
+                "hydromechanical_efficiency",
+                "1",
+                "η_hm: shaft torque over the ideal (p_a − p_b)·D",
+                default=1.0,
+                positive=True,
+                maximum=1.0,
+            ),
         ),
         states=(
             State("theta", "rad", "shaft angle", "motion", 1e-3, 1.0),
@@ -63,7 +83,7 @@ COMPONENTS = (
             "mass": "mass += P.inertia",
             "motion": """
                 DX.theta = vel
-                DX.w = ((p_a - p_b) * area_a - L.f_fric - f_load) / mass
+                DX.w = (P.hydromechanical_efficiency * (p_a - p_b) * area_a - L.f_fric - f_load) / mass
                 L.ke = E.external_leakage_m3_s_pa
                 DX.p_a = beta / P.volume_a * (q_a - area_a * vel - L.q_leak - L.ke * p_a)
                 DX.p_b = beta / P.volume_b * (q_b + area_b * vel + L.q_leak - L.ke * p_b)

@@ -12,8 +12,12 @@ and the openings are limited to the stroke ±x_max. The four metering edges with
 ``o`` (fraction of rated stroke: > 0 overlapped, 0 critically lapped, < 0 underlapped)
 open as a_PA = a_BT = max(x − o, 0) and a_PB = a_AT = max(−x − o, 0); each passes
 q = K·a·√Δp (the regularised orifice law), K = Q_N / ((1 − o)·√(Δp_N/2)) so that the
-rated opening passes Q_N with Δp_N split over two edges. ``line_resistance`` puts a
-laminar line behind ports A and B (the port pressure balances edge and line flows).
+rated opening passes Q_N with Δp_N split over two edges. ``land_leakage`` K_l adds the
+laminar clearance flow of every land, K_l·Δp on each of the four edges whatever the
+spool position (seed 001 eq. 3-4, −K_l·(p0 − pa) and −K_l·pb), which holds a closed
+valve's ports at (p_s + p_t)/2. ``line_resistance`` puts a laminar line behind ports A
+and B (the port pressure balances edge and line flows); the land leakage, a small
+laminar flow, is taken at the pressure behind that line.
 """
 
 from __future__ import annotations
@@ -34,6 +38,8 @@ _PARAMS = (
           default=0.0, nonnegative=True),
     Param("stroke_limit", "1", "x_max: the spool's stroke as a fraction of rated",
           default=1.0, positive=True),
+    Param("land_leakage", "m^3/(s*Pa)", "K_l: laminar clearance leakage of each land",
+          default=0.0, nonnegative=True),
 )  # fmt: skip
 
 _CODE = {
@@ -60,6 +66,10 @@ _CODE = {
             L.c_pa, L.c_pb, L.c_pb, L.c_pa, p_s, p_t, p_a_port, p_b_port,
             E.line_resistance_pa_s_m3, p_lam,
         )
+        L.q_pa += P.land_leakage * (p_s - p_a_port)
+        L.q_at += P.land_leakage * (p_a_port - p_t)
+        L.q_pb += P.land_leakage * (p_s - p_b_port)
+        L.q_bt += P.land_leakage * (p_b_port - p_t)
         q_va = L.q_pa - L.q_at
         q_vb = L.q_pb - L.q_bt
         q_supply = L.q_pa + L.q_pb
@@ -86,7 +96,8 @@ def _valve(type_name: str, input_: tuple[str, str], doc: str) -> Component:
         role="valve",
         doc=doc,
         source="Hopsan Hydraulic43Valve (four edges with overlaps, second-order spool with a "
-        "stroke limit); ISO 10770-1 rated flow at 70 bar valve drop",
+        "stroke limit); ISO 10770-1 rated flow at 70 bar valve drop; seed 001 eq. 3-4 "
+        "(land leakage K_l)",
         params=_PARAMS,
         states=_STATES,
         signals=_SIGNALS,

@@ -8,11 +8,35 @@ volume at reference density (seed eq. 8-9); the mass form's factor (1 + p/E) ≈
 on the piston's displacement flow moves the pulses by less than 0.1 mm and 0.3 bar
 (rigs/dinca_cylinder_composed.yaml), about the compiled loop's own tolerance (0.31 bar,
 closed_loop.py DEFAULT_TOL).
+
+Seeds 000 and 001 are the same equations written another way, so their tolerances are
+the compiled loop's own local-error tolerance (DEFAULT_TOL = 0.5 of each state's
+scale: 0.5 µm, 0.5 mm/s, 5 mrad/s, 500 Pa; 0.05 mrad on the AHC drum angle): the two
+runs take different steps (the composed valve adds spool states), nothing more.
+- Seed 000 (rigs/ehs160_motor_composed.yaml): the motor component integrates each port
+  over V_c/2 where plants/motor.py integrates the load pressure over V_c/4, the same
+  equation while p_a + p_b stays at P_s (it does: to 25 µPa); the 4-way valve's edges
+  are eq. 9 with rated flow K_x·10 V at rated drop P_s. Measured with P K_p = 5
+  (p_kb0105): w 0.13 mrad/s on the steps, 2.9 mrad/s at the brake's release; θ 0.11
+  mrad; P_x 145 Pa; the spool 6 µV. The hand-written plant's supply_droop has no
+  meaning on an ideal supply: the composition refuses it in one line naming pump_supply.
+- Seed 001 wave simulator (rigs/ahc_cylinder_composed.yaml) leaves out the rod seal's
+  leakage K_vb·p_b (0.6 ml/min; no component drains chamber B alone), which moves the
+  pressures by up to 1.05 kPa at 15 MPa and y by 0.2 µm; with P K = 40 (p_ahc_cylinder)
+  y agrees to 0.18 µm, v to 0.21 mm/s, the pressures to 1.13 kPa, the valve flows to
+  0.3 cm³/s, on the three supply pressures and the 40 s heave. Pressure tolerance: the
+  loop's 500 Pa plus that leakage's 1.05 kPa.
+- Seed 001 compensator (rigs/ahc_motor_composed.yaml): the platform height, the
+  hand-written plant's load input, enters only its z_load signal (a rigid cable), so
+  the composed heave runs without it. With p_ahc_motor θ agrees to 11 µrad on the
+  steps and 1e-15 rad on the heave, the pressures to 382 Pa, w to 0.55 mrad/s; the
+  FLC (flc_ahc_motor) on the heave to rounding.
 """
 
 from __future__ import annotations
 
 import numpy as np
+import pytest
 from support import controller_named, rig_named
 
 from fuzzyservo.simulation import simulate
@@ -40,3 +64,71 @@ def test_seed003_composed_reproduces_the_hydroprax_bench() -> None:
         np.testing.assert_allclose(b.signals[k], a.signals[k], atol=10.0)
     for k in ("q_a", "q_b", "q_relief", "q_supply"):
         np.testing.assert_allclose(b.signals[k], a.signals[k], atol=1e-9)
+
+
+def _agree(a, b, pairs: dict[str, tuple[str, float]]) -> None:
+    """Each composed signal within its tolerance of the hand-written one, same saturation."""
+    assert a.status == b.status == "ok"
+    for mine, (theirs, atol) in pairs.items():
+        np.testing.assert_allclose(b.signals[mine], a.signals[theirs], atol=atol, err_msg=mine)
+    np.testing.assert_array_equal(b.saturated, a.saturated)
+
+
+def _effects_kept_or_refused(hand, composed) -> None:
+    """Every effect the hand-written plant takes, the composition takes or refuses in one line."""
+    for name in hand.plant.effects:
+        refusal = composed.plant.refusal(name)
+        if refusal is None:
+            assert name in composed.plant.effects, name
+        else:
+            assert "\n" not in refusal and name in refusal
+
+
+@pytest.mark.slow  # compiles a new plant loop (about a minute cold)
+def test_seed000_composed_reproduces_the_ehs160_motor() -> None:
+    hand, composed = rig_named("ehs160_motor"), rig_named("ehs160_motor_composed")
+    p = controller_named("p_kb0105")
+    for scenario in ("steps", "brake"):
+        a, b = simulate(hand, p, scenario), simulate(composed, p, scenario)
+        _agree(
+            a, b, {"w": ("w", 5e-3), "theta": ("theta", 0.5e-3), "position": ("position", 0.5e-3)}
+        )
+        np.testing.assert_allclose(
+            b.signals["p_a"] - b.signals["p_b"], a.signals["p_load"], atol=500
+        )
+        np.testing.assert_allclose(b.signals["p_a"] + b.signals["p_b"], 70e5, atol=1.0)
+        # the hand-written spool is K_a·u (K_a = −1) in volts; the composed one u/10 V
+        np.testing.assert_allclose(-10.0 * b.signals["x_spool"], a.signals["spool"], atol=0.5e-3)
+        np.testing.assert_allclose(b.signals["q_a"], a.signals["q_valve"], atol=1e-8)
+    _effects_kept_or_refused(hand, composed)
+    assert "pump_supply" in composed.plant.refusal("supply_droop")
+
+
+@pytest.mark.slow  # compiles a new plant loop (about a minute cold)
+def test_seed001_composed_reproduces_the_wave_simulator() -> None:
+    hand, composed = rig_named("ahc_cylinder"), rig_named("ahc_cylinder_composed")
+    p = controller_named("p_ahc_cylinder")
+    flows = {k: (k, 1e-6) for k in ("q_a", "q_b", "q_supply")}
+    for scenario in ("steps_5mpa", "steps_10mpa", "steps_15mpa", "heave"):
+        a, b = simulate(hand, p, scenario), simulate(composed, p, scenario)
+        _agree(a, b, {
+            "y": ("y", 0.5e-6), "v": ("v", 0.5e-3), "p_a": ("p_a", 2e3), "p_b": ("p_b", 2e3),
+            "q_tank": ("q_return", 1e-6), "x_spool": ("spool", 1e-4), **flows,
+        })  # fmt: skip
+    _effects_kept_or_refused(hand, composed)
+
+
+@pytest.mark.slow  # compiles a new plant loop (about a minute cold)
+def test_seed001_composed_reproduces_the_compensator() -> None:
+    hand, composed = rig_named("ahc_motor"), rig_named("ahc_motor_composed")
+    runs = [("p_ahc_motor", s) for s in ("steps_5mpa", "steps_10mpa", "steps_15mpa", "heave")]
+    for controller, scenario in [*runs, ("flc_ahc_motor", "heave")]:
+        c = controller_named(controller)
+        a, b = simulate(hand, c, scenario), simulate(composed, c, scenario)
+        _agree(a, b, {
+            "theta": ("theta", 0.05e-3), "w": ("w", 5e-3), "p_a": ("p_a", 500),
+            "p_b": ("p_b", 500), "q_a": ("q_a", 1e-6), "q_b": ("q_b", 1e-6),
+            "q_supply": ("q_supply", 1e-6), "q_tank": ("q_return", 1e-6),
+            "f_load_friction": ("t_loss", 1e-3), "payout_sensor": ("payout_sensor", 5e-6),
+        })  # fmt: skip
+    _effects_kept_or_refused(hand, composed)

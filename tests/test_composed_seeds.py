@@ -11,8 +11,9 @@ closed_loop.py DEFAULT_TOL).
 
 Seeds 000 and 001 are the same equations written another way, so their tolerances are
 the compiled loop's own local-error tolerance (DEFAULT_TOL = 0.5 of each state's
-scale: 0.5 µm, 0.5 mm/s, 5 mrad/s, 500 Pa; 0.05 mrad on the AHC drum angle): the two
-runs take different steps (the composed valve adds spool states), nothing more.
+scale: 0.5 µm, 0.5 mm/s, 5 mrad/s, 500 Pa; 0.05 mrad on the AHC drum angle; valve
+flows 1 cm³/s): what separates the runs is the integrator's error control on states
+laid out differently (ports instead of load pressure, a spool velocity state).
 - Seed 000 (rigs/ehs160_motor_composed.yaml): the motor component integrates each port
   over V_c/2 where plants/motor.py integrates the load pressure over V_c/4, the same
   equation while p_a + p_b stays at P_s (it does: to 25 µPa); the 4-way valve's edges

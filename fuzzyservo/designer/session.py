@@ -265,7 +265,7 @@ class Session:
 
     def firing(self, e: float, de: float = 0.0) -> tuple[list[str], np.ndarray, float]:
         """Rule labels, firing strengths (weights included) and the command at loop error ``e``."""
-        from fuzzyservo.controllers.fuzzy.evaluate import reference_firing
+        from fuzzyservo.controllers.fuzzy.system import reference_firing
 
         c = self.controller
         point = [c.input_gain * e]

@@ -333,7 +333,8 @@ def _build(
     time_col = None
     for col in columns:
         expr, si = UNIT_SUFFIXES[col.suffix]
-        values = col.values * to_si(1.0, expr, si)
+        with np.errstate(over="ignore"):  # an overflow is reported below, in one line
+            values = col.values * to_si(1.0, expr, si)
         if not np.isfinite(values).all():
             big = float(col.values[~np.isfinite(values)][0])
             raise DataError(

@@ -153,7 +153,7 @@ def oscillation(
 def _analysis_start(result: SimResult, span: float) -> int:
     """Index of the last reference step (a jump of > 5 % of the range), else the warm-up."""
     ref = result.reference
-    warm = int(round(result.warmup_s / result.sample_time_s))
+    warm = round(result.warmup_s / result.sample_time_s)
     if span > 0:
         jumps = np.flatnonzero(np.abs(np.diff(ref)) > 0.05 * span)
         if jumps.size and jumps[-1] + 1 >= warm:
@@ -353,4 +353,3 @@ def margins(
         delay=delay_margin(rig, controller, sc, **options),
         base_delay_s=float(rig.params.transport_delay_s),
     )
-

@@ -672,6 +672,7 @@ def cmd_bench(args: argparse.Namespace) -> int:
     )
     _out_file(args.json, "--json")
     known = [bench.FUZZY_EVAL, *(c.name for c in bench.CASES), bench.STUDY, bench.CALIBRATE]
+    known.append(bench.MARGINS)
     wanted = args.case or known
     unknown = [c for c in wanted if c not in known]
     if unknown:
@@ -686,6 +687,8 @@ def cmd_bench(args: argparse.Namespace) -> int:
             results.append(bench.run_study_case(trials=args.study_trials, workers=args.workers))
         elif name == bench.CALIBRATE:
             results.append(bench.run_calibrate_case())
+        elif name == bench.MARGINS:
+            results.append(bench.run_margins_case())
         else:
             case = next(c for c in bench.CASES if c.name == name)
             results.append(bench.run_case(case, runs=args.runs, reference_runs=args.reference_runs))
@@ -700,6 +703,13 @@ def cmd_bench(args: argparse.Namespace) -> int:
                 f"{r.name:<20} {_duration(x['wall_s']):>10} {'':>10} {'':>7}  {x['trials']} trials on "
                 f"{x['workers']} workers, {x['trials_per_s']:.1f} trials/s; in the trials: simulation "
                 f"{x['simulation_s']:.1f} s, sampler/storage/building {x['sampler_and_storage_s']:.1f} s; {err}"
+            )
+            continue
+        if r.name == bench.MARGINS:
+            x = r.extra
+            print(
+                f"{r.name:<20} {_duration(x['wall_s']):>10} {'':>10} {'':>7}  "
+                f"{x['simulations']} simulations of 22 s, {x['ms_per_simulation']:.0f} ms each; {err}"
             )
             continue
         if r.name == bench.CALIBRATE:

@@ -53,7 +53,7 @@ def test_frequency_response_matches_the_sampled_transfer_function() -> None:
     rig, k = _rig(), 0.5
     freqs = np.array([0.5, 2.0, 5.0, 10.0, 20.0])
     fr = frequency_response(rig, P(name="p", gain=k), freqs, amplitude=0.01,
-                            operating_point=0.0, settle_s=0.2)  # fmt: skip
+                            operating_point=0.0, settle_s=0.2, discard_s=2.0)  # fmt: skip
     gd = control.c2d(_plant_tf(), DT, method="zoh")
     closed = control.feedback(k * gd, 1)
     expected = np.array([complex(closed(np.exp(2j * np.pi * f * DT))) for f in freqs])

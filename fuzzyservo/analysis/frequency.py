@@ -3,8 +3,8 @@
 
 For each frequency one simulation: the reference holds the operating point for
 ``settle_s`` (the loop moves there from the rig's initial state), then a sine of
-``amplitude`` around it. The first ``discard_periods`` periods are dropped (the
-transient); over the following ``measure_periods`` whole periods the fundamental of the
+``amplitude`` around it. The first ``discard_periods`` periods, and at least
+``discard_s``, are dropped (the transient); over the following ``measure_periods`` whole periods the fundamental of the
 feedback and of the reference are fitted by least squares (sine, cosine, offset and a
 straight line, so a slow drift does not leak into the fundamental), and
 ``H = Y₁/R₁``. Both are sampled at the control instants, so for a linear plant ``H``
@@ -113,11 +113,13 @@ def frequency_response(
     scenario: str | Scenario | None = None,
     settle_s: float | None = None,
     discard_periods: int = 3,
+    discard_s: float = 1.0,
     measure_periods: int = 5,
 ) -> FrequencyResponse:
     """Stepped-sine closed-loop response around ``operating_point`` (feedback unit; default
     the scenario's reference at t = 0) with ``amplitude`` (default 10 % of the scenario's
-    reference range). ``settle_s`` defaults to the scenario's warm-up (at least 1 s)."""
+    reference range). ``settle_s`` defaults to the scenario's warm-up (at least 1 s); the
+    transient dropped is ``discard_periods`` periods but at least ``discard_s``."""
     sc = scenario if isinstance(scenario, Scenario) else rig.scenario(scenario)
     t_sc = np.arange(round(sc.duration_s / rig.sample_time_s)) * rig.sample_time_s
     ref_sc = sc.reference.sample(t_sc)
@@ -130,7 +132,8 @@ def frequency_response(
     response, statuses = [], []
     for f in freqs:
         period = 1.0 / f
-        duration = settle + (discard_periods + measure_periods) * period + dt
+        discard = max(discard_periods * period, discard_s)
+        duration = settle + discard + measure_periods * period + dt
         run = Scenario(
             name=f"sine_{f:.4g}Hz",
             duration_s=duration,
@@ -141,7 +144,7 @@ def frequency_response(
         )
         result = simulate(rig, controller, run)
         statuses.append(result.status)
-        start = settle + discard_periods * period
+        start = settle + discard
         n_meas = round(measure_periods * period / dt)
         k0 = math.ceil(start / dt - 1e-9)
         sl = slice(k0, k0 + n_meas)

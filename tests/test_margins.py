@@ -77,3 +77,29 @@ def test_detector_and_chatter_on_a_stable_run() -> None:
     osc = oscillation(result)
     assert not osc.sustained and osc.reason in ("decaying", "below_floor")
     assert command_tv(result.command, DT) > 0
+
+
+def test_command_tv_is_the_total_variation_per_second() -> None:
+    u = np.array([0.0, 1.0, -1.0, -1.0, 0.0])  # |Δu| sums to 4 over 5 samples of 0.1 s
+    assert command_tv(u, 0.1) == pytest.approx(8.0)
+
+
+def test_margin_constraints_are_accepted_by_a_study(tmp_path) -> None:
+    from fuzzyservo.tuning.spec import MARGIN_METRICS, Constraint
+
+    c = Constraint.parse("gain_margin >= 2")
+    assert c.metric in MARGIN_METRICS and c.violation(1.5) == pytest.approx(0.5)
+    assert Constraint.parse("delay_margin_s >= 0.01").violation(0.02) < 0
+
+
+@pytest.mark.slow
+def test_margins_command_writes_the_json(tmp_path) -> None:
+    import json
+
+    from fuzzyservo.cli import main
+
+    out = tmp_path / "m.json"
+    assert main(["margins", "dinca_cylinder", "p_k10", "--json", str(out)]) == 0
+    m = json.loads(out.read_text())
+    assert m["gain_bracket"][0] < m["gain_margin"] < m["gain_bracket"][1]
+    assert m["oscillation_hz"] > 0 and m["delay_margin_s"] > 0

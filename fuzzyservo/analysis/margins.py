@@ -248,11 +248,16 @@ def gain_margin(
             hi = mid
         else:
             lo = mid
-    value = 0.5 * (lo + hi) if math.isfinite(hi) else math.inf
+    return _margin(lo, hi, trials, last, t0)
+
+
+def _margin(lo: float, hi: float, trials: list, last: dict, t0: float) -> Margin:
+    """The :class:`Margin` of a final bracket ``(lo, hi)``."""
+    onset = math.isfinite(hi)
     return Margin(
-        value=value,
+        value=0.5 * (lo + hi) if onset else math.inf,
         bracket=(lo, hi),
-        frequency_hz=last.get("frequency_hz", math.nan) if math.isfinite(hi) else math.nan,
+        frequency_hz=last.get("frequency_hz", math.nan) if onset else math.nan,
         runs=len(trials),
         seconds=time.perf_counter() - t0,
         trials=trials,
@@ -294,15 +299,7 @@ def delay_margin(
                 hi = mid
             else:
                 lo = mid
-    value = 0.5 * (lo + hi) if math.isfinite(hi) else math.inf
-    return Margin(
-        value=value,
-        bracket=(lo, hi),
-        frequency_hz=last.get("frequency_hz", math.nan) if math.isfinite(hi) else math.nan,
-        runs=len(trials),
-        seconds=time.perf_counter() - t0,
-        trials=trials,
-    )
+    return _margin(lo, hi, trials, last, t0)
 
 
 def _bracket(

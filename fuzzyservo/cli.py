@@ -272,6 +272,10 @@ def cmd_frequency(args: argparse.Namespace) -> int:
     from fuzzyservo.analysis import frequency_response
 
     out, json_path = _out_dir(args.out), _out_file(args.json, "--json")
+    if args.amplitude is not None and not (math.isfinite(args.amplitude) and args.amplitude > 0):
+        raise ConfigError(
+            f"--amplitude {args.amplitude}: must be a positive number in the feedback unit"
+        )
     rig, (controller,) = _load(args.rig, [args.controller])
     scenario = _scenario_name(rig, args.scenario)
     _note_compiling()

@@ -103,3 +103,20 @@ def test_margins_command_writes_the_json(tmp_path) -> None:
     m = json.loads(out.read_text())
     assert m["gain_bracket"][0] < m["gain_margin"] < m["gain_bracket"][1]
     assert m["oscillation_hz"] > 0 and m["delay_margin_s"] > 0
+
+
+@pytest.mark.slow
+def test_frequency_command_writes_json_and_bode_plot(tmp_path, capsys) -> None:
+    import json
+
+    from fuzzyservo.cli import main
+
+    out = tmp_path / "f.json"
+    args = ["frequency", "dinca_cylinder", "p_k10", "--out", str(tmp_path), "--json", str(out)]
+    assert main(args) == 0
+    f = json.loads(out.read_text())
+    assert len(f["frequency_hz"]) == len(f["magnitude_db"]) == len(f["phase_deg"])
+    assert abs(f["magnitude_db"][0]) < 0.5 and f["bandwidth_hz"] > 0
+    assert list(tmp_path.glob("bode_*.png"))
+    assert main(["frequency", "dinca_cylinder", "p_k10", "--amplitude", "-1"]) == 2
+    assert "--amplitude" in capsys.readouterr().err

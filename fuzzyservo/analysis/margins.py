@@ -28,7 +28,8 @@ ratio above 1; a stable loop near its margin decays by more than 3 % over the ma
 cycles of a third of a scenario, so the bisection lands within about 1 % below the
 linear margin (tests/test_margins.py: 1.892 against 1.909; a ratio of 0.9 gave −2 %,
 1.0 −0.4 %, but would call a limit cycle with a little amplitude jitter decaying).
-On the seed-002 rig 0.9 and 0.97 give the same margins. The oscillation frequency comes from the trend-line crossings
+On the seed-002 rig 0.9 and 0.97 give the same margins.
+The oscillation frequency comes from the trend-line crossings
 of the last third (interpolated), ``1/2`` of the crossing rate.
 
 Cost: each bisection step is one simulation of the scenario; a margin to 1 % takes

@@ -147,6 +147,7 @@ def _median_time(fn: Callable[[], object], runs: int) -> tuple[float, object]:
 FUZZY_EVAL = "fuzzy_eval"
 STUDY = "study_dinca_flc"
 CALIBRATE = "calibrate_dinca"
+MARGINS = "margins"
 
 
 def run_calibrate_case(root: Path | None = None) -> BenchResult:
@@ -189,6 +190,36 @@ def run_calibrate_case(root: Path | None = None) -> BenchResult:
             "added": [c.name for c in outcome.added],
             "budget_s": 120.0,
         },
+    )
+
+
+def run_margins_case(root: Path | None = None) -> BenchResult:
+    """``margins dinca_cylinder p_k10``: gain and delay margin by bisection on the 22 s
+    `pulses` scenario (after one compiling run)."""
+    from fuzzyservo.analysis import margins
+    from fuzzyservo.io.controllers import load_controller
+    from fuzzyservo.io.rigs import load_rig
+
+    root = root or data_root()
+    rig = load_rig(root / "rigs" / "dinca_cylinder.yaml")
+    controller = load_controller(root / "studies" / "controllers" / "p_k10.yaml")
+    simulate(rig, controller, "pulses")  # compile
+    t0 = time.perf_counter()
+    m = margins(rig, controller, "pulses")
+    wall = time.perf_counter() - t0
+    runs = m.gain.runs + m.delay.runs
+    return BenchResult(
+        name=MARGINS,
+        description="margins of P K=10 on the seed-002 rig (pulses, 22 s per run)",
+        simulated_s=22.0 * runs,
+        median_s=wall,
+        reference_s=math.nan,
+        ratio=math.nan,
+        runs=1,
+        reference_runs=0,
+        integration_steps=0,
+        error={"gain_margin": m.gain.value, "delay_margin_s": m.delay.value},
+        extra={"wall_s": wall, "simulations": runs, "ms_per_simulation": 1e3 * wall / runs},
     )
 
 

@@ -247,6 +247,58 @@ def cmd_compare(args: argparse.Namespace) -> int:
     return _report_runs(rig, scenario, results, out, json_path)
 
 
+def cmd_margins(args: argparse.Namespace) -> int:
+    from fuzzyservo.analysis import margins
+
+    json_path = _out_file(args.json, "--json")
+    rig, (controller,) = _load(args.rig, [args.controller])
+    scenario = _scenario_name(rig, args.scenario)
+    _note_compiling()
+    m = margins(rig, controller, scenario)
+    g, d = m.gain, m.delay
+    print(f"{controller.name} on {rig.name}, scenario {scenario} ({g.runs + d.runs} runs, "
+          f"{g.seconds + d.seconds:.1f} s)")  # fmt: skip
+    print(f"  gain margin  {g.value:.4g}  (stable at {g.bracket[0]:.4g}, oscillating at "
+          f"{g.bracket[1]:.4g}, {g.frequency_hz:.3g} Hz)")  # fmt: skip
+    print(f"  delay margin {d.value * 1e3:.4g} ms extra on the rig's "
+          f"{m.base_delay_s * 1e3:.4g} ms ({d.frequency_hz:.3g} Hz at onset)")  # fmt: skip
+    if json_path:
+        write_json(json_path, m.to_dict())
+        print(f"JSON written to {json_path}")
+    return 0
+
+
+def cmd_frequency(args: argparse.Namespace) -> int:
+    from fuzzyservo.analysis import frequency_response
+
+    out, json_path = _out_dir(args.out), _out_file(args.json, "--json")
+    if args.amplitude is not None and not (math.isfinite(args.amplitude) and args.amplitude > 0):
+        raise ConfigError(
+            f"--amplitude {args.amplitude}: must be a positive number in the feedback unit"
+        )
+    rig, (controller,) = _load(args.rig, [args.controller])
+    scenario = _scenario_name(rig, args.scenario)
+    _note_compiling()
+    fr = frequency_response(rig, controller, amplitude=args.amplitude, scenario=scenario)
+    print(f"{controller.name} on {rig.name}: closed loop around {fr.operating_point:.4g}, "
+          f"amplitude {fr.amplitude:.3g}")  # fmt: skip
+    print(f"  {'f [Hz]':>9} {'|T| [dB]':>9} {'phase [deg]':>11}")
+    for f, mag, ph in zip(fr.frequency_hz, fr.magnitude_db, fr.phase_deg, strict=True):
+        print(f"  {f:9.3g} {mag:9.2f} {ph:11.1f}")
+    print(
+        f"  -3 dB bandwidth {fr.bandwidth_hz:.3g} Hz, phase there {fr.phase_at_bandwidth_deg:.1f} deg"
+    )
+    if out is not None:
+        from fuzzyservo.plots import bode_figure, save
+
+        path = save(bode_figure(fr), out / f"bode_{rig.name}_{controller.name}.png")
+        print(f"Bode plot written to {path}")
+    if json_path:
+        write_json(json_path, fr.to_dict())
+        print(f"JSON written to {json_path}")
+    return 0
+
+
 def _load_fuzzy(name: str):
     from fuzzyservo.controllers.fuzzy import FuzzyController
     from fuzzyservo.io.controllers import load_controller
@@ -624,6 +676,7 @@ def cmd_bench(args: argparse.Namespace) -> int:
     )
     _out_file(args.json, "--json")
     known = [bench.FUZZY_EVAL, *(c.name for c in bench.CASES), bench.STUDY, bench.CALIBRATE]
+    known.append(bench.MARGINS)
     wanted = args.case or known
     unknown = [c for c in wanted if c not in known]
     if unknown:
@@ -638,6 +691,8 @@ def cmd_bench(args: argparse.Namespace) -> int:
             results.append(bench.run_study_case(trials=args.study_trials, workers=args.workers))
         elif name == bench.CALIBRATE:
             results.append(bench.run_calibrate_case())
+        elif name == bench.MARGINS:
+            results.append(bench.run_margins_case())
         else:
             case = next(c for c in bench.CASES if c.name == name)
             results.append(bench.run_case(case, runs=args.runs, reference_runs=args.reference_runs))
@@ -652,6 +707,13 @@ def cmd_bench(args: argparse.Namespace) -> int:
                 f"{r.name:<20} {_duration(x['wall_s']):>10} {'':>10} {'':>7}  {x['trials']} trials on "
                 f"{x['workers']} workers, {x['trials_per_s']:.1f} trials/s; in the trials: simulation "
                 f"{x['simulation_s']:.1f} s, sampler/storage/building {x['sampler_and_storage_s']:.1f} s; {err}"
+            )
+            continue
+        if r.name == bench.MARGINS:
+            x = r.extra
+            print(
+                f"{r.name:<20} {_duration(x['wall_s']):>10} {'':>10} {'':>7}  "
+                f"{x['simulations']} simulations of 22 s, {x['ms_per_simulation']:.0f} ms each; {err}"
             )
             continue
         if r.name == bench.CALIBRATE:
@@ -867,6 +929,26 @@ def build_parser() -> argparse.ArgumentParser:
     )
     p.add_argument("--show", action="store_true", help="open the page in the web browser")
     p.set_defaults(func=cmd_designer)
+
+    p = sub.add_parser("margins", help="gain and delay margin of the nonlinear loop")
+    p.add_argument("rig", help="rig file or name under rigs/")
+    p.add_argument("controller", help="controller file or name under studies/controllers/")
+    p.add_argument("--scenario", help="scenario of the rig (default: its first)")
+    p.add_argument("--json", metavar="FILE", help="also write the margins as JSON")
+    p.set_defaults(func=cmd_margins)
+
+    p = sub.add_parser("frequency", help="closed-loop frequency response by stepped sines")
+    p.add_argument("rig", help="rig file or name under rigs/")
+    p.add_argument("controller", help="controller file or name under studies/controllers/")
+    p.add_argument("--scenario", help="scenario giving operating point and load (default: first)")
+    p.add_argument(
+        "--amplitude",
+        type=float,
+        help="sine amplitude, feedback unit (default: 10 %% of the reference range)",
+    )
+    p.add_argument("--out", default="out", help="folder for the Bode plot (default: out)")
+    p.add_argument("--json", metavar="FILE", help="also write the response as JSON")
+    p.set_defaults(func=cmd_frequency)
 
     p = sub.add_parser("bench", help="speed of the compiled loop against the scipy reference path")
     p.add_argument("--json", metavar="FILE", help="write the figures as JSON")

@@ -266,6 +266,7 @@ def test_to_dict_is_json_friendly():
     d = m.to_dict()
     assert list(d["metrics"]) == list(METRIC_NAMES)
     assert d["metrics"]["peak_command"] is None
+    assert d["metrics"]["command_tv"] is None
     assert len(d["steps"]) == 2 and d["steps"][1]["r1"] == 0.5
     json.dumps(d, allow_nan=False)
 
@@ -282,6 +283,7 @@ def test_names_docs_and_frozen():
         "ise",
         "itae",
         "peak_command",
+        "command_tv",
     )
     assert set(METRIC_DOCS) == set(METRIC_NAMES)
     assert all("[" in doc and "\n" not in doc for doc in METRIC_DOCS.values())

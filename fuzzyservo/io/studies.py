@@ -32,7 +32,15 @@ from fuzzyservo.errors import ConfigError
 from fuzzyservo.io._yaml import Node, read_yaml
 from fuzzyservo.io.paths import find_file
 from fuzzyservo.metrics import METRIC_NAMES
-from fuzzyservo.tuning.spec import AGGREGATES, SAMPLERS, Constraint, Objective, ParamSpec, StudySpec
+from fuzzyservo.tuning.spec import (
+    AGGREGATES,
+    MARGIN_METRICS,
+    SAMPLERS,
+    Constraint,
+    Objective,
+    ParamSpec,
+    StudySpec,
+)
 
 _TOP = (
     "name", "description", "source", "rig", "scenarios", "controller", "baseline", "parameters",
@@ -98,9 +106,10 @@ def load_study(path: str | Path) -> StudySpec:
             c = Constraint.parse(str(text))
         except ValueError as exc:
             root.fail(str(exc), key=f"constraints[{n}]")
-        if c.metric not in METRIC_NAMES:
+        if c.metric not in (*METRIC_NAMES, *MARGIN_METRICS):
             root.fail(
-                f"unknown metric {c.metric!r}; choose one of {', '.join(METRIC_NAMES)}",
+                f"unknown metric {c.metric!r}; choose one of "
+                f"{', '.join((*METRIC_NAMES, *MARGIN_METRICS))}",
                 key=f"constraints[{n}]",
             )
         constraints.append(c)

@@ -9,7 +9,12 @@ aggregate metrics in report order, :data:`METRIC_DOCS` gives each one's formula 
 """
 
 from fuzzyservo.metrics._heave import compensation_pct, heave_metrics
-from fuzzyservo.metrics._step import applicable_metrics, result_metrics, step_metrics
+from fuzzyservo.metrics._step import (
+    applicable_metrics,
+    command_tv,
+    result_metrics,
+    step_metrics,
+)
 from fuzzyservo.metrics._types import METRIC_DOCS, METRIC_NAMES, Metrics, StepMetrics
 
 __all__ = [
@@ -18,6 +23,7 @@ __all__ = [
     "Metrics",
     "StepMetrics",
     "applicable_metrics",
+    "command_tv",
     "compensation_pct",
     "heave_metrics",
     "result_metrics",

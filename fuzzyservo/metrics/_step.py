@@ -144,7 +144,16 @@ def step_metrics(
     lead_in = _integrals(t, r, y, saturated, first_scored, lead_end, dt)
     for name in _SUMMED:
         aggregate[name] = float(lead_in[name] + sum(getattr(step, name) for step in steps))
+    aggregate["command_tv"] = command_tv(u[first_scored:], dt) if u is not None else math.nan
     return Metrics(aggregate={name: aggregate[name] for name in METRIC_NAMES}, steps=steps)
+
+
+def command_tv(u: np.ndarray, dt: float) -> float:
+    """Chatter: the command's total variation per second, ``Σ|u[k] − u[k−1]| / (n·dt)``."""
+    u = np.asarray(u, dtype=float)
+    if u.size < 2 or not dt > 0:
+        return math.nan
+    return float(np.sum(np.abs(np.diff(u))) / (u.size * dt))
 
 
 def result_metrics(result: SimResult) -> Metrics:

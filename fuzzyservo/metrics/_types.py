@@ -18,6 +18,7 @@ METRIC_NAMES: tuple[str, ...] = (
     "ise",
     "itae",
     "peak_command",
+    "command_tv",
 )
 
 #: One line per metric: formula, unit, and how the aggregate combines the steps.
@@ -40,6 +41,10 @@ METRIC_DOCS: dict[str, str] = {
     "ise": "sum (r - y)^2 dt, rectangle rule [output unit^2 x s]; sum over samples",
     "itae": "sum (t - t_step) |r - y| dt, rectangle rule [output unit x s^2]; sum over samples",
     "peak_command": "max |u| [V]; worst step",
+    "command_tv": (
+        "chatter: total variation of the command sum |u[k] - u[k-1]| / scored duration [V/s]; "
+        "over every scored sample"
+    ),
 }
 
 

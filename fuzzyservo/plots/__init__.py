@@ -5,6 +5,7 @@ pyplot, no global backend or state), so they render headless; :func:`save` write
 """
 
 from fuzzyservo.plots._bars import metrics_bar_figure
+from fuzzyservo.plots._bode import bode_figure
 from fuzzyservo.plots._calibration import candidates_figure, overlay_figure, residual_figure
 from fuzzyservo.plots._display import save
 from fuzzyservo.plots._fuzzy import (
@@ -16,6 +17,7 @@ from fuzzyservo.plots._response import response_figure
 from fuzzyservo.plots._tuning import history_figure, importance_figure, pareto_figure
 
 __all__ = [
+    "bode_figure",
     "candidates_figure",
     "control_curve_figure",
     "fuzzy_overview_figure",

@@ -18,7 +18,7 @@ from fuzzyservo.controllers.base import Controller
 from fuzzyservo.metrics import METRIC_NAMES, result_metrics
 from fuzzyservo.rig import Rig
 from fuzzyservo.simulation import SimResult, simulate
-from fuzzyservo.tuning.spec import StudySpec
+from fuzzyservo.tuning.spec import MARGIN_METRICS, StudySpec
 
 _STEP = re.compile(r"([^.\[\]]+)|\[(\d+)\]")
 
@@ -160,6 +160,8 @@ class Evaluator:
                 metrics[m] = max(vals)
             else:
                 metrics[m] = sum(vals) / len(vals)
+        if status == "ok" and any(c.metric in MARGIN_METRICS for c in spec.constraints):
+            metrics.update(margin_metrics(self.rig, controller, spec.scenarios[0]))
         violations = tuple(c.violation(metrics.get(c.metric, math.nan)) for c in spec.constraints)
         values = self._values(metrics)
         if status == "ok" and not all(math.isfinite(v) for v in values):
@@ -186,3 +188,12 @@ class Evaluator:
         if obj.pareto:
             return tuple(metrics[m] for m in obj.pareto)
         return (sum(w * metrics[m] / self.scale[m] for m, w in obj.weights.items()),)
+
+
+def margin_metrics(rig: Rig, controller: Controller, scenario: str) -> dict[str, float]:
+    """``gain_margin`` and ``delay_margin_s`` (analysis/margins.py) to 2 %: opt-in, only
+    when a constraint names one; about 20 simulations of ``scenario`` per trial."""
+    from fuzzyservo.analysis.margins import margins
+
+    m = margins(rig, controller, scenario, rel_tol=0.02)
+    return {"gain_margin": m.gain.value, "delay_margin_s": m.delay.value}

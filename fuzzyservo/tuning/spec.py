@@ -39,6 +39,10 @@ class ParamSpec:
             raise ValueError(f"{self.path}: a log scale needs low > 0, got low={self.low}")
 
 
+#: constraint-only metrics computed by bisection on extra simulations (opt-in, costly)
+MARGIN_METRICS: tuple[str, ...] = ("gain_margin", "delay_margin_s")
+
+
 @dataclass(frozen=True)
 class Constraint:
     """``metric <= bound`` (or ``>=``); ``violation`` > 0 means broken."""

@@ -1,0 +1,354 @@
+"""Stability margins of the nonlinear closed loop, found by bisection on simulations.
+
+* **Gain margin**: the smallest multiplier ``k`` of the controller output at which the
+  loop oscillates (sustained, non-decaying) or diverges. The multiplier sits between the
+  controller and the actuator: the controller keeps its own output range (the rig's
+  command range when it has none), then ``k·u`` goes through the actuator with its
+  limits unchanged, so a saturating loop saturates at the same plant input. For a P
+  controller it is exactly ``K → k·K``; for a fuzzy controller it scales ``output_gain``.
+* **Delay margin**: the smallest extra loop delay [s] at which the loop oscillates,
+  added to the rig's own ``transport_delay`` (exact within the zero-order hold).
+
+The oscillation detector (:func:`oscillation`) reads the tracking error
+``e = feedback − reference`` (feedback unit) after the last reference step (or after the
+warm-up when the reference has no step). That stretch is cut in thirds; the first is
+dropped (the step response itself), the middle and the last are detrended (a straight
+line removed, so slow creep is no oscillation) and their half peak-to-peak amplitudes
+compared. The loop counts as oscillating when
+
+1. the run diverged or failed (``diverged``/``step_failure``), or
+2. the last third still swings by more than the floor (default 0.5 % of the reference's
+   peak-to-peak range, 1e-3 of its level for a constant reference: well above sensor
+   quantisation, so a hunting valve deadband below it is no loss of stability), and
+   crosses its trend line at least 6 times (3 cycles), and its amplitude is at least
+   ``ratio`` (0.97) of the middle third's: not decaying.
+
+A saturation limit cycle has a constant amplitude (ratio ≈ 1); a growing oscillation a
+ratio above 1; a stable loop near its margin decays by more than 3 % over the many
+cycles of a third of a scenario, so the bisection lands within about 1 % below the
+linear margin (tests/test_margins.py: 1.892 against 1.909; a ratio of 0.9 gave −2 %,
+1.0 −0.4 %, but would call a limit cycle with a little amplitude jitter decaying).
+On the seed-002 rig 0.9 and 0.97 give the same margins.
+The oscillation frequency comes from the trend-line crossings
+of the last third (interpolated), ``1/2`` of the crossing rate.
+
+Cost: each bisection step is one simulation of the scenario; a margin to 1 % takes
+8-12 runs (bracketing by doubling, then bisection), ``margins`` both about 20.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from fuzzyservo.controllers.base import Controller
+from fuzzyservo.rig import Rig, Scenario
+from fuzzyservo.simulation import simulate
+from fuzzyservo.simulation.result import SimResult
+
+DEFAULT_RATIO = 0.97
+DEFAULT_FLOOR_FRACTION = 0.005
+MIN_CROSSINGS = 6
+
+
+@dataclass(frozen=True)
+class Oscillation:
+    """What :func:`oscillation` found in one run."""
+
+    sustained: bool
+    reason: str  # diverged | oscillating | decaying | below_floor | no_cycles
+    frequency_hz: float
+    amplitude: float  # half peak-to-peak of the last third [feedback unit]
+    ratio: float  # amplitude of the last third over the middle third
+    floor: float
+
+
+@dataclass(frozen=True)
+class Margin:
+    """One margin: ``value`` the middle of the final ``bracket`` (stable, oscillating)."""
+
+    value: float
+    bracket: tuple[float, float]
+    frequency_hz: float  # oscillation at the bracket's upper end
+    runs: int
+    seconds: float
+    trials: list[tuple[float, str]] = field(default_factory=list)  # (value, reason) per run
+
+
+@dataclass(frozen=True)
+class Margins:
+    """Gain and delay margin of one controller on one rig scenario."""
+
+    rig: str
+    controller: str
+    scenario: str
+    gain: Margin
+    delay: Margin
+    base_delay_s: float
+
+    def to_dict(self) -> dict[str, object]:
+        """The JSON record: ``gain_margin``, ``oscillation_hz``, ``delay_margin_s`` first."""
+        g, d = self.gain, self.delay
+        return {
+            "gain_margin": _finite(g.value),
+            "oscillation_hz": _finite(g.frequency_hz),
+            "delay_margin_s": _finite(d.value),
+            "delay_oscillation_hz": _finite(d.frequency_hz),
+            "rig": self.rig,
+            "controller": self.controller,
+            "scenario": self.scenario,
+            "gain_bracket": [_finite(v) for v in g.bracket],
+            "delay_bracket_s": [_finite(v) for v in d.bracket],
+            "rig_delay_s": self.base_delay_s,
+            "runs": g.runs + d.runs,
+            "seconds": round(g.seconds + d.seconds, 3),
+            "gain_trials": [{"gain": k, "verdict": r} for k, r in g.trials],
+            "delay_trials": [{"delay_s": k, "verdict": r} for k, r in d.trials],
+        }
+
+
+def _finite(value: float) -> float | None:
+    return float(value) if math.isfinite(value) else None
+
+
+# --------------------------------------------------------------------------- detector
+def oscillation(
+    result: SimResult, *, ratio: float = DEFAULT_RATIO, floor: float | None = None
+) -> Oscillation:
+    """Does ``result`` end in a sustained oscillation (or did it diverge)? See the module
+    docstring for the rule; ``floor`` in the feedback unit overrides the default."""
+    ref = np.asarray(result.reference, dtype=float)
+    span = float(np.nanmax(ref) - np.nanmin(ref))
+    if floor is None:
+        floor = DEFAULT_FLOOR_FRACTION * span if span > 0 else 1e-3 * max(abs(ref[0]), 1.0)
+    err = np.asarray(result.feedback, dtype=float) - ref
+    dt = result.sample_time_s
+    if result.status in ("diverged", "step_failure"):
+        good = err[np.isfinite(err)]
+        freq = _crossing_frequency(good[-max(good.size // 3, 2) :], dt)
+        return Oscillation(True, "diverged", freq, math.inf, math.inf, floor)
+    start = _analysis_start(result, span)
+    window = err[start:]
+    third = window.size // 3
+    if third < 4:
+        return Oscillation(False, "no_cycles", math.nan, 0.0, 0.0, floor)
+    middle, last = _detrend(window[third : 2 * third]), _detrend(window[-third:])
+    a_mid = 0.5 * float(np.ptp(middle))
+    a_last = 0.5 * float(np.ptp(last))
+    r = a_last / a_mid if a_mid > 0 else (math.inf if a_last > 0 else 0.0)
+    crossings = _crossings(last)
+    freq = _crossing_frequency(last, dt)
+    if a_last <= floor:
+        return Oscillation(False, "below_floor", freq, a_last, r, floor)
+    if crossings.size < MIN_CROSSINGS:
+        return Oscillation(False, "no_cycles", freq, a_last, r, floor)
+    if r < ratio:
+        return Oscillation(False, "decaying", freq, a_last, r, floor)
+    return Oscillation(True, "oscillating", freq, a_last, r, floor)
+
+
+def _analysis_start(result: SimResult, span: float) -> int:
+    """Index of the last reference step (a jump of > 5 % of the range), else the warm-up."""
+    ref = result.reference
+    warm = round(result.warmup_s / result.sample_time_s)
+    if span > 0:
+        jumps = np.flatnonzero(np.abs(np.diff(ref)) > 0.05 * span)
+        if jumps.size and jumps[-1] + 1 >= warm:
+            return int(jumps[-1] + 1)
+    return warm
+
+
+def _detrend(x: np.ndarray) -> np.ndarray:
+    n = np.arange(x.size, dtype=float)
+    slope, icept = np.polyfit(n, x, 1)
+    return x - (slope * n + icept)
+
+
+def _crossings(x: np.ndarray) -> np.ndarray:
+    """Fractional sample positions where ``x`` changes sign."""
+    s = np.signbit(x)
+    k = np.flatnonzero(s[1:] != s[:-1])
+    return k + x[k] / (x[k] - x[k + 1])
+
+
+def _crossing_frequency(x: np.ndarray, dt: float) -> float:
+    if x.size < 4:
+        return math.nan
+    c = _crossings(_detrend(x))
+    if c.size < 3:
+        return math.nan
+    return float((c.size - 1) / (2.0 * (c[-1] - c[0]) * dt))
+
+
+# --------------------------------------------------------------------------- margins
+def scaled(rig: Rig, controller: Controller, multiplier: float) -> tuple[Rig, Controller]:
+    """``rig`` and ``controller`` with the controller output multiplied by ``multiplier``
+    ahead of the actuator (its limits unchanged); the controller keeps its own range."""
+    if not controller.has_limits:
+        controller = controller.with_limits(*rig.actuator.command_limits)
+    actuator = dataclasses.replace(rig.actuator, gain=rig.actuator.gain * multiplier)
+    return dataclasses.replace(rig, actuator=actuator), controller
+
+
+def delayed(rig: Rig, extra_s: float) -> Rig:
+    """``rig`` with ``extra_s`` added to its ``transport_delay``."""
+    base = float(rig.params.transport_delay_s)
+    return rig.with_effect("transport_delay", delay=base + extra_s)
+
+
+def _runner(
+    scenario: str | Scenario | None,
+    duration_s: float | None,
+    detector: dict,
+    trials: list[tuple[float, str]],
+    last: dict,
+) -> Callable[[Rig, Controller, float], bool]:
+    def unstable(rig: Rig, controller: Controller, value: float) -> bool:
+        result = simulate(rig, controller, scenario, duration_s=duration_s)
+        osc = oscillation(result, **detector)
+        trials.append((float(value), osc.reason))
+        if osc.sustained:
+            last["frequency_hz"] = osc.frequency_hz
+        return osc.sustained
+
+    return unstable
+
+
+def gain_margin(
+    rig: Rig,
+    controller: Controller,
+    scenario: str | Scenario | None = None,
+    *,
+    rel_tol: float = 0.01,
+    max_gain: float = 1000.0,
+    duration_s: float | None = None,
+    ratio: float = DEFAULT_RATIO,
+    floor: float | None = None,
+) -> Margin:
+    """The smallest output multiplier at which the loop oscillates, to ``rel_tol``.
+
+    ``inf`` when it is still stable at ``max_gain``; below 1 when it already oscillates
+    as it is (then the bracket is searched downwards).
+    """
+    trials: list[tuple[float, str]] = []
+    last: dict = {}
+    run = _runner(scenario, duration_s, {"ratio": ratio, "floor": floor}, trials, last)
+    t0 = time.perf_counter()
+
+    def unstable(k: float) -> bool:
+        return run(*scaled(rig, controller, k), k)
+
+    lo, hi = _bracket(unstable, 1.0, lambda v: 2.0 * v, lambda v: 0.5 * v, max_gain, 1e-3)
+    while math.isfinite(hi) and lo > 0 and hi / lo > 1.0 + rel_tol:
+        mid = math.sqrt(lo * hi)
+        if unstable(mid):
+            hi = mid
+        else:
+            lo = mid
+    return _margin(lo, hi, trials, last, t0)
+
+
+def _margin(lo: float, hi: float, trials: list, last: dict, t0: float) -> Margin:
+    """The :class:`Margin` of a final bracket ``(lo, hi)``."""
+    onset = math.isfinite(hi)
+    return Margin(
+        value=0.5 * (lo + hi) if onset else math.inf,
+        bracket=(lo, hi),
+        frequency_hz=last.get("frequency_hz", math.nan) if onset else math.nan,
+        runs=len(trials),
+        seconds=time.perf_counter() - t0,
+        trials=trials,
+    )
+
+
+def delay_margin(
+    rig: Rig,
+    controller: Controller,
+    scenario: str | Scenario | None = None,
+    *,
+    rel_tol: float = 0.01,
+    max_delay_s: float = 1.0,
+    duration_s: float | None = None,
+    ratio: float = DEFAULT_RATIO,
+    floor: float | None = None,
+) -> Margin:
+    """The smallest extra loop delay [s] at which the loop oscillates, to ``rel_tol``
+    (or 1 µs). 0 when it oscillates without extra delay; ``inf`` beyond ``max_delay_s``."""
+    trials: list[tuple[float, str]] = []
+    last: dict = {}
+    run = _runner(scenario, duration_s, {"ratio": ratio, "floor": floor}, trials, last)
+    t0 = time.perf_counter()
+
+    def unstable(d: float) -> bool:
+        return run(delayed(rig, d), controller, d)
+
+    if unstable(0.0):
+        lo, hi = 0.0, 0.0
+    else:
+        lo, hi = _bracket(
+            unstable, rig.sample_time_s, lambda v: 2.0 * v, lambda v: 0.5 * v, max_delay_s, 1e-6
+        )
+        if not math.isfinite(hi) and lo < rig.sample_time_s:
+            lo = 0.0
+        while math.isfinite(hi) and hi - lo > max(rel_tol * hi, 1e-6):
+            mid = 0.5 * (lo + hi)
+            if unstable(mid):
+                hi = mid
+            else:
+                lo = mid
+    return _margin(lo, hi, trials, last, t0)
+
+
+def _bracket(
+    unstable: Callable[[float], bool],
+    start: float,
+    up: Callable[[float], float],
+    down: Callable[[float], float],
+    top: float,
+    bottom: float,
+) -> tuple[float, float]:
+    """``(stable, unstable)`` values around the onset, from ``start`` outwards; ``(lo, inf)``
+    when stable up to ``top``, ``(0, hi)`` when unstable down to ``bottom``."""
+    if unstable(start):
+        hi = start
+        while hi > bottom:
+            lo = down(hi)
+            if not unstable(lo):
+                return lo, hi
+            hi = lo
+        return 0.0, hi
+    lo = start
+    while lo < top:
+        hi = up(lo)
+        if unstable(hi):
+            return lo, hi
+        lo = hi
+    return lo, math.inf
+
+
+def margins(
+    rig: Rig,
+    controller: Controller,
+    scenario: str | Scenario | None = None,
+    *,
+    rel_tol: float = 0.01,
+    duration_s: float | None = None,
+    ratio: float = DEFAULT_RATIO,
+    floor: float | None = None,
+) -> Margins:
+    """Gain margin (with the oscillation frequency at onset) and delay margin."""
+    sc = scenario if isinstance(scenario, Scenario) else rig.scenario(scenario)
+    options = {"rel_tol": rel_tol, "duration_s": duration_s, "ratio": ratio, "floor": floor}
+    return Margins(
+        rig=rig.name,
+        controller=controller.name,
+        scenario=sc.name,
+        gain=gain_margin(rig, controller, sc, **options),
+        delay=delay_margin(rig, controller, sc, **options),
+        base_delay_s=float(rig.params.transport_delay_s),
+    )

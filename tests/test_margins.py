@@ -1,0 +1,122 @@
+"""Loop analysis against python-control on a linear test plant (tests/linear_plant.py):
+the stepped-sine frequency response and the gain margin of the sampled P loop."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+control = pytest.importorskip("control")
+
+import linear_plant  # noqa: E402  (tests/ is on sys.path)
+
+from fuzzyservo.analysis import frequency_response, gain_margin, oscillation  # noqa: E402
+from fuzzyservo.controllers.classical import P  # noqa: E402
+from fuzzyservo.metrics import command_tv  # noqa: E402
+from fuzzyservo.plants import PlantModel  # noqa: E402
+from fuzzyservo.rig import Actuator, LinearSensor, Rig, Scenario  # noqa: E402
+from fuzzyservo.signals import Steps  # noqa: E402
+from fuzzyservo.simulation import simulate  # noqa: E402
+
+DT = 1e-3
+VALUES = {"force_gain": 1000.0, "force_lag_s": 0.02, "mass_kg": 1.0, "damping": 12.0,
+          "stiffness": 1000.0}  # fmt: skip
+
+
+def _rig() -> Rig:
+    plant = PlantModel.from_module("linear_test", linear_plant, "linear test plant")
+    return Rig(
+        name="linear_test",
+        plant=plant,
+        params=linear_plant.LinearParams(**VALUES),
+        feedback=LinearSensor("y", gain=1.0, unit="V"),
+        actuator=Actuator("amp", gain=1.0, lower=-1e6, upper=1e6, unit="V"),
+        sample_time_s=DT,
+        output="y_out",
+        scenarios={
+            "step": Scenario("step", 4.0, Steps((0.5,), (0.01,)), warmup_s=0.2),
+        },
+    )
+
+
+def _plant_tf():
+    v = VALUES
+    s = control.tf("s")
+    return v["force_gain"] / (
+        (v["force_lag_s"] * s + 1) * (v["mass_kg"] * s**2 + v["damping"] * s + v["stiffness"])
+    )
+
+
+def test_frequency_response_matches_the_sampled_transfer_function() -> None:
+    rig, k = _rig(), 0.5
+    freqs = np.array([0.5, 2.0, 5.0, 10.0, 20.0])
+    fr = frequency_response(rig, P(name="p", gain=k), freqs, amplitude=0.01,
+                            operating_point=0.0, settle_s=0.2, discard_s=2.0)  # fmt: skip
+    gd = control.c2d(_plant_tf(), DT, method="zoh")
+    closed = control.feedback(k * gd, 1)
+    expected = np.array([complex(closed(np.exp(2j * np.pi * f * DT))) for f in freqs])
+    mag = 20 * np.log10(np.abs(expected))
+    phase = np.degrees(np.unwrap(np.angle(expected)))
+    assert np.all(np.abs(fr.magnitude_db - mag) < 0.5), (fr.magnitude_db, mag)
+    assert np.all(np.abs(fr.phase_deg - phase) < 3.0), (fr.phase_deg, phase)
+
+
+def test_gain_margin_of_a_sampled_third_order_loop() -> None:
+    rig, k = _rig(), 0.5
+    gd = control.c2d(_plant_tf(), DT, method="zoh")
+    gm, _, wcg, _ = control.margin(k * gd)
+    found = gain_margin(rig, P(name="p", gain=k), rel_tol=0.005)
+    assert found.value == pytest.approx(gm, rel=0.05)
+    assert found.frequency_hz == pytest.approx(wcg / (2 * math.pi), rel=0.05)
+
+
+def test_detector_and_chatter_on_a_stable_run() -> None:
+    result = simulate(_rig(), P(name="p", gain=0.5))
+    osc = oscillation(result)
+    assert not osc.sustained and osc.reason in ("decaying", "below_floor")
+    assert command_tv(result.command, DT) > 0
+
+
+def test_command_tv_is_the_total_variation_per_second() -> None:
+    u = np.array([0.0, 1.0, -1.0, -1.0, 0.0])  # |Δu| sums to 4 over 5 samples of 0.1 s
+    assert command_tv(u, 0.1) == pytest.approx(8.0)
+
+
+def test_margin_constraints_are_accepted_by_a_study(tmp_path) -> None:
+    from fuzzyservo.tuning.spec import MARGIN_METRICS, Constraint
+
+    c = Constraint.parse("gain_margin >= 2")
+    assert c.metric in MARGIN_METRICS and c.violation(1.5) == pytest.approx(0.5)
+    assert Constraint.parse("delay_margin_s >= 0.01").violation(0.02) < 0
+
+
+@pytest.mark.slow
+def test_margins_command_writes_the_json(tmp_path) -> None:
+    import json
+
+    from fuzzyservo.cli import main
+
+    out = tmp_path / "m.json"
+    assert main(["margins", "dinca_cylinder", "p_k10", "--json", str(out)]) == 0
+    m = json.loads(out.read_text())
+    assert m["gain_bracket"][0] < m["gain_margin"] < m["gain_bracket"][1]
+    assert m["oscillation_hz"] > 0 and m["delay_margin_s"] > 0
+
+
+@pytest.mark.slow
+def test_frequency_command_writes_json_and_bode_plot(tmp_path, capsys) -> None:
+    import json
+
+    from fuzzyservo.cli import main
+
+    out = tmp_path / "f.json"
+    args = ["frequency", "dinca_cylinder", "p_k10", "--out", str(tmp_path), "--json", str(out)]
+    assert main(args) == 0
+    f = json.loads(out.read_text())
+    assert len(f["frequency_hz"]) == len(f["magnitude_db"]) == len(f["phase_deg"])
+    assert abs(f["magnitude_db"][0]) < 0.5 and f["bandwidth_hz"] > 0
+    assert list(tmp_path.glob("bode_*.png"))
+    assert main(["frequency", "dinca_cylinder", "p_k10", "--amplitude", "-1"]) == 2
+    assert "--amplitude" in capsys.readouterr().err

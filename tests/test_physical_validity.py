@@ -5,11 +5,14 @@ seed-000 timing with the flywheel the seed's text describes."""
 from __future__ import annotations
 
 import dataclasses
+import json
 
 import numpy as np
 import pytest
-from support import controller_named, rig_named
+import yaml
+from support import controller_named, rig_named, shipped
 
+from fuzzyservo.cli import main
 from fuzzyservo.metrics import result_metrics
 from fuzzyservo.simulation.closed_loop import simulate
 from fuzzyservo.simulation.validity import VAPOUR_PRESSURE_PA, pressure_violation
@@ -83,3 +86,25 @@ def test_seed000_rise_time_with_the_flywheel():
     for rig in ("ehs160_motor", "ehs160_motor_composed"):
         m = result_metrics(simulate(rig_named(rig), controller_named("open_loop"), "unit_step"))
         assert m.aggregate["rise_time_s"] == pytest.approx(0.5, rel=0.05)
+
+
+def test_cli_and_json_report_the_cavitation_status(tmp_path, capsys):
+    """The warning reaches the user: `simulate` names it on stderr and in its JSON."""
+    data = yaml.safe_load(shipped("dinca_cylinder_composed").read_text(encoding="utf-8"))
+    data["scenarios"] = {
+        "below_vacuum": {
+            **data["scenarios"]["pulses"],
+            "duration": {"value": 0.2, "unit": "s"},
+            "warmup": {"value": 0, "unit": "s"},
+            "initial": {"pressure_a": {"value": -2, "unit": "bar"}},
+        }
+    }
+    rig_file = tmp_path / "below_vacuum.yaml"
+    rig_file.write_text(yaml.safe_dump(data, sort_keys=False), encoding="utf-8")
+    out = tmp_path / "run.json"
+    code = main(
+        ["simulate", str(rig_file), "p_k10", "--scenario", "below_vacuum", "--json", str(out)]
+    )
+    assert code == 0  # the run completed; its status says it is unphysical
+    assert "status cavitation" in capsys.readouterr().err
+    assert json.loads(out.read_text(encoding="utf-8"))["runs"][0]["status"] == "cavitation"

@@ -108,3 +108,15 @@ def test_cli_and_json_report_the_cavitation_status(tmp_path, capsys):
     assert code == 0  # the run completed; its status says it is unphysical
     assert "status cavitation" in capsys.readouterr().err
     assert json.loads(out.read_text(encoding="utf-8"))["runs"][0]["status"] == "cavitation"
+
+
+def test_every_plant_declares_its_chamber_pressures():
+    """Each hand-written plant names its gauge pressures; the seed-000 motor states only
+    P_x, so it gives its port pressures p_a, p_b = (P_s ± P_x)/2 (symmetric valve, §3 ii)."""
+    for name in ("dinca_cylinder", "ahc_cylinder", "ahc_motor", "hydroprax_pdcv", "ehs160_motor"):
+        plant = rig_named(name).plant
+        assert plant.pressures and all(plant.signal_units[p] == "Pa" for p in plant.pressures)
+    r = simulate(rig_named("ehs160_motor"), controller_named("open_loop"), "unit_step")
+    s = r.signals
+    np.testing.assert_allclose(s["p_a"] - s["p_b"], s["p_load"], atol=1.0)
+    np.testing.assert_allclose(s["p_a"] + s["p_b"], 70e5, rtol=1e-12)

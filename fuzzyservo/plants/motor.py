@@ -47,7 +47,7 @@ from fuzzyservo.components.effects import (
 from fuzzyservo.params import name_index, param_index, quantity
 
 STATES = ("spool", "w", "theta", "p_load")
-SIGNALS = ("spool", "w", "theta", "p_load", "q_valve", "t_friction", "q_leak")
+SIGNALS = ("spool", "w", "theta", "p_load", "q_valve", "t_friction", "q_leak", "p_a", "p_b")
 SIGNAL_UNITS = {
     "spool": "V",
     "w": "rad/s",
@@ -56,9 +56,14 @@ SIGNAL_UNITS = {
     "q_valve": "m^3/s",
     "t_friction": "N*m",
     "q_leak": "m^3/s",
+    "p_a": "Pa",
+    "p_b": "Pa",
 }
 INPUT = ("u_valve", "V")  # the plant input: servo-amplifier input voltage
 LOAD = ("t_load", "N*m")  # the shoe brake's torque: it opposes motion, whichever the direction
+# Port pressures of the symmetric valve (§3 ii): p_a + p_b = P_s, p_a − p_b = P_x. They are
+# what the vapour-pressure check reads (simulation/validity.py).
+PRESSURES = ("p_a", "p_b")
 
 
 @dataclass(frozen=True)
@@ -169,6 +174,8 @@ def signals(x: np.ndarray, u: float, t_load: float, p: np.ndarray, out: np.ndarr
     out[S.q_valve] = line_flow(x[X.spool], x[X.p_load], p)
     out[S.t_friction] = friction_torque(x[X.w], p)
     out[S.q_leak] = p[E_LEAK] * x[X.p_load]
+    out[S.p_a] = 0.5 * (p[P.supply_pressure_pa] + x[X.p_load])
+    out[S.p_b] = 0.5 * (p[P.supply_pressure_pa] - x[X.p_load])
 
 
 @njit(cache=True)

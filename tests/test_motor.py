@@ -35,7 +35,9 @@ def _steady_speed(u_volts: float, load_n_m: float) -> tuple[float, float]:
 
 def test_open_loop_steady_speed(ehs160, open_loop):
     w_expected, p_expected = _steady_speed(1.0, 0.0)
-    r = simulate(ehs160, open_loop, "unit_step")
+    # 6 s: the flywheel (issue 11) makes the approach slow (time constant ~0.23 s), and the
+    # 3 s scenario would end 1.8e-5 short of the steady state
+    r = simulate(ehs160, open_loop, "unit_step", duration_s=6.0)
     assert r.status == "ok"
     assert r.output[-1] == pytest.approx(w_expected, rel=1e-5)
     assert r.signals["p_load"][-1] == pytest.approx(p_expected, rel=1e-4)
@@ -50,9 +52,11 @@ def test_brake_slows_the_motor_to_the_loaded_equilibrium(ehs160, open_loop):
     free, _ = _steady_speed(1.0, 0.0)
     braked, _ = _steady_speed(1.0, 1.0)
     t = r.t
-    assert r.output[np.searchsorted(t, 1.99)] == pytest.approx(free, rel=1e-4)
-    assert r.output[np.searchsorted(t, 3.99)] == pytest.approx(braked, rel=1e-4)
-    assert r.output[-1] == pytest.approx(free, rel=1e-4)
+    # rel 1e-3 (was 1e-4): with the flywheel (issue 11, time constant ~0.23 s) the 2 s
+    # between the brake's events leave the speed 1.6e-4 short of each equilibrium
+    assert r.output[np.searchsorted(t, 1.99)] == pytest.approx(free, rel=1e-3)
+    assert r.output[np.searchsorted(t, 3.99)] == pytest.approx(braked, rel=1e-3)
+    assert r.output[-1] == pytest.approx(free, rel=1e-3)
     assert braked < 0.8 * free
 
 

@@ -41,18 +41,16 @@ def test_seed000_open_loop_step(ehs160, open_loop):
 
     The steady state matches: 1 V on the valve gives 142 rad/s = 3.70 V of tachogenerator,
     SSE 2.70 V (seed 2.8 / 2.89): valve gain, leakage and friction of Table 2 agree with the
-    rig. The speed of response does not: Table 2 gives a mechanical time constant
-    J/(B_e + V_m²/L_e) = 19 ms and a hydraulic resonance of 590 rad/s, so the model rises
-    in 0.055 s, ten times faster than the seed's 0.5 s. A rise that slow needs about ten
-    times Table 2's inertia — plausibly the flywheel of the shoe brake (Fig. 1 item 8),
-    which Table 2 labels "motor inertia" only. We keep Table 2 and pin the difference.
+    rig. Table 2's J is the motor's alone; the rig adds the flywheel of §2, identified from
+    this figure's tr = 0.5 s (ehs160_motor.yaml, inertia). Issue 11 moved this test: with
+    Table 2's J alone the model rose in 0.055 s. The settling time was not fitted.
     """
     r = simulate(ehs160, open_loop, "unit_step")
     m = result_metrics(r).aggregate
     kt = 0.026  # V/(rad/s), Table 2
     assert m["sse_abs"] * kt == pytest.approx(2.8, rel=0.05)
-    assert m["rise_time_s"] == pytest.approx(0.055, rel=0.1)
-    assert m["settling_time_s"] < 0.9 / 5  # pinned: far faster than the seed's ts (see docstring)
+    assert m["rise_time_s"] == pytest.approx(0.5, rel=0.05)
+    assert m["settling_time_s"] == pytest.approx(0.9, rel=0.1)
 
 
 def test_seed000_p_controller_step(ehs160, p_kb0105):
@@ -62,12 +60,12 @@ def test_seed000_p_controller_step(ehs160, p_kb0105):
     diagram supports), Kb = 0.105 gives a loop gain of 0.105 × 3.70 = 0.39, and the
     Coulomb friction eats much of the 0.1 V it commands: the model settles at 0.11 V
     (SSE 0.89 V). The seed's SSE of 0.3 needs a loop gain near 2.3, twenty times more;
-    the P controller does shorten the response (tr 0.029 s against 0.055 s open loop),
-    as the seed reports.
+    the P controller does shorten the response (tr 0.27 s against 0.5 s open loop; the
+    seed 0.4 s), as the seed reports.
     """
     r = simulate(ehs160, p_kb0105, "unit_step")
     m = result_metrics(r).aggregate
-    open_tr = 0.055
+    open_tr = 0.5
     assert m["sse_abs"] * 0.026 == pytest.approx(0.89, rel=0.05)
     assert m["rise_time_s"] < open_tr
 

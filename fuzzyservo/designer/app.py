@@ -163,7 +163,7 @@ class Designer:
                 i, _ = to_display(r, r.actuator_name, r.actuator)
                 src.data = {"t": r.t, "y": y, "i": i}
                 ry.visible = ri.visible = True
-                label = runs[k].name if r.ok else f"{runs[k].name} ({r.status})"
+                label = runs[k].name if r.status == "ok" else f"{runs[k].name} ({r.status})"
                 if label != self._labels.get(k):
                     _set_legend(self.fig_y, ry, label)
                     self._labels[k] = label

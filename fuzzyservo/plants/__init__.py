@@ -38,6 +38,9 @@ class PlantModel:
     null_input: Callable[[Any], float]
     effect_scales: Callable[[Any, float, float], Any] | None
     components: tuple[tuple[str, str], ...] = ()  # (instance, type) of a composition
+    # gauge chamber pressures [Pa] among the signals: checked against the vapour
+    # pressure after every run (simulation/validity.py)
+    pressures: tuple[str, ...] = ()
 
     @classmethod
     def from_module(cls, type_name: str, module: ModuleType, description: str) -> PlantModel:
@@ -61,6 +64,7 @@ class PlantModel:
             mechanics=getattr(module, "MECHANICS", {"force": "N", "velocity": "m/s"}),
             null_input=getattr(module, "null_input", _zero_null),
             effect_scales=getattr(module, "effect_scales", None),
+            pressures=getattr(module, "PRESSURES", ()),
         )
 
     @property

@@ -44,6 +44,7 @@ SIGNAL_UNITS = {
 }  # fmt: skip
 INPUT = ("u_valve", "V")  # the plant input: valve amplifier command
 LOAD = ("f_load", "N")  # external force opposing extension (+y), e.g. the weight carried
+PRESSURES = ("p_a", "p_b")  # gauge chamber pressures (simulation/validity.py)
 
 
 @dataclass(frozen=True)

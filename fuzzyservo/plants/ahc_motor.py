@@ -50,6 +50,7 @@ SIGNAL_UNITS = {
 }  # fmt: skip
 INPUT = ("u_valve", "V")  # the plant input: valve amplifier command
 LOAD = ("z_wave", "m")  # height of the platform (cylinder rod) carrying the motor
+PRESSURES = ("p_a", "p_b")  # gauge chamber pressures (simulation/validity.py)
 
 
 @dataclass(frozen=True)

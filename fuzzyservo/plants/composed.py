@@ -231,6 +231,8 @@ def compose(parts: tuple[tuple[str, str], ...]) -> Any:
         null_input=lambda params: _null(valve, instances, params),
         effect_scales=lambda params, rated, dt: _scales(instances, params, rated, dt),
         components=tuple((n, c.type) for n, c in instances),
+        # every pressure a component declares is a node pressure against the tank
+        pressures=tuple(name for name in signal_names if units[name] == "Pa"),
     )
     return model
 

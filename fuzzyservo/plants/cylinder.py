@@ -75,6 +75,7 @@ SIGNAL_UNITS = {
 }  # fmt: skip
 INPUT = ("i", "A")  # the plant input: servo-valve current
 LOAD = ("f_load", "N")  # external force opposing extension (+y)
+PRESSURES = ("p1", "p2", "p3", "p4")  # gauge chamber pressures (simulation/validity.py)
 
 
 @dataclass(frozen=True)
@@ -342,17 +343,22 @@ def initial_state(
     """State at rest at position ``y_m`` with the given pressures or chamber masses.
 
     Defaults (seed 002 eq. 2): p1 = pa, p2 = pr; p3 = p4 = (pa + pr)/2 unless given.
-    A chamber mass m3 or m4 (seed 002 §4 gives m30 = 12.040 g, m40 = 68.280 g at
-    y = 0) sets the pressure through m = ρ0·V·(1 + p/E).
+    A chamber mass m3 or m4 is the mass at y = 0, where the chambers have the seed's
+    lengths l30, l40 (seed 002 §4: m30 = 12.040 g, m40 = 68.280 g): it sets the held
+    pressure through m = ρ0·V(0)·(1 + p/E), and a start at another ``y_m`` holds that
+    pressure in the chamber's volume there. (Keeping the y = 0 mass in a volume 3.5
+    times larger at y = 5 cm would put p3 at −12 847 bar.)
     """
     pa, pr = params.supply_pressure_pa, params.return_pressure_pa
     e = effective_bulk_modulus(params)
     v3 = params.area_3_m2 * (params.chamber_length_3_m + y_m)
     v4 = params.area_4_m2 * (params.chamber_length_4_m - y_m)
     if m3_kg is not None:
-        p3_pa = pressure_from_mass(m3_kg, v3, params)
+        v30 = params.area_3_m2 * params.chamber_length_3_m
+        p3_pa = pressure_from_mass(m3_kg, v30, params)
     if m4_kg is not None:
-        p4_pa = pressure_from_mass(m4_kg, v4, params)
+        v40 = params.area_4_m2 * params.chamber_length_4_m
+        p4_pa = pressure_from_mass(m4_kg, v40, params)
     p1 = pa if p1_pa is None else p1_pa
     p2 = pr if p2_pa is None else p2_pa
     p3 = 0.5 * (pa + pr) if p3_pa is None else p3_pa

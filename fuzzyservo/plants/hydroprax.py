@@ -56,6 +56,7 @@ SIGNAL_UNITS = {
 }  # fmt: skip
 INPUT = ("u_c", "V")  # the plant input: control voltage of the valve amplifier
 LOAD = ("f_load", "N")  # external force opposing extension (+y)
+PRESSURES = ("p_s", "p_a", "p_b")  # gauge chamber pressures (simulation/validity.py)
 
 VALVE_POLYNOMIAL = 1
 VALVE_NETWORK = 2

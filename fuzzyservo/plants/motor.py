@@ -7,7 +7,7 @@ pressure P_x [Pa].
     τ_x · dspool/dt = K_a·u − spool                                  (eq. 8)
     Q = K_x · spool · sqrt((P_s − sgn(Q)·P_x) / P_s)                   (eq. 9)
     (V_c / (4·K_h)) · dP_x/dt = Q − V_m·w − L_e·P_x                   (eq. 17)
-    J · dw/dt = V_m·P_x − B_e·w − T_f·tanh(w/w_c) − T_L               (eq. 14-15)
+    J · dw/dt = V_m·P_x − B_e·w − T_f·tanh(w/w_c) − T_L·tanh(w/w_c)   (eq. 14-15)
     dtheta/dt = w
 
 ``u`` is the amplifier input [V]; K_a = −1 and K_x < 0 (Table 2) so that a positive
@@ -19,6 +19,11 @@ L_e, a line drop 2·R·Q to the load pressure the valve sees, E_eff for K_h, and
 pump's cap on |Q|. The square root is regularised near zero (``laminar_pressure_pa``), and the Coulomb
 friction is smoothed over ``coulomb_velocity_rad_s`` so the right-hand side is
 Lipschitz (docs/modelling.md "Friction").
+
+The load T_L is the scenario's ``load``: the torque of the shoe brake, the rig's only load
+(seed 000 §2, item 8: "mechanical brake (acting as a variable load)"). A brake only
+opposes motion, so it acts like the Coulomb friction, T_L·tanh(w/w_c): it slows the
+motor, holds it near standstill, and never drives it backwards.
 """
 
 from __future__ import annotations
@@ -42,7 +47,7 @@ from fuzzyservo.components.effects import (
 from fuzzyservo.params import name_index, param_index, quantity
 
 STATES = ("spool", "w", "theta", "p_load")
-SIGNALS = ("spool", "w", "theta", "p_load", "q_valve", "t_friction", "q_leak")
+SIGNALS = ("spool", "w", "theta", "p_load", "q_valve", "t_friction", "q_leak", "p_a", "p_b")
 SIGNAL_UNITS = {
     "spool": "V",
     "w": "rad/s",
@@ -51,9 +56,14 @@ SIGNAL_UNITS = {
     "q_valve": "m^3/s",
     "t_friction": "N*m",
     "q_leak": "m^3/s",
+    "p_a": "Pa",
+    "p_b": "Pa",
 }
 INPUT = ("u_valve", "V")  # the plant input: servo-amplifier input voltage
-LOAD = ("t_load", "N*m")  # load torque opposing forward rotation (the brake)
+LOAD = ("t_load", "N*m")  # the shoe brake's torque: it opposes motion, whichever the direction
+# Port pressures of the symmetric valve (§3 ii): p_a + p_b = P_s, p_a − p_b = P_x. They are
+# what the vapour-pressure check reads (simulation/validity.py).
+PRESSURES = ("p_a", "p_b")
 
 
 @dataclass(frozen=True)
@@ -132,7 +142,7 @@ def friction_torque(w: float, p: np.ndarray) -> float:
 def rhs(x: np.ndarray, u: float, t_load: float, p: np.ndarray, dx: np.ndarray) -> None:
     """Right-hand side dx/dt of the EHS 160 servo motor (module docstring).
 
-    ``x`` states (STATES), ``u`` amplifier input [V], ``t_load`` load torque [N·m],
+    ``x`` states (STATES), ``u`` amplifier input [V], ``t_load`` brake torque [N·m],
     ``p`` packed :class:`MotorParams`; writes ``dx``.
     """
     spool = x[X.spool]
@@ -140,7 +150,8 @@ def rhs(x: np.ndarray, u: float, t_load: float, p: np.ndarray, dx: np.ndarray) -
     pl = x[X.p_load]
     q = line_flow(spool, pl, p)
     dx[X.spool] = (p[P.amplifier_gain] * u - spool) / p[P.valve_time_constant_s]
-    dx[X.w] = (p[P.motor_displacement_m3_rad] * pl - friction_torque(w, p) - t_load) / p[
+    brake = t_load * math.tanh(w / p[P.coulomb_velocity_rad_s])
+    dx[X.w] = (p[P.motor_displacement_m3_rad] * pl - friction_torque(w, p) - brake) / p[
         P.inertia_kg_m2
     ]
     dx[X.theta] = w
@@ -163,6 +174,8 @@ def signals(x: np.ndarray, u: float, t_load: float, p: np.ndarray, out: np.ndarr
     out[S.q_valve] = line_flow(x[X.spool], x[X.p_load], p)
     out[S.t_friction] = friction_torque(x[X.w], p)
     out[S.q_leak] = p[E_LEAK] * x[X.p_load]
+    out[S.p_a] = 0.5 * (p[P.supply_pressure_pa] + x[X.p_load])
+    out[S.p_b] = 0.5 * (p[P.supply_pressure_pa] - x[X.p_load])
 
 
 @njit(cache=True)

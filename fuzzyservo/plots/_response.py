@@ -81,7 +81,7 @@ def _check(results: list[SimResult]) -> None:
 
 
 def _label(result: SimResult) -> str:
-    return result.controller if result.ok else f"{result.controller} ({result.status})"
+    return result.controller if result.status == "ok" else f"{result.controller} ({result.status})"
 
 
 def _output_panel(ax: Axes, results: list[SimResult]) -> None:

@@ -19,6 +19,8 @@ class SimResult:
     the feedback sensor, so ``output`` and ``reference_output`` compare directly.
 
     ``status``: ``ok``; ``end_stop`` (the run finished but the piston hit a stop);
+    ``cavitation`` (the run finished but a chamber pressure fell below the oil's vapour
+    pressure, which the model does not describe: simulation/validity.py);
     ``diverged`` or ``step_failure`` (the run stopped; samples after ``message``'s
     time are NaN).
     """
@@ -48,8 +50,9 @@ class SimResult:
 
     @property
     def ok(self) -> bool:
-        """True when the run completed (``ok`` or ``end_stop``)."""
-        return self.status in ("ok", "end_stop")
+        """True when the run completed (``ok``, ``end_stop`` or ``cavitation``); only
+        ``ok`` is a physically valid run."""
+        return self.status in ("ok", "end_stop", "cavitation")
 
     @property
     def output_unit(self) -> str:

@@ -86,4 +86,15 @@ COMPONENTS = (
             "vel / P.smoothing_velocity)\nf_load += L.f"
         },
     ),
+    Component(
+        type="brake",
+        role="load",
+        doc="the scenario's load as a brake: F = F_load(t)·tanh(v/v_c) opposes motion "
+        "(a shoe or disc brake slows and holds, never drives)",
+        source="seed 000 §2 (shoe brake as a variable load); docs/modelling.md Friction",
+        params=(Param("smoothing_velocity", "velocity", "v_c of tanh(v/v_c)", positive=True),),
+        signals=(Signal("f_brake", "force", "L.f"),),
+        # f_load starts at the scenario's f_ext: the brake replaces that push by its drag
+        code={"load": "L.f = f_ext * math.tanh(vel / P.smoothing_velocity)\nf_load += L.f - f_ext"},
+    ),
 )

@@ -1,0 +1,48 @@
+"""Physical validity of a finished run: no chamber pressure below the oil's vapour pressure.
+
+No plant models cavitation (gas release, vapour cavities): its pressure law p = E·(ρ/ρ0 − 1)
+happily goes below vacuum. Every plant states pressures against the atmosphere (gauge;
+the tank or return line at 0 bar), so absolute zero is −1.013 bar. Mineral oil's vapour
+pressure is well below 1 kPa absolute at working temperatures, so the floor is taken as
+absolute zero: below it the model describes a liquid under tension, which real oil never
+sustains. Such a run completes but reports ``cavitation``, never ``ok``.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+
+import numpy as np
+
+ATMOSPHERE_PA = 101_325.0
+# Gauge pressure at which the oil would boil away (0 Pa absolute: its vapour pressure,
+# < 1 kPa absolute, is within the rounding of the atmosphere).
+VAPOUR_PRESSURE_PA = -ATMOSPHERE_PA
+STATUS_CAVITATION = "cavitation"
+
+
+def pressure_violation(
+    t: np.ndarray, signals: Mapping[str, np.ndarray], pressures: Sequence[str]
+) -> str:
+    """Why the run is unphysical, or "" when every pressure stays above the vapour pressure.
+
+    ``pressures`` names the gauge chamber pressures [Pa] among ``signals``; the message
+    names the lowest one, its value and the time it is reached.
+    """
+    worst, name, at = np.inf, "", 0.0
+    for p_name in pressures:
+        values = np.asarray(signals[p_name], dtype=np.float64)
+        finite = np.isfinite(values)
+        if not finite.any():
+            continue
+        k = int(np.argmin(np.where(finite, values, np.inf)))
+        if values[k] < worst:
+            worst, name, at = float(values[k]), p_name, float(t[k])
+    if worst >= VAPOUR_PRESSURE_PA:
+        return ""
+    first = np.flatnonzero(np.asarray(signals[name]) < VAPOUR_PRESSURE_PA)[0]
+    return (
+        f"{name} fell below the oil's vapour pressure ({VAPOUR_PRESSURE_PA / 1e5:.2f} bar gauge, "
+        f"0 Pa absolute) at t = {float(t[first]):.3f} s, down to {worst / 1e5:.4g} bar at "
+        f"t = {at:.3f} s; the model has no cavitation, so the run is unphysical from there"
+    )

@@ -41,9 +41,7 @@ class LinearSensor:
         if self.gain == 0 or self.ratio == 0:
             raise ValueError(f"sensor on {self.signal!r}: gain and ratio must not be zero")
         if not self.noise_std >= 0:
-            raise ValueError(
-                f"sensor on {self.signal!r}: noise must be >= 0, got {self.noise_std}"
-            )
+            raise ValueError(f"sensor on {self.signal!r}: noise must be >= 0, got {self.noise_std}")
         if self.adc_bits and not (0 < self.adc_bits <= 32 and self.adc_lower < self.adc_upper):
             raise ValueError(
                 f"sensor on {self.signal!r}: an ADC needs 1..32 bits and `lower < upper`, "

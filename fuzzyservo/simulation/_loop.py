@@ -141,7 +141,7 @@ class LoopSettings(NamedTuple):
 
 
 @njit(cache=True)
-def adc(v, lo, hi, step):  # noqa: ANN001, ANN201 - a float or an array, as numba types it
+def adc(v: float | np.ndarray, lo: float, hi: float, step: float) -> float | np.ndarray:
     """An ADC of step ``step`` over ``lo .. hi``: the nearest of the 2^bits codes
     ``lo + c·step`` (c = 0 .. 2^bits − 1); readings outside the range clip to its ends.
     ``step`` 0 passes ``v`` through."""
@@ -168,7 +168,9 @@ def sample(
     ``saturated`` is true when ``a`` sits at either limit (to 1e-9 of its magnitude,
     whatever the limit's sign). Updates the controller state ``cs`` in place.
     """
-    y = adc(s.sensor_offset + s.sensor_gain * x[s.sensor_index] + noise, s.adc_lo, s.adc_hi, s.adc_step)
+    y = adc(
+        s.sensor_offset + s.sensor_gain * x[s.sensor_index] + noise, s.adc_lo, s.adc_hi, s.adc_step
+    )
     u = controller_step(ctrl_kind, cp, cs, r, y)
     a = s.act_gain * u
     if a > s.act_hi:

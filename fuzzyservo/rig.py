@@ -270,12 +270,14 @@ def compose_rig(
     initial: dict[str, float] | None = None,
     sensors: dict[str, LinearSensor] | None = None,
     title: str = "",
+    io_delay_s: float = 0.0,
 ) -> Rig:
     """A rig composed in code, as a rig file's ``plant.components`` does.
 
     ``components``: instance name -> (component type, parameter values by key, SI); the
     types are those of ``fuzzyservo/components/library`` (:func:`component_types`).
-    ``initial``: initial-state keys (``position``, ``pressure_a``, ...) in SI. Raises
+    ``initial``: initial-state keys (``position``, ``pressure_a``, ...) in SI;
+    ``io_delay_s`` the loop's I/O delay (a rig file's ``controller.io_delay``). Raises
     ``ValueError`` naming the instance and key when something does not fit.
     """
     from fuzzyservo.plants.composed import compose
@@ -320,6 +322,7 @@ def compose_rig(
         scenarios=scenarios,
         initial=dict(initial or {}),
         sensors=dict(sensors or {}),
+        io_delay_s=io_delay_s,
     )
 
 

@@ -137,7 +137,9 @@ def test_seed_002_saturation_pattern(rig) -> None:
     }
     assert sat["flc1_translated"] == 0.0
     assert 0.0 < sat["flc2_reshaped"] < 0.5 * sat["p_k10"]
-    assert sat["p_k10"] > 0.15  # s of the ~0.3 s each 1 V transition takes
+    # most of each transition: P takes 0.24-0.28 s to reach 90 % of a 1 V step, 0.22-0.25 s
+    # of it in saturation
+    assert sat["p_k10"] > 0.15
 
 
 def _rig_file_with(tmp_path: Path, section: str, key: str, value: object) -> Path:

@@ -401,9 +401,7 @@ def _bar(total: int, initial: int, name: str, enabled: bool):
     )
 
 
-def collect(
-    spec: StudySpec, url: str, *, wall_s: float = 0.0, rig: Rig | None = None
-) -> Outcome:
+def collect(spec: StudySpec, url: str, *, wall_s: float = 0.0, rig: Rig | None = None) -> Outcome:
     """Read the study back: best (feasible) trial or Pareto front, history, importances
     (the baseline evaluated on ``rig`` when given, as the trials were)."""
     import optuna

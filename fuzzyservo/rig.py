@@ -20,17 +20,40 @@ from fuzzyservo.signals import Constant, Signal
 @dataclass(frozen=True)
 class LinearSensor:
     """``reading = offset + gain · signal / ratio`` [V] (e.g. seed 002 eq. 19:
-    U_R = 5.75 V + 0.1936 V/cm · y; seed 000: 3.44 V/rad after the 7.5 gear)."""
+    U_R = 5.75 V + 0.1936 V/cm · y; seed 000: 3.44 V/rad after the 7.5 gear).
+
+    What the controller sees is :meth:`measure`: the reading plus white noise of
+    standard deviation ``noise_std`` (in the reading's unit), quantised by an ADC of
+    ``adc_bits`` over ``adc_lower .. adc_upper`` (step = range / 2^bits; 0 bits: none).
+    """
 
     signal: str
     offset: float = 0.0
     gain: float = 1.0
     ratio: float = 1.0
     unit: str = "V"
+    noise_std: float = 0.0
+    adc_bits: int = 0
+    adc_lower: float = 0.0
+    adc_upper: float = 0.0
 
     def __post_init__(self) -> None:
         if self.gain == 0 or self.ratio == 0:
             raise ValueError(f"sensor on {self.signal!r}: gain and ratio must not be zero")
+        if not self.noise_std >= 0:
+            raise ValueError(f"sensor on {self.signal!r}: noise must be >= 0, got {self.noise_std}")
+        if self.adc_bits and not (0 < self.adc_bits <= 32 and self.adc_lower < self.adc_upper):
+            raise ValueError(
+                f"sensor on {self.signal!r}: an ADC needs 1..32 bits and `lower < upper`, "
+                f"but got (bits={self.adc_bits}, lower={self.adc_lower}, upper={self.adc_upper})"
+            )
+
+    @property
+    def adc_step(self) -> float:
+        """The ADC's quantisation step (range / 2^bits) [reading unit]; 0 without an ADC."""
+        if not self.adc_bits:
+            return 0.0
+        return (self.adc_upper - self.adc_lower) / 2.0**self.adc_bits
 
     @property
     def slope(self) -> float:
@@ -42,6 +65,14 @@ class LinearSensor:
 
     def invert(self, reading: np.ndarray | float) -> np.ndarray | float:
         return (reading - self.offset) / self.slope
+
+    def measure(self, value: np.ndarray, noise: np.ndarray) -> np.ndarray:
+        """What the acquisition delivers for ``value``: the reading plus ``noise``
+        (already scaled, reading unit), quantised (:func:`~fuzzyservo.simulation._loop.adc`)."""
+        from fuzzyservo.simulation._loop import adc
+
+        reading = np.asarray(self.read(value), dtype=float) + noise
+        return adc(reading, self.adc_lower, self.adc_upper, self.adc_step)
 
 
 @dataclass(frozen=True)
@@ -83,7 +114,8 @@ class Scenario:
     ``warmup_s``: metrics ignore what happens before (e.g. the move from the initial
     position to the first command level). ``overrides``: parameter values (SI, by field
     name) this scenario changes, e.g. a supply pressure. ``initial``: initial-state
-    keywords of the plant.
+    keywords of the plant. ``noise``: False runs it with noise-free sensors (their
+    quantisation stays).
     """
 
     name: str
@@ -94,6 +126,7 @@ class Scenario:
     overrides: dict[str, float] = field(default_factory=dict)
     initial: dict[str, float] = field(default_factory=dict)
     description: str = ""
+    noise: bool = True
 
     def __post_init__(self) -> None:
         if not self.duration_s > 0:
@@ -127,7 +160,9 @@ class Rig:
     ``effects``: names of the effects (components/effects.py) the rig declares, their
     parameters live in ``params``. ``unknowns``: parameter field -> (lower, upper) SI
     bounds of values the rig file marks as unknown (``fit: [lo, hi]``), which
-    calibration fits. ``measured``: how its data files are read.
+    calibration fits. ``measured``: how its data files are read. ``io_delay_s``: the
+    loop's input-output latency (computation and conversion), from the sample of the
+    feedback to the command reaching the actuator; it adds to a ``transport_delay``.
     """
 
     name: str
@@ -147,10 +182,13 @@ class Rig:
     effects: tuple[str, ...] = ()
     unknowns: dict[str, tuple[float, float]] = field(default_factory=dict)
     measured: MeasuredFormat | None = None
+    io_delay_s: float = 0.0
 
     def __post_init__(self) -> None:
         if not self.sample_time_s > 0:
             raise ValueError(f"sample_time must be > 0 s, got {self.sample_time_s}")
+        if not self.io_delay_s >= 0:
+            raise ValueError(f"io_delay must be >= 0 s, got {self.io_delay_s}")
         if self.feedback.signal not in self.plant.states:
             raise ValueError(
                 f"feedback signal {self.feedback.signal!r} is not a state of "
@@ -232,12 +270,14 @@ def compose_rig(
     initial: dict[str, float] | None = None,
     sensors: dict[str, LinearSensor] | None = None,
     title: str = "",
+    io_delay_s: float = 0.0,
 ) -> Rig:
     """A rig composed in code, as a rig file's ``plant.components`` does.
 
     ``components``: instance name -> (component type, parameter values by key, SI); the
     types are those of ``fuzzyservo/components/library`` (:func:`component_types`).
-    ``initial``: initial-state keys (``position``, ``pressure_a``, ...) in SI. Raises
+    ``initial``: initial-state keys (``position``, ``pressure_a``, ...) in SI;
+    ``io_delay_s`` the loop's I/O delay (a rig file's ``controller.io_delay``). Raises
     ``ValueError`` naming the instance and key when something does not fit.
     """
     from fuzzyservo.plants.composed import compose
@@ -282,6 +322,7 @@ def compose_rig(
         scenarios=scenarios,
         initial=dict(initial or {}),
         sensors=dict(sensors or {}),
+        io_delay_s=io_delay_s,
     )
 
 

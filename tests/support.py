@@ -35,3 +35,13 @@ def controller_named(name: str):
 
 #: the folder holding the shipped ``rigs/`` and ``studies/`` (package data once installed)
 DATA = shipped("dinca_cylinder").parent.parent
+
+
+def ideal_sensor(rig):
+    """``rig`` with a noise-free feedback sensor without ADC (issue 11 gave the shipped
+    seed-002 rig both): for tests that pin the plant or the integrator, where a
+    quantised reading turns µm-level differences into whole ADC codes of 16 µm."""
+    import dataclasses
+
+    fb = dataclasses.replace(rig.feedback, noise_std=0.0, adc_bits=0, adc_lower=0.0, adc_upper=0.0)
+    return dataclasses.replace(rig, feedback=fb)

@@ -67,6 +67,7 @@ def _lift_in_code():
             Scenario("steps", 8.0, Steps((0.5, 3.0, 5.5), (6.6667, 3.3333, 4.3333), 5.0), warmup_s=0.2)
         ],
         initial={"position": 0.15},
+        io_delay_s=1e-3,  # the file's controller.io_delay (issue 11)
     )  # fmt: skip
 
 

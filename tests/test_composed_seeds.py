@@ -36,15 +36,25 @@ laid out differently (ports instead of load pressure, a spool velocity state).
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 import pytest
-from support import controller_named, rig_named
+from support import controller_named, ideal_sensor, rig_named
 
 from fuzzyservo.simulation import simulate
 
 
+def _plant_only(rig):
+    return dataclasses.replace(ideal_sensor(rig), io_delay_s=0.0)
+
+
 def test_seed002_composed_reproduces_the_open_centre_cylinder() -> None:
-    hand, composed = rig_named("dinca_cylinder"), rig_named("dinca_cylinder_composed")
+    # the plants as these tolerances were measured: exact readings (an ADC code flipped by
+    # the two kernels' rounding would part them) and no I/O delay (its 20 ms make the loop
+    # less damped, which grows their 0.3 bar to 0.48 bar in the first transient; issue 11)
+    hand = _plant_only(rig_named("dinca_cylinder"))
+    composed = _plant_only(rig_named("dinca_cylinder_composed"))
     p10 = controller_named("p_k10")
     a, b = simulate(hand, p10, "pulses"), simulate(composed, p10, "pulses")
     assert b.status == "ok"

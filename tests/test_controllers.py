@@ -43,8 +43,9 @@ ALL_CONTROLLERS = [
 
 @pytest.mark.parametrize("controller", ALL_CONTROLLERS, ids=lambda c: c.name)
 def test_python_face_replays_the_compiled_loop(dinca, controller):
-    """The same controller, stepped from Python on the recorded reference and feedback,
-    gives exactly the commands the compiled loop applied (state passed explicitly)."""
+    """The same controller, stepped from Python on the recorded reference and the reading
+    it saw (``measured``: noise and ADC, issue 11), gives exactly the commands the
+    compiled loop applied (state passed explicitly)."""
     r = simulate(dinca, controller, "steps", duration_s=3.0)
     c = (
         controller
@@ -53,7 +54,7 @@ def test_python_face_replays_the_compiled_loop(dinca, controller):
     )
     state = c.init(dinca.sample_time_s)
     replay = []
-    for ref, y in zip(r.reference, r.feedback, strict=True):
+    for ref, y in zip(r.reference, r.measured, strict=True):
         u, state = c.step(state, ref, y)
         replay.append(u)
     np.testing.assert_array_equal(np.array(replay), r.command)
@@ -96,9 +97,9 @@ def test_limits_must_be_ordered():
 
 def test_controller_without_limits_gets_the_actuator_range(dinca):
     r = simulate(dinca, P(gain=10.0, name="free"), "pulses", duration_s=3.0)
-    lo, hi = dinca.actuator.command_limits  # ±30 mA / 10 mA/V = ±3 V
-    assert (lo, hi) == pytest.approx((-3.0, 3.0))
-    assert r.command.max() == pytest.approx(3.0)
+    lo, hi = dinca.actuator.command_limits  # ±20 mA (issue 11) / 10 mA/V = ±2 V
+    assert (lo, hi) == pytest.approx((-2.0, 2.0))
+    assert r.command.max() == pytest.approx(2.0)
 
 
 def test_pi_removes_the_bias_error_p_leaves(dinca, p_k10):

@@ -7,6 +7,7 @@ import math
 import numpy as np
 import pytest
 from scipy.optimize import fsolve
+from support import ideal_sensor
 
 from fuzzyservo.controllers.classical import OpenLoop, P
 from fuzzyservo.params import pack
@@ -60,7 +61,9 @@ def test_p_k10_settles_on_the_seed_equilibrium(dinca, p_k10):
     """The loop settles where the valve balances the piston: i = I_bias + Δi_eq, and the
     P controller needs an error e = i/(K·K_UI) to hold that current (seed 002 §5)."""
     p1, p2, p3, p4, di = _seed_equilibrium(dinca.params)
-    r = simulate(dinca, p_k10, "pulses", duration_s=7.0)
+    # the model's equilibrium: an exact reading (noise and the 0.3 mV ADC step would hide
+    # the 2e-5 V error this pins; issue 11 gave the shipped rig both)
+    r = simulate(ideal_sensor(dinca), p_k10, "pulses", duration_s=7.0)
     k = -1  # end of the first 5 s pulse
     assert r.status == "ok"
     assert r.actuator[k] * 1e3 == pytest.approx(2.83 + di, abs=2e-3)
@@ -141,7 +144,11 @@ def test_diverging_controller_is_a_result_not_a_crash(dinca):
 @pytest.mark.parametrize("scenario", ["pulses", "steps"])
 def test_fast_loop_converges_to_tight_reference(dinca, p_k10, scenario):
     """Compiled Rosenbrock loop against solve_ivp LSODA at rtol 1e-9 (the bench's accuracy
-    discipline: position within 0.02 mm and pressures within 0.5 bar)."""
+    discipline: position within 0.02 mm and pressures within 0.5 bar). An exact reading:
+    this pins the integrator, and an ADC code flipped by a µm-level difference would
+    move the paths apart by a 16 µm code (issue 11; tests/test_loop_fidelity.py compares
+    the paths with noise and ADC on)."""
+    dinca = ideal_sensor(dinca)
     fast = simulate(dinca, p_k10, scenario, duration_s=3.0)
     tight = simulate_reference(dinca, p_k10, scenario, duration_s=3.0, rtol=1e-9)
     assert np.max(np.abs(fast.output - tight.output)) < 0.02e-3

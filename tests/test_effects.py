@@ -8,7 +8,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from support import DATA, controller_named, rig_named
+from support import DATA, controller_named, ideal_sensor, rig_named
 
 from fuzzyservo.components import effects as fx
 from fuzzyservo.components.orifice import signed_sqrt_flow
@@ -116,19 +116,21 @@ def test_transport_delay_of_one_sample_shifts_the_command() -> None:
 
 
 def test_valve_lag_matches_the_reference_path() -> None:
-    rig = rig_named("dinca_cylinder").with_effect("valve_lag", time_constant=5e-3)
+    # an exact reading: this pins the lag, not the ADC (issue 11, see tests/test_cylinder.py)
+    rig = ideal_sensor(rig_named("dinca_cylinder")).with_effect("valve_lag", time_constant=5e-3)
     ctrl = controller_named("p_k10")
     fast = simulate(rig, ctrl, "steps", duration_s=3.0)
     ref = simulate_reference(rig, ctrl, "steps", duration_s=3.0, rtol=1e-8)
     assert np.max(np.abs(fast.signals["y"] - ref.signals["y"])) < 2e-6  # 2 µm
     # a tiny lag is no lag
     tiny = simulate(rig.with_effect("valve_lag", time_constant=1e-7), ctrl, "steps", duration_s=3.0)
-    plain = simulate(rig_named("dinca_cylinder"), ctrl, "steps", duration_s=3.0)
+    plain = simulate(ideal_sensor(rig_named("dinca_cylinder")), ctrl, "steps", duration_s=3.0)
     assert np.max(np.abs(tiny.signals["y"] - plain.signals["y"])) < 1e-6
 
 
 def test_lower_bulk_modulus_slows_the_pressure_build_up() -> None:
-    rig, ctrl = rig_named("dinca_cylinder"), controller_named("p_k10")
+    # an exact reading: sensor noise would leave the two runs apart at the end (issue 11)
+    rig, ctrl = ideal_sensor(rig_named("dinca_cylinder")), controller_named("p_k10")
     soft = simulate(rig.with_effect("bulk_modulus", effective=0.3e9), ctrl, "steps")
     stiff = simulate(rig, ctrl, "steps")
     # the softer liquid lags the stiff one by bars in the fast transients, then agrees

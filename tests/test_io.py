@@ -225,7 +225,7 @@ RIG_CASES = [
     ),
     (_zero_bulk_modulus, "plant.parameters.bulk_modulus", ["must be > 0 Pa", "0.0", "positive"]),
     (_negative_mass, "plant.parameters.piston_mass", ["must be > 0 kg", "-1.0", "positive"]),
-    (_limits_swapped, "actuator", ["`lower < upper` must hold", "lower=0.03", "swap them"]),
+    (_limits_swapped, "actuator", ["`lower < upper` must hold", "lower=0.02", "swap them"]),
     (
         _pressure_in_cm,
         "plant.parameters.supply_pressure.unit",

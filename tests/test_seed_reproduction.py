@@ -94,4 +94,7 @@ def test_seed002_flc2_is_faster_than_flc1(dinca, p_k10, flc1, flc2):
     assert m2.aggregate["settling_time_s"] <= 0.8 * m1["settling_time_s"]
     for step in m2.steps:
         assert step.sse_abs <= 0.1e-3
-    assert m2.aggregate["saturation_time_s"] <= 0.1 * p["saturation_time_s"]
+    # "reaches only for a short period the saturation": with the ±20 mA converter chosen
+    # from these observations (issue 11) FLC2 saturates about a quarter of P's time (it
+    # never did at ±30 mA, where this bound was 0.1 × P); FLC1 never does
+    assert 0.0 < m2.aggregate["saturation_time_s"] <= 0.5 * p["saturation_time_s"]

@@ -168,6 +168,7 @@ def make_replay(rig: Rig, data: Measured, controller: Controller | None = None) 
         reference=Sampled(times_s=t, values=np.asarray(reference, dtype=float)),
         initial=_initial(rig, data, channels),
         description=f"replay of {data.source}",
+        noise=False,  # the data carry the rig's own noise; the model replays noise-free
     )
     split = round((1.0 - VALIDATION_FRACTION) * t.size)
     return Replay(

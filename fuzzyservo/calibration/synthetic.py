@@ -30,7 +30,8 @@ def synthetic_run(
     that noise added. Raises ValueError if the run does not finish."""
     for name, values in effects.items():
         rig = rig.with_effect(name, **values)
-    res = simulate(rig, controller, scenario, duration_s=duration_s)
+    # the loop runs noise-free, as a calibration replay does: the noise goes on the records
+    res = simulate(rig, controller, scenario, duration_s=duration_s, noise=False)
     if not res.ok:
         raise ValueError(f"synthetic run failed: {res.message}")
     rng = np.random.default_rng(seed)

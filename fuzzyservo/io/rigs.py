@@ -8,12 +8,13 @@ Layout of a rig file (every number as ``{value, unit, source}``; see ``rigs/``):
     plant:    {type: open_centre_cylinder, parameters: {...}, initial: {...}}
       # or a composition of components (fuzzyservo.components.library):
     plant:    {components: {valve: {type: servo_valve, parameters: {...}}, ...}, initial: {...}}
-    feedback: {signal: y, offset: ..., gain: ..., ratio: ...}
+    feedback: {signal: y, offset: ..., gain: ..., ratio: ...,
+               noise: ..., adc_bits: ..., adc_lower: ..., adc_upper: ...}  # noise: std dev
     sensors:  {name: {signal, offset, gain, ratio}}          # optional extra readings
     actuator: {name: converter, gain: ..., lower: ..., upper: ...}
-    controller: {sample_time: ...}
+    controller: {sample_time: ..., io_delay: ...}  # io_delay: computation + conversion
     output:   {signal: y, display_unit: cm}
-    scenarios: {name: {duration, warmup, reference, load, overrides, initial, description}}
+    scenarios: {name: {duration, warmup, reference, load, overrides, initial, noise, description}}
     effects:  {coulomb_friction: {force: {value: 150, unit: N}}, valve_lag: {...}}  # optional
     measured: {columns: {d: y_mm, u: u_V}, sample_period: {value: 7.7531, unit: ms}}  # optional
 
@@ -87,12 +88,20 @@ def load_rig(path: str | Path) -> Rig:
     }
     actuator = _actuator(root.child("actuator"), plant)
     ctrl = root.child("controller")
-    ctrl.only(("sample_time",))
+    ctrl.only(("sample_time", "io_delay"))
     sample_time = ctrl.quantity("sample_time", "s")
     if not sample_time > 0:
         ctrl.fail(
             f"must be > 0 s, got {sample_time} s; give the controller's sampling period",
             key="sample_time",
+        )
+    io_delay = ctrl.quantity("io_delay", "s", default=0.0)
+    # (an implausible sample time is reported by _check_plausible below)
+    if not 0 <= io_delay <= 100 * sample_time and not period_problem(sample_time):
+        ctrl.fail(
+            f"must lie in 0 .. 100 sample times ({100 * sample_time:g} s), got {io_delay} s; "
+            "give the latency from sampling the feedback to the command reaching the actuator",
+            key="io_delay",
         )
     params, effects = _effects(
         plant, params, root.child("effects", default={}), actuator.rated, sample_time, unknowns
@@ -140,6 +149,7 @@ def load_rig(path: str | Path) -> Rig:
             effects=effects,
             unknowns=unknowns,
             measured=measured,
+            io_delay_s=io_delay,
         )
     except ValueError as exc:
         # Rig re-checks what was validated above; reaching here is a loader bug, still one line
@@ -418,7 +428,9 @@ def _initial(plant: PlantModel, node: Node) -> dict[str, float]:
 def _sensor(node: Node, plant: PlantModel, *, feedback: bool = True) -> LinearSensor:
     """The feedback sensor reads a state (the compiled loop samples it); an extra sensor
     reads any signal (position, velocity, pressure, force ...), scaled and offset."""
-    node.only(("signal", "offset", "gain", "ratio", "unit"))
+    node.only(
+        ("signal", "offset", "gain", "ratio", "unit", "noise", "adc_bits", "adc_lower", "adc_upper")
+    )
     signal = node.str("signal")
     readable = plant.states if feedback else (*plant.signals, *plant.states)
     if signal not in readable:
@@ -439,12 +451,31 @@ def _sensor(node: Node, plant: PlantModel, *, feedback: bool = True) -> LinearSe
                 f"({'reading per unit of ' + signal if key == 'gain' else 'e.g. a gear ratio, 1 if none'})",
                 key=key,
             )
+    noise = node.quantity("noise", unit, default=0.0)
+    if not noise >= 0:
+        node.fail(f"must be >= 0 {unit} (a standard deviation), got {noise}", key="noise")
+    bits_value = node.quantity("adc_bits", "1", default=0.0)
+    if bits_value != int(bits_value) or not 0 <= bits_value <= 32:
+        node.fail(f"must be a whole number of bits in 1..32, got {bits_value:g}", key="adc_bits")
+    bits = int(bits_value)
+    lower = node.quantity("adc_lower", unit, default=0.0)
+    upper = node.quantity("adc_upper", unit, default=0.0)
+    if bits and not lower < upper:
+        node.fail(
+            f"`adc_lower < adc_upper` must hold, but got (adc_lower={lower} {unit}, "
+            f"adc_upper={upper} {unit}); give the ADC's input range",
+            key="adc_upper",
+        )
     return LinearSensor(
         signal=signal,
         offset=node.quantity("offset", unit, default=0.0),
         gain=gain,
         ratio=ratio,
         unit=unit,
+        noise_std=noise,
+        adc_bits=bits,
+        adc_lower=lower,
+        adc_upper=upper,
     )
 
 
@@ -467,7 +498,16 @@ def _actuator(node: Node, plant: PlantModel) -> Actuator:
     )
 
 
-_SCENARIO_KEYS = ("description", "duration", "warmup", "reference", "load", "overrides", "initial")
+_SCENARIO_KEYS = (
+    "description",
+    "duration",
+    "warmup",
+    "reference",
+    "load",
+    "overrides",
+    "initial",
+    "noise",
+)
 
 
 def _scenario(
@@ -502,6 +542,9 @@ def _scenario(
             overrides[by_key[key].name] = ov.quantity(key, by_key[key].metadata["unit"])
         _build_params(plant, {**dataclasses.asdict(params), **overrides}, ov)
     initial = _initial(plant, node.child("initial", default={}))
+    noise = node.data.get("noise", True)
+    if not isinstance(noise, bool):
+        node.fail(f"must be true or false (sensor noise on or off), got {noise!r}", key="noise")
     return Scenario(
         name=name,
         duration_s=duration,
@@ -511,6 +554,7 @@ def _scenario(
         overrides=overrides,
         initial=initial,
         description=node.str("description", default=""),
+        noise=noise,
     )
 
 

@@ -1,6 +1,6 @@
 """The closed loop's shared logic: the integrator tableau, the linear algebra, and the
-sample logic (limits, saturation, input effects, transport delay) that the compiled
-loop and the scipy reference path both call.
+sample logic (sensor noise and ADC, limits, saturation, input effects, transport and
+I/O delay) that the compiled loop and the scipy reference path both call.
 
 The compiled loop itself (``_plant_loop.py``) is compiled once per plant, with the
 plant's right-hand side bound in (:mod:`fuzzyservo._jit`); everything in here is plant-free.
@@ -122,8 +122,9 @@ def _lu_solve(a: np.ndarray, piv: np.ndarray, b: np.ndarray) -> None:
 class LoopSettings(NamedTuple):
     """The loop's scalars by name (numba reads a namedtuple at no cost).
 
-    Measurement ``y = sensor_offset + sensor_gain·x[sensor_index]``; actuator
-    ``a = clip(act_gain·u, act_lo, act_hi)``; ``tol`` the local-error tolerance.
+    Measurement ``y = adc(sensor_offset + sensor_gain·x[sensor_index] + noise)`` with
+    the ADC's range ``adc_lo .. adc_hi`` and step ``adc_step`` (0: no quantisation);
+    actuator ``a = clip(act_gain·u, act_lo, act_hi)``; ``tol`` the local-error tolerance.
     """
 
     dt: float
@@ -134,6 +135,21 @@ class LoopSettings(NamedTuple):
     act_lo: float
     act_hi: float
     tol: float
+    adc_lo: float = 0.0
+    adc_hi: float = 0.0
+    adc_step: float = 0.0
+
+
+@njit(cache=True)
+def adc(v: float | np.ndarray, lo: float, hi: float, step: float) -> float | np.ndarray:
+    """An ADC of step ``step`` over ``lo .. hi``: the nearest of the 2^bits codes
+    ``lo + c·step`` (c = 0 .. 2^bits − 1); readings outside the range clip to its ends.
+    ``step`` 0 passes ``v`` through."""
+    if step <= 0.0:
+        return v + 0.0
+    code = np.floor((v - lo) / step + 0.5)
+    top = np.floor((hi - lo) / step + 0.5) - 1.0
+    return lo + np.minimum(np.maximum(code, 0.0), top) * step
 
 
 @njit(cache=True)
@@ -144,13 +160,17 @@ def sample(
     r: float,
     x: np.ndarray,
     s: LoopSettings,
-) -> tuple[float, float, bool]:
-    """One controller sample: measure, control, limit. Returns ``(u, a, saturated)``.
+    noise: float,
+) -> tuple[float, float, float, bool]:
+    """One controller sample: measure (with sensor ``noise`` added, then quantised),
+    control, limit. Returns ``(y, u, a, saturated)``, ``y`` the reading the controller saw.
 
     ``saturated`` is true when ``a`` sits at either limit (to 1e-9 of its magnitude,
     whatever the limit's sign). Updates the controller state ``cs`` in place.
     """
-    y = s.sensor_offset + s.sensor_gain * x[s.sensor_index]
+    y = adc(
+        s.sensor_offset + s.sensor_gain * x[s.sensor_index] + noise, s.adc_lo, s.adc_hi, s.adc_step
+    )
     u = controller_step(ctrl_kind, cp, cs, r, y)
     a = s.act_gain * u
     if a > s.act_hi:
@@ -159,13 +179,14 @@ def sample(
         a = s.act_lo
     hi_edge = s.act_hi - 1e-9 * abs(s.act_hi)
     lo_edge = s.act_lo + 1e-9 * abs(s.act_lo)
-    return u, a, a >= hi_edge or a <= lo_edge
+    return y, u, a, a >= hi_edge or a <= lo_edge
 
 
 @njit(cache=True)
 def delay_split(p: np.ndarray, dt: float) -> tuple[int, float]:
-    """``transport_delay`` as ``(whole samples, fraction of a sample)``; fractions within
-    1e-9 of a whole sample round to it."""
+    """``transport_delay`` (which carries the rig's I/O delay too, see
+    :func:`~fuzzyservo.simulation.closed_loop.prepare`) as ``(whole samples, fraction of
+    a sample)``; fractions within 1e-9 of a whole sample round to it."""
     delay = p[E_DELAY] / dt
     whole = int(delay)
     part = delay - whole

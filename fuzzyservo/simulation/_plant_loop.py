@@ -206,17 +206,20 @@ def closed_loop(
     cs: np.ndarray,
     ref: np.ndarray,
     load: np.ndarray,
+    noise: np.ndarray,
     s: LoopSettings,
     scale: np.ndarray,
     typical: np.ndarray,
     states: np.ndarray,
+    measured: np.ndarray,
     command: np.ndarray,
     actuator: np.ndarray,
     saturated: np.ndarray,
 ) -> tuple[int, int, int]:
     """Run the sampled loop over ``ref.size`` control intervals of ``s.dt`` seconds.
 
-    At sample k: :func:`_loop.sample` (measure, control, limit), then the held value
+    At sample k: :func:`_loop.sample` (measure with ``noise[k]`` added, control,
+    limit; the reading goes to ``measured[k]``), then the held value
     is applied (zero-order hold, behind ``transport_delay``) while the plant is
     integrated to the next sample. ``x0`` carries one more state than the plant when
     ``valve_lag`` is on: the spool, which starts where the first command puts it.
@@ -239,7 +242,8 @@ def closed_loop(
     for k in range(n):
         for i in range(x.size):
             states[k, i] = x[i]
-        u, a, sat = sample(ctrl_kind, cp, cs, ref[k], x, s)
+        y, u, a, sat = sample(ctrl_kind, cp, cs, ref[k], x, s, noise[k])
+        measured[k] = y
         command[k] = u
         actuator[k] = a
         saturated[k] = sat
@@ -275,6 +279,7 @@ def closed_loop(
         for k in range(where + 1, n):
             for i in range(x.size):
                 states[k, i] = np.nan
+            measured[k] = np.nan
             command[k] = np.nan
             actuator[k] = np.nan
             saturated[k] = False

@@ -6,6 +6,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from fuzzyservo.components.effects import E_DELAY
 from fuzzyservo.controllers.base import Controller
 from fuzzyservo.rig import Rig, Scenario
 from fuzzyservo.simulation import _loop
@@ -42,6 +43,7 @@ class Prepared:
     null: float  # the plant input of hydraulic null (valve_deadband is centred on it)
     scale: np.ndarray  # local-error unit per state (plant states, then the spool)
     typical: np.ndarray  # finite-difference increments per state
+    noise: np.ndarray  # the feedback sensor's noise at each sample [reading unit]
 
     @property
     def plant_states(self) -> int:
@@ -54,8 +56,18 @@ def prepare(
     controller: Controller,
     scenario: str | Scenario | None = None,
     duration_s: float | None = None,
+    *,
+    noise: bool | None = None,
+    noise_seed: int = 0,
 ) -> Prepared:
-    """Resolve the scenario, its parameters, the initial state and the sampled inputs."""
+    """Resolve the scenario, its parameters, the initial state and the sampled inputs.
+
+    The rig's I/O delay joins ``transport_delay`` in the packed parameters, so the loop
+    applies the sum exactly within the zero-order hold. The feedback sensor's noise is
+    drawn here, outside the compiled loop, from a generator seeded with ``noise_seed``
+    (so both paths see the same sequence and runs reproduce); ``noise`` None follows
+    the scenario's ``noise`` switch.
+    """
     from fuzzyservo.params import pack
 
     sc = scenario if isinstance(scenario, Scenario) else rig.scenario(scenario)
@@ -77,12 +89,16 @@ def prepare(
         typical = np.append(typical, rated)
     if not controller.has_limits:
         controller = controller.with_limits(*rig.actuator.command_limits)
+    p = pack(params)
+    p[E_DELAY] += rig.io_delay_s
+    std = rig.feedback.noise_std if (sc.noise if noise is None else noise) else 0.0
+    draws = np.random.default_rng(noise_seed).standard_normal(n) * std if std > 0 else np.zeros(n)
     return Prepared(
         rig=rig,
         scenario=sc,
         controller=controller,
         params=params,
-        p=pack(params),
+        p=p,
         x0=x0,
         t=t,
         ref=np.ascontiguousarray(sc.reference.sample(t), dtype=np.float64),
@@ -90,6 +106,7 @@ def prepare(
         null=null,
         scale=scale,
         typical=typical,
+        noise=draws,
     )
 
 
@@ -100,18 +117,24 @@ def simulate(
     *,
     duration_s: float | None = None,
     tol: float = DEFAULT_TOL,
+    noise: bool | None = None,
+    noise_seed: int = 0,
 ) -> SimResult:
     """Simulate ``controller`` on ``rig`` for a scenario (default: the rig's first).
 
     The controller runs every ``rig.sample_time_s`` with zero-order hold; the plant is
     integrated between samples by the compiled L-stable Rosenbrock loop. A controller
-    without output limits gets the command range of the rig's actuator. Never raises
-    for a run that fails: the result's ``status`` and ``message`` say what happened.
+    without output limits gets the command range of the rig's actuator. The controller
+    sees the feedback sensor's reading with its noise (seeded by ``noise_seed``; ``noise``
+    False or True overrides the scenario's switch) and ADC quantisation, one I/O delay
+    (``rig.io_delay_s``) before its command reaches the actuator. Never raises for a run
+    that fails: the result's ``status`` and ``message`` say what happened.
     """
-    prep = prepare(rig, controller, scenario, duration_s)
+    prep = prepare(rig, controller, scenario, duration_s, noise=noise, noise_seed=noise_seed)
     n = prep.t.size
     nx = prep.x0.size
     states = np.empty((n, nx))
+    measured = np.empty(n)
     command = np.empty(n)
     actuator = np.empty(n)
     saturated = np.zeros(n, dtype=np.bool_)
@@ -125,19 +148,24 @@ def simulate(
         cs,
         prep.ref,
         prep.load,
+        prep.noise,
         loop_settings(rig, tol),
         prep.scale,
         prep.typical,
         states,
+        measured,
         command,
         actuator,
         saturated,
     )
-    return assemble(prep, states, command, actuator, saturated, _STATUS[status], where, steps)
+    return assemble(
+        prep, states, measured, command, actuator, saturated, _STATUS[status], where, steps
+    )
 
 
 def loop_settings(rig: Rig, tol: float = DEFAULT_TOL) -> _loop.LoopSettings:
-    """The loop's scalars for ``rig``: sample time, feedback sensor, actuator, tolerance."""
+    """The loop's scalars for ``rig``: sample time, feedback sensor and its ADC, actuator,
+    tolerance."""
     fb, act = rig.feedback, rig.actuator
     return _loop.LoopSettings(
         dt=float(rig.sample_time_s),
@@ -148,12 +176,16 @@ def loop_settings(rig: Rig, tol: float = DEFAULT_TOL) -> _loop.LoopSettings:
         act_lo=float(act.lower),
         act_hi=float(act.upper),
         tol=float(tol),
+        adc_lo=float(fb.adc_lower),
+        adc_hi=float(fb.adc_upper),
+        adc_step=float(fb.adc_step),
     )
 
 
 def assemble(
     prep: Prepared,
     states: np.ndarray,
+    measured: np.ndarray,
     command: np.ndarray,
     actuator: np.ndarray,
     saturated: np.ndarray,
@@ -161,7 +193,10 @@ def assemble(
     where: int,
     steps: int,
 ) -> SimResult:
-    """Compute every plant signal from the recorded states and build the result."""
+    """Compute every plant signal from the recorded states and build the result.
+
+    ``feedback`` is the true reading of the feedback sensor, ``measured`` the noisy,
+    quantised one the controller saw; extra sensors are recorded true (noise-free)."""
     rig = prep.rig
     plant = rig.plant
     n = prep.t.size
@@ -197,6 +232,7 @@ def assemble(
         reference=prep.ref,
         reference_output=np.asarray(fb.invert(prep.ref)),
         feedback=feedback,
+        measured=measured,
         output=signals[rig.output],
         command=command,
         actuator=actuator,

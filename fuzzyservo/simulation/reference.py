@@ -5,7 +5,7 @@ by LSODA or Radau. At ``rtol = 1e-6`` it is the benchmark's denominator (what a 
 would write with scipy alone); at ``rtol = 1e-9`` it is the accuracy reference for the
 tests and the benchmark's error figures. The sample logic (limits, saturation, input
 effects, transport delay) is the compiled loop's own (:mod:`fuzzyservo.simulation._loop`);
-only the integrator differs.
+only the integrator differs; the sensor noise is drawn once, in :func:`prepare`.
 """
 
 from __future__ import annotations
@@ -28,18 +28,22 @@ def simulate_reference(
     duration_s: float | None = None,
     rtol: float = 1e-9,
     method: str = "LSODA",
+    noise: bool | None = None,
+    noise_seed: int = 0,
 ) -> SimResult:
-    """Simulate like :func:`~fuzzyservo.simulation.simulate`, with ``solve_ivp`` per interval.
+    """Simulate like :func:`~fuzzyservo.simulation.simulate`, with ``solve_ivp`` per interval
+    (the same sensor noise sequence for the same ``noise`` and ``noise_seed``).
 
     Absolute tolerances are ``rtol`` times each state's scale of 1 kPa (or its
     equivalent: ``state_scale`` times 1e3).
     """
-    prep = prepare(rig, controller, scenario, duration_s)
+    prep = prepare(rig, controller, scenario, duration_s, noise=noise, noise_seed=noise_seed)
     loop = rig.plant.loop
     p = prep.p
     n = prep.t.size
     x = prep.x0.copy()
     states = np.full((n, x.size), np.nan)
+    measured = np.full(n, np.nan)
     command = np.full(n, np.nan)
     actuator = np.full(n, np.nan)
     saturated = np.zeros(n, dtype=bool)
@@ -53,8 +57,8 @@ def simulate_reference(
     status, where, steps = "ok", -1, 0
     for k in range(n):
         states[k] = x
-        u, a, sat = sample(prep.controller.kind, cp, cs, prep.ref[k], x, settings)
-        command[k], actuator[k], saturated[k] = u, a, sat
+        y, u, a, sat = sample(prep.controller.kind, cp, cs, prep.ref[k], x, settings, prep.noise[k])
+        measured[k], command[k], actuator[k], saturated[k] = y, u, a, sat
         if not np.isfinite(a):
             status, where = "diverged", k
             break
@@ -79,4 +83,4 @@ def simulate_reference(
             break
         if status == "ok" and loop.in_end_stop(x, p):
             status, where = "end_stop", k + 1
-    return assemble(prep, states, command, actuator, saturated, status, where, steps)
+    return assemble(prep, states, measured, command, actuator, saturated, status, where, steps)

@@ -15,7 +15,8 @@ class SimResult:
     ``reference`` and ``feedback`` are in the rig's feedback unit (V), ``command`` is
     the controller output (V), ``actuator`` the plant input after the actuator
     (e.g. valve current [A]), ``saturated`` true where the actuator sits at a limit.
-    ``reference_output`` is the reference mapped to the judged output's unit through
+    ``measured`` is the feedback as the controller saw it (sensor noise and ADC
+    quantisation; ``feedback`` is the true reading). ``reference_output`` is the reference mapped to the judged output's unit through
     the feedback sensor, so ``output`` and ``reference_output`` compare directly.
 
     ``status``: ``ok``; ``end_stop`` (the run finished but the piston hit a stop);
@@ -47,6 +48,7 @@ class SimResult:
     message: str = ""
     integration_steps: int = 0
     display_units: dict[str, str] = field(default_factory=dict)
+    measured: np.ndarray | None = None
 
     @property
     def ok(self) -> bool:
@@ -64,6 +66,7 @@ class SimResult:
             "reference": self.reference,
             "reference_output": self.reference_output,
             "feedback": self.feedback,
+            "measured": self.feedback if self.measured is None else self.measured,
             "command": self.command,
             "actuator": self.actuator,
             "output": self.output,

@@ -291,7 +291,7 @@ def run_study(
     finally:
         bar.close()
     wall = time.perf_counter() - t0
-    return collect(spec, url, wall_s=wall)
+    return collect(spec, url, wall_s=wall, rig=rig)
 
 
 def _run_inline(
@@ -401,8 +401,9 @@ def _bar(total: int, initial: int, name: str, enabled: bool):
     )
 
 
-def collect(spec: StudySpec, url: str, *, wall_s: float = 0.0) -> Outcome:
-    """Read the study back: best (feasible) trial or Pareto front, history, importances."""
+def collect(spec: StudySpec, url: str, *, wall_s: float = 0.0, rig: Rig | None = None) -> Outcome:
+    """Read the study back: best (feasible) trial or Pareto front, history, importances
+    (the baseline evaluated on ``rig`` when given, as the trials were)."""
     import optuna
     from optuna.trial import TrialState
 
@@ -419,7 +420,7 @@ def collect(spec: StudySpec, url: str, *, wall_s: float = 0.0) -> Outcome:
         or [t for t in trials if t.user_attrs.get("status") == "ok"]
         or trials
     )
-    evaluator = build_evaluator(spec)
+    evaluator = build_evaluator(spec, rig)
     pareto = []
     if spec.objective.pareto:
         front = [t for t in study.best_trials if t in pool] or study.best_trials

@@ -7,7 +7,8 @@
   limits unchanged, so a saturating loop saturates at the same plant input. For a P
   controller it is exactly ``K → k·K``; for a fuzzy controller it scales ``output_gain``.
 * **Delay margin**: the smallest extra loop delay [s] at which the loop oscillates,
-  added to the rig's own ``transport_delay`` (exact within the zero-order hold).
+  added to the rig's own loop delay (``io_delay`` plus any ``transport_delay``; exact
+  within the zero-order hold).
 
 The oscillation detector (:func:`oscillation`) reads the tracking error
 ``e = feedback − reference`` (feedback unit) after the last reference step (or after the
@@ -350,5 +351,5 @@ def margins(
         scenario=sc.name,
         gain=gain_margin(rig, controller, sc, **options),
         delay=delay_margin(rig, controller, sc, **options),
-        base_delay_s=float(rig.params.transport_delay_s),
+        base_delay_s=float(rig.params.transport_delay_s) + float(rig.io_delay_s),
     )

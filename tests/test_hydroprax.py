@@ -135,7 +135,9 @@ def test_fast_stroke_sags_the_supply_then_it_recovers(runs, rig):
 @pytest.mark.parametrize("vm", [1, 2, 3])
 def test_each_valve_model_tracks_the_steps(runs, vm):
     r = runs[vm]
-    assert r.status == "ok", r.message
+    # the ideal orifice (3) pulls p_a to -1.1 bar gauge on the 3 s step, below the oil's
+    # vapour pressure; the model has no cavitation, so that run says so (issue 11)
+    assert r.status == ("cavitation" if vm == 3 else "ok"), r.message
     # the network's error at null (~0.2 l/min, held by Kp = 450 V/m) leaves up to 0.4 mm:
     # 0.8 % of the 80 mm step; the physical valves (1, 3) shut exactly at U_C = 0
     assert result_metrics(r).aggregate["sse_pct"] < (1.0 if vm == 2 else 0.3)

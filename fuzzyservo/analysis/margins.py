@@ -305,6 +305,28 @@ def delay_margin(
     return _margin(lo, hi, trials, last, t0)
 
 
+def stable_at(
+    rig: Rig,
+    controller: Controller,
+    scenario: str | Scenario | None = None,
+    *,
+    multiplier: float = 1.0,
+    extra_delay_s: float = 0.0,
+    duration_s: float | None = None,
+    ratio: float = DEFAULT_RATIO,
+    floor: float | None = None,
+) -> bool:
+    """One run: True when the loop does not oscillate with its output multiplied by
+    ``multiplier`` and ``extra_delay_s`` added to its delay. A constraint such as
+    ``gain_margin >= 2`` needs only this verdict at its bound (one simulation, where the
+    margin's value takes about ten)."""
+    r, c = scaled(rig, controller, multiplier) if multiplier != 1.0 else (rig, controller)
+    if extra_delay_s > 0.0:
+        r = delayed(r, extra_delay_s)
+    result = simulate(r, c, scenario, duration_s=duration_s)
+    return not oscillation(result, ratio=ratio, floor=floor).sustained
+
+
 def _bracket(
     unstable: Callable[[float], bool],
     start: float,

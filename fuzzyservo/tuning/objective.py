@@ -18,7 +18,7 @@ from fuzzyservo.controllers.base import Controller
 from fuzzyservo.metrics import METRIC_NAMES, result_metrics
 from fuzzyservo.rig import Rig
 from fuzzyservo.simulation import SimResult, simulate
-from fuzzyservo.tuning.spec import MARGIN_METRICS, StudySpec
+from fuzzyservo.tuning.spec import MARGIN_METRICS, Constraint, StudySpec
 
 _STEP = re.compile(r"([^.\[\]]+)|\[(\d+)\]")
 
@@ -160,10 +160,13 @@ class Evaluator:
                 metrics[m] = max(vals)
             else:
                 metrics[m] = sum(vals) / len(vals)
-        if status == "ok" and any(c.metric in MARGIN_METRICS for c in spec.constraints):
-            metrics.update(margin_metrics(self.rig, controller, spec.scenarios[0]))
-        violations = tuple(c.violation(metrics.get(c.metric, math.nan)) for c in spec.constraints)
         values = self._values(metrics)
+        margin_constraints = [c for c in spec.constraints if c.metric in MARGIN_METRICS]
+        if status == "ok" and margin_constraints and self._worth_margins(metrics, values):
+            metrics.update(
+                margin_metrics(self.rig, controller, spec.scenarios[0], margin_constraints)
+            )
+        violations = tuple(c.violation(metrics.get(c.metric, math.nan)) for c in spec.constraints)
         if status == "ok" and not all(math.isfinite(v) for v in values):
             bad = [m for m in spec.objective.metrics if not math.isfinite(metrics[m])]
             status, message = (
@@ -183,6 +186,18 @@ class Evaluator:
             results=results,
         )
 
+    def _worth_margins(self, metrics: dict[str, float], values: tuple[float, ...]) -> bool:
+        """Margins cost simulations, so they are decided only for a trial that meets every
+        other constraint and, on a single objective, is no worse than the baseline; any
+        other trial keeps its margin metrics undefined, which counts as violated."""
+        others = [c for c in self.spec.constraints if c.metric not in MARGIN_METRICS]
+        if any(c.violation(metrics.get(c.metric, math.nan)) > 0 for c in others):
+            return False
+        base = getattr(self, "baseline_evaluation", None)
+        if base is None or self.spec.objective.pareto or base.status != "ok":
+            return True
+        return values[0] <= base.values[0]
+
     def _values(self, metrics: dict[str, float]) -> tuple[float, ...]:
         obj = self.spec.objective
         if obj.pareto:
@@ -190,10 +205,25 @@ class Evaluator:
         return (sum(w * metrics[m] / self.scale[m] for m, w in obj.weights.items()),)
 
 
-def margin_metrics(rig: Rig, controller: Controller, scenario: str) -> dict[str, float]:
-    """``gain_margin`` and ``delay_margin_s`` (analysis/margins.py) to 2 %: opt-in, only
-    when a constraint names one; about 20 simulations of ``scenario`` per trial."""
-    from fuzzyservo.analysis.margins import margins
+def margin_metrics(
+    rig: Rig, controller: Controller, scenario: str, constraints: list[Constraint]
+) -> dict[str, float]:
+    """The margin constraints' verdicts (analysis/margins.py), one simulation of
+    ``scenario`` each for a ``>=`` constraint: a loop that does not oscillate at the
+    bound (output multiplied by it, or that much extra delay) has its margin recorded as
+    the bound itself, a lower bound that meets the constraint; one that oscillates there
+    has it undefined (below the bound: violated). The value itself is what `fuzzyservo
+    margins` measures on the study's best. A ``<=`` constraint needs the value, by
+    bisection to 2 % (about ten simulations per margin)."""
+    from fuzzyservo.analysis.margins import delay_margin, gain_margin, stable_at
 
-    m = margins(rig, controller, scenario, rel_tol=0.02)
-    return {"gain_margin": m.gain.value, "delay_margin_s": m.delay.value}
+    out: dict[str, float] = {}
+    for c in constraints:
+        gain = c.metric == "gain_margin"
+        if c.op == ">=":
+            kwargs = {"multiplier": c.bound} if gain else {"extra_delay_s": c.bound}
+            out[c.metric] = c.bound if stable_at(rig, controller, scenario, **kwargs) else math.nan
+        else:
+            find = gain_margin if gain else delay_margin
+            out[c.metric] = find(rig, controller, scenario, rel_tol=0.02).value
+    return out

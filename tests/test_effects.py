@@ -8,6 +8,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+import yaml
 from support import DATA, controller_named, ideal_sensor, rig_named
 
 from fuzzyservo.components import effects as fx
@@ -124,7 +125,7 @@ def test_valve_lag_matches_the_reference_path() -> None:
     assert np.max(np.abs(fast.signals["y"] - ref.signals["y"])) < 2e-6  # 2 µm
     # a tiny lag is no lag
     tiny = simulate(rig.with_effect("valve_lag", time_constant=1e-7), ctrl, "steps", duration_s=3.0)
-    plain = simulate(ideal_sensor(rig_named("dinca_cylinder")), ctrl, "steps", duration_s=3.0)
+    plain = simulate(rig.with_params(valve_lag_s=0.0), ctrl, "steps", duration_s=3.0)
     assert np.max(np.abs(tiny.signals["y"] - plain.signals["y"])) < 1e-6
 
 
@@ -143,8 +144,12 @@ def test_lower_bulk_modulus_slows_the_pressure_build_up() -> None:
 
 
 def _rig_with(tmp_path: Path, base: str, extra: str) -> Path:
+    """The shipped rig file with ``extra`` appended; the test's own ``effects`` block
+    replaces the file's (seed 002 declares its spool lag)."""
     path = tmp_path / f"{base}.yaml"
-    path.write_text((DATA / "rigs" / f"{base}.yaml").read_text() + "\n" + extra)
+    data = yaml.safe_load((DATA / "rigs" / f"{base}.yaml").read_text())
+    data.pop("effects", None)
+    path.write_text(yaml.safe_dump(data, sort_keys=False) + "\n" + extra)
     return path
 
 
@@ -163,7 +168,8 @@ def test_rig_file_declares_effects_and_unknowns(tmp_path: Path) -> None:
         rig.scales().smoothing_velocity
     )
     assert rig.unknowns == {"valve_lag_s": pytest.approx((0.0, 0.02))}
-    assert rig_named("dinca_cylinder").effects == ()  # off by default
+    assert rig_named("hydroprax_pdcv").effects == ()  # off by default
+    assert rig_named("dinca_cylinder").effects == ("valve_lag",)  # its spool (issue 11)
 
 
 @pytest.mark.parametrize(

@@ -17,7 +17,8 @@ dropped (the step response itself), the middle and the last are detrended (a str
 line removed, so slow creep is no oscillation) and their half peak-to-peak amplitudes
 compared. The loop counts as oscillating when
 
-1. the run diverged or failed (``diverged``/``step_failure``), or
+1. the run diverged, failed or drove the plant into an end stop (``diverged``,
+   ``step_failure``, ``end_stop``), or
 2. the last third still swings by more than the floor (default 0.5 % of the reference's
    peak-to-peak range, 1e-3 of its level for a constant reference: well above sensor
    quantisation, so a hunting valve deadband below it is no loss of stability), and
@@ -129,10 +130,13 @@ def oscillation(
         floor = DEFAULT_FLOOR_FRACTION * span if span > 0 else 1e-3 * max(abs(ref[0]), 1.0)
     err = np.asarray(result.feedback, dtype=float) - ref
     dt = result.sample_time_s
-    if result.status in ("diverged", "step_failure"):
+    if result.status in ("diverged", "step_failure", "end_stop"):
+        # a loop that swings the piston into an end stop while tracking a reference
+        # inside the stroke has lost stability, however few cycles the window holds
         good = err[np.isfinite(err)]
         freq = _crossing_frequency(good[-max(good.size // 3, 2) :], dt)
-        return Oscillation(True, "diverged", freq, math.inf, math.inf, floor)
+        reason = "end_stop" if result.status == "end_stop" else "diverged"
+        return Oscillation(True, reason, freq, math.inf, math.inf, floor)
     start = _analysis_start(result, span)
     window = err[start:]
     third = window.size // 3

@@ -2,16 +2,14 @@
 
 from __future__ import annotations
 
-import dataclasses
 import math
 from pathlib import Path
 
 import pytest
 import yaml
-from support import DATA, ideal_sensor
+from support import DATA
 
 from fuzzyservo.errors import ConfigError
-from fuzzyservo.io.rigs import load_rig
 from fuzzyservo.io.studies import load_study
 from fuzzyservo.metrics import result_metrics
 from fuzzyservo.simulation import simulate
@@ -121,30 +119,26 @@ def test_evaluator_scores_the_template_and_penalises_a_failed_run(dinca):
     assert bad.status != "ok" and bad.values == (spec.penalty,) and bad.message
 
 
-def test_dinca_flc_beats_the_p_baseline(tmp_path):
-    """Issue 4: the tuned fuzzy controller beats P K=10 on the objective, on steady-state
-    error and on saturation time, and is no slower than seed 002's FLC2 to settle."""
+@pytest.mark.slow
+def test_dinca_flc_beats_the_p_baseline():
+    """Issues 4 and 11: on the shipped loop (20 ms I/O delay, sensor noise, ADC, ±20 mA,
+    spool lag) the shipped tuned controller, scored by its study, meets the margin and
+    chatter constraints and beats P K=10 on the objective, on steady-state error (the
+    valve bias is removed) and on saturation time. The study itself needs about 100
+    trials to find its first feasible controller (300 shipped it: 4 min), so the test
+    scores the shipped result rather than re-running it. (It no longer settles as fast as
+    FLC2, which saturates 0.22 s and chatters: the constraints cost speed.)"""
     from fuzzyservo.io.controllers import load_controller
 
     spec = load_study(STUDIES / "dinca_flc.yaml")
-    # the loop this study was tuned on (issue 4): exact reading, no I/O delay, ±30 mA.
-    # Issue 11 gave the shipped rig 20 ms, noise, an ADC and ±20 mA; re-tuning the study on
-    # that loop is issue 11's item 7, and this test moves to it then.
-    old_loop = dataclasses.replace(
-        ideal_sensor(load_rig(spec.rig_file)),
-        io_delay_s=0.0,
-        actuator=dataclasses.replace(load_rig(spec.rig_file).actuator, lower=-0.030, upper=0.030),
-    )
-    outcome = run_study(spec, tmp_path, trials=60, progress=False, rig=old_loop)
-    best, base = outcome.best, outcome.baseline
-    assert best.status == "ok" and best.feasible
+    ev = build_evaluator(spec)
+    best = ev.evaluate(load_controller(STUDIES / "controllers" / "flc_dinca_tuned.yaml"))
+    base = ev.baseline_evaluation
+    assert best.status == "ok" and max(best.violations) <= 0, best.violations
+    assert best.metrics["gain_margin"] >= 2 and best.metrics["delay_margin_s"] >= 0.01
     assert best.values[0] < base.values[0]
-    assert best.metrics["sse_abs"] < base.metrics["sse_abs"]
+    assert best.metrics["sse_abs"] < 0.1 * base.metrics["sse_abs"]
     assert best.metrics["saturation_time_s"] < base.metrics["saturation_time_s"]
-    flc2 = build_evaluator(spec, old_loop).evaluate(
-        load_controller(STUDIES / "controllers" / "flc2_reshaped.yaml")
-    )
-    assert best.metrics["settling_time_s"] <= flc2.metrics["settling_time_s"]
 
 
 def test_ehs160_flc_beats_kb0105(tmp_path):

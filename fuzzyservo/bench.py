@@ -72,7 +72,7 @@ CASES = (
         "studies/controllers/p_k10.yaml",
         "pulses",
         20.0,
-        "seed 002 rig, P K=10, 1 V pulses, 20 s simulated at 100 Hz",
+        "seed 002 rig (20 ms I/O delay, 1 mV noise, 16-bit ADC, 3.2 ms spool), P K=10, 1 V pulses, 20 s simulated at 100 Hz",
     ),
     BenchCase(
         "dinca_pulses_flc2",

@@ -120,3 +120,20 @@ def test_frequency_command_writes_json_and_bode_plot(tmp_path, capsys) -> None:
     assert list(tmp_path.glob("bode_*.png"))
     assert main(["frequency", "dinca_cylinder", "p_k10", "--amplitude", "-1"]) == 2
     assert "--amplitude" in capsys.readouterr().err
+
+
+def test_a_margin_constraint_is_decided_at_its_bound() -> None:
+    """A study's `gain_margin >= b` costs one run at b: met (recorded as b, a lower bound)
+    below the analytic margin, violated (undefined) above it."""
+    from fuzzyservo.tuning.objective import margin_metrics
+    from fuzzyservo.tuning.spec import Constraint
+
+    rig, ctrl = _rig(), P(name="p", gain=0.5)
+    gm = control.margin(0.5 * control.c2d(_plant_tf(), DT, method="zoh"))[0]
+    below, above = (
+        Constraint.parse(f"gain_margin >= {0.9 * gm}"),
+        Constraint.parse(f"gain_margin >= {1.1 * gm}"),
+    )
+    assert margin_metrics(rig, ctrl, "step", [below])["gain_margin"] == pytest.approx(0.9 * gm)
+    assert math.isnan(margin_metrics(rig, ctrl, "step", [above])["gain_margin"])
+    assert above.violation(math.nan) > 0

@@ -112,8 +112,15 @@ def make_sampler(spec: StudySpec, seed: int | None):
     return optuna.samplers.RandomSampler(seed=seed)
 
 
-def open_study(spec: StudySpec, url: str, worker: int = 0, *, shared: bool = False):
-    """Create or load the study; ``worker`` and ``shared`` choose the sampler's seed (:func:`seed_for`)."""
+def open_study(
+    spec: StudySpec, url: str, worker: int = 0, *, shared: bool = False, rig: Rig | None = None
+):
+    """Create or load the study, check that it was made by this definition
+    (:func:`~fuzzyservo.tuning.integrity.check_definition`: a :class:`ConfigError` naming
+    what changed otherwise), and give it a sampler seeded per trial
+    (:func:`~fuzzyservo.tuning.integrity.per_trial_seeded`: no two trials, in any process,
+    replay one random stream). ``worker`` and ``shared`` are kept for callers; the trial
+    number alone decides the seed."""
     import random
     import warnings
 
@@ -143,22 +150,11 @@ def open_study(spec: StudySpec, url: str, worker: int = 0, *, shared: bool = Fal
             time.sleep(0.2 + random.random())
         except (SQLAlchemyError, ImportError) as exc:  # a driver or URL we cannot use
             _cannot_open(url, exc)
-    study.sampler = make_sampler(spec, seed_for(spec, study, worker, shared))
+    from fuzzyservo.tuning.integrity import check_definition, per_trial_seeded
+
+    check_definition(study, spec, url, rig)
+    study.sampler = per_trial_seeded(make_sampler(spec, spec.seed), spec.seed)
     return study
-
-
-def seed_for(spec: StudySpec, study, worker: int, shared: bool) -> int | None:
-    """The sampler seed: the study's seed for a fresh single run (so it is reproducible),
-    moved on by the trials already stored (a resumed run does not repeat its first
-    proposals), by the local worker index, and by the process id when other processes
-    may share the storage (two machines must not propose the same trials)."""
-    import os
-
-    if spec.seed is None:
-        return None
-    done = len(study.get_trials(deepcopy=False))
-    salt = os.getpid() if shared else 0
-    return (spec.seed + 1009 * worker + 7919 * done + salt) % (2**32)
 
 
 def build_evaluator(spec: StudySpec, rig: Rig | None = None) -> Evaluator:
@@ -247,8 +243,15 @@ def _optimize(
         raise KeyboardInterrupt
 
 
-def _worker(spec: StudySpec, url: str, total: int, worker: int, shared: bool) -> None:
-    """A local worker process: optimise until the study holds ``total`` complete trials."""
+def _worker(
+    spec: StudySpec, url: str, total: int, worker: int, shared: bool, parent: int = 0
+) -> None:
+    """A local worker process: optimise until the study holds ``total`` complete trials;
+    it ends when its parent ``parent`` does (:func:`~fuzzyservo.tuning.integrity.die_with_parent`)."""
+    if parent:
+        from fuzzyservo.tuning.integrity import die_with_parent
+
+        die_with_parent(parent)
     try:
         _optimize(spec, open_study(spec, url, worker, shared=shared), total, [])
     except KeyboardInterrupt:
@@ -279,7 +282,7 @@ def run_study(
     # a storage named by the user may be shared with other processes or machines
     shared = bool(storage or spec.storage)
     total = trials or spec.trials
-    study = open_study(spec, url)  # creates it (and its tables) before any worker starts
+    study = open_study(spec, url, rig=rig)  # creates it (and its tables) before any worker starts
     done_before = count_complete(study)
     t0 = time.perf_counter()
     bar = _bar(total, done_before, spec.name, progress)
@@ -299,7 +302,7 @@ def _run_inline(
 ) -> None:
     from optuna.trial import TrialState
 
-    study = open_study(spec, url, shared=shared)
+    study = open_study(spec, url, shared=shared, rig=rig)
 
     def update(study, trial) -> None:
         if trial.state == TrialState.COMPLETE:
@@ -315,8 +318,15 @@ def _run_processes(spec: StudySpec, url: str, total: int, workers: int, bar, sha
 
     ctx = mp.get_context("spawn")
     procs = [
-        ctx.Process(target=_worker, args=(spec, url, total, w, shared)) for w in range(workers)
+        ctx.Process(target=_worker, args=(spec, url, total, w, shared, os.getpid()))
+        for w in range(workers)
     ]
+    # SIGINT (also when a background job started with it ignored) and SIGTERM stop the
+    # workers and this process alike; a kill -9 of this process ends them by their watch
+    previous = {
+        sig: signal.signal(sig, signal.default_int_handler)
+        for sig in (signal.SIGINT, signal.SIGTERM)
+    }
     for p in procs:
         p.start()
     study = open_study(spec, url)
@@ -339,6 +349,8 @@ def _run_processes(spec: StudySpec, url: str, total: int, workers: int, bar, sha
     finally:
         for p in procs:
             p.join(timeout=10)
+        for sig, handler in previous.items():
+            signal.signal(sig, handler)
     failed = [p.exitcode for p in procs if p.exitcode not in (0, None)]
     if failed:
         raise RuntimeError(
@@ -407,7 +419,7 @@ def collect(spec: StudySpec, url: str, *, wall_s: float = 0.0, rig: Rig | None =
     import optuna
     from optuna.trial import TrialState
 
-    study = open_study(spec, url)
+    study = open_study(spec, url, rig=rig)
     trials = study.get_trials(deepcopy=False, states=(TrialState.COMPLETE,))
     if not trials:
         raise RuntimeError(f"study {spec.name!r} has no complete trial yet in {url}")

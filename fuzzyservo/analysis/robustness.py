@@ -156,3 +156,66 @@ class MonteCarlo:
             return v if math.isfinite(v) else math.inf
 
         return max(ok, key=key)
+
+
+def monte_carlo(
+    rig: Rig,
+    controllers: Sequence[Controller],
+    rigs: Sequence[Rig],
+    noise_seeds: Sequence[int],
+    scenarios: Sequence[str],
+    *,
+    gain: float | None = 2.0,
+    margin_scenarios: Sequence[str] | None = None,
+    progress=None,
+) -> list[MonteCarlo]:
+    """Every controller on every sampled plant ``rigs`` (noise seeds alike: common random
+    numbers). The gain check (``gain``) runs on each of ``margin_scenarios`` (default: all
+    ``scenarios``) and holds only when it holds on all. ``progress(k)`` is called per run."""
+    where = list(margin_scenarios or scenarios)
+    out = []
+    for controller in controllers:
+        runs = []
+        for i, (sample_rig, seed) in enumerate(zip(rigs, noise_seeds, strict=True)):
+            run = run_sample(i, sample_rig, controller, scenarios, seed)
+            if run.status == "ok" and gain is not None:
+                ok = all(
+                    holds(sample_rig, controller, s, gain=gain, noise_seed=seed) for s in where
+                )
+                run = SampleRun(run.index, run.status, run.message, run.metrics,
+                                run.scenario_metrics, ok)  # fmt: skip
+            runs.append(run)
+            if progress is not None:
+                progress(1)
+        out.append(MonteCarlo(controller.name, runs))
+    return out
+
+
+#: the metrics a Monte Carlo summary shows, with their units
+SUMMARY_METRICS: dict[str, str] = {
+    "settling_time_s": "s",
+    "sse_abs": "m",
+    "overshoot_pct": "%",
+    "saturation_time_s": "s",
+}
+
+
+def summary(mcs: Sequence[MonteCarlo], gain: float | None) -> list[dict[str, object]]:
+    """Per controller: samples, failures (with the gain check), and the median, 90th
+    percentile and worst of each :data:`SUMMARY_METRICS` (an undefined value counts as worst)."""
+    rows = []
+    for mc in mcs:
+        row: dict[str, object] = {
+            "controller": mc.controller,
+            "samples": len(mc.runs),
+            "failures": len(mc.failures),
+            "runs_failed": sum(r.status != "ok" for r in mc.runs),
+        }
+        if gain is not None:
+            row["gain_margin_holds"] = sum(r.gain_holds is True for r in mc.runs)
+            row["gain_margin_checked"] = gain
+        for m in SUMMARY_METRICS:
+            p50, p90, worst = mc.percentiles(m)
+            row[m] = {"p50": p50, "p90": p90, "worst": worst}
+        rows.append(row)
+    return rows

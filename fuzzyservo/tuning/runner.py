@@ -316,6 +316,7 @@ def _run_processes(spec: StudySpec, url: str, total: int, workers: int, bar, sha
     import os
     import signal
 
+    _warm_kernels(spec)
     ctx = mp.get_context("spawn")
     procs = [
         ctx.Process(target=_worker, args=(spec, url, total, w, shared, os.getpid()))
@@ -356,6 +357,22 @@ def _run_processes(spec: StudySpec, url: str, total: int, workers: int, bar, sha
         raise RuntimeError(
             f"{len(failed)} worker process(es) failed (exit codes {failed}); see their output above"
         )
+
+
+def _warm_kernels(spec: StudySpec) -> None:
+    """Compile the kernels here, once, before the workers start (else each compiles them)."""
+    from fuzzyservo._jit import cache_is_cold
+
+    if not cache_is_cold():
+        return
+    from fuzzyservo.io.controllers import controller_from_data
+    from fuzzyservo.io.rigs import load_rig
+    from fuzzyservo.io.studies import template_data
+    from fuzzyservo.simulation import simulate
+
+    rig = load_rig(spec.rig_file)
+    controller = controller_from_data(template_data(spec), spec.controller_file)
+    simulate(rig, controller, spec.scenarios[0], duration_s=10 * rig.sample_time_s)
 
 
 def _refresh(bar, study) -> None:

@@ -146,6 +146,7 @@ def _median_time(fn: Callable[[], object], runs: int) -> tuple[float, object]:
 
 FUZZY_EVAL = "fuzzy_eval"
 STUDY = "study_dinca_flc"
+ROBUST_STUDY = "study_dinca_robust"
 CALIBRATE = "calibrate_dinca"
 MARGINS = "margins"
 
@@ -260,6 +261,51 @@ def run_study_case(*, trials: int = 300, workers: int = 2, root: Path | None = N
             "wall_s": wall,
             "trials": outcome.trials_complete,
             "workers": workers,
+            "simulation_s": outcome.sim_time_s,
+            "sampler_and_storage_s": sampler,
+            "trials_per_s": outcome.trials_complete / wall,
+        },
+    )
+
+
+def run_robust_study_case(
+    *, trials: int = 300, workers: int = 2, root: Path | None = None
+) -> BenchResult:
+    """``studies/dinca_robust.yaml`` from scratch: ``trials`` trials, each on the study's 8
+    sampled plants and 2 scenarios (delay and noise on) plus its gain-margin checks;
+    trials/s and simulations/s against the wall."""
+    import tempfile
+
+    from fuzzyservo.io.studies import load_study
+    from fuzzyservo.tuning.runner import run_study
+
+    root = root or data_root()
+    spec = load_study(root / "studies" / "dinca_robust.yaml")
+    with tempfile.TemporaryDirectory() as tmp:
+        t0 = time.perf_counter()
+        outcome = run_study(spec, Path(tmp), trials=trials, workers=workers, progress=False)
+        wall = time.perf_counter() - t0
+    sampler = max(outcome.worker_time_s - outcome.sim_time_s, 0.0)
+    return BenchResult(
+        name=ROBUST_STUDY,
+        description=f"{trials} trials of studies/dinca_robust.yaml on {workers} worker processes",
+        simulated_s=0.0,
+        median_s=wall,
+        reference_s=math.nan,
+        ratio=math.nan,
+        runs=1,
+        reference_runs=0,
+        integration_steps=0,
+        error={
+            "best_objective": outcome.best.values[0],
+            "baseline_objective": outcome.baseline.values[0],
+        },
+        extra={
+            "wall_s": wall,
+            "trials": outcome.trials_complete,
+            "workers": workers,
+            "simulations": outcome.simulations,
+            "simulations_per_s": outcome.simulations / wall,
             "simulation_s": outcome.sim_time_s,
             "sampler_and_storage_s": sampler,
             "trials_per_s": outcome.trials_complete / wall,

@@ -484,6 +484,17 @@ def cmd_tune(args: argparse.Namespace) -> int:
         raise ConfigError(f"--storage: {storage_problem(args.storage)}")
     _out_file(args.json, "--json")
     spec = load_study(resolve(args.study, "studies", "study"))
+    if args.patience is not None or args.warm_start:
+        import dataclasses
+
+        if args.patience is not None and args.patience < 1:
+            raise ConfigError(f"--patience must be >= 1, got {args.patience}")
+        warm = [str(resolve(w, "studies/controllers", "controller")) for w in args.warm_start]
+        spec = dataclasses.replace(
+            spec,
+            patience=args.patience if args.patience is not None else spec.patience,
+            warm_start=(*spec.warm_start, *warm),
+        )
     out = _out_dir(args.out) or Path("out") / spec.name
     _out_dir(str(out))
     total = args.trials or spec.trials
@@ -770,6 +781,7 @@ def cmd_bench(args: argparse.Namespace) -> int:
     _out_file(args.json, "--json")
     known = [bench.FUZZY_EVAL, *(c.name for c in bench.CASES), bench.STUDY, bench.CALIBRATE]
     known.append(bench.MARGINS)
+    known.append(bench.ROBUST_STUDY)
     wanted = args.case or known
     unknown = [c for c in wanted if c not in known]
     if unknown:
@@ -784,6 +796,10 @@ def cmd_bench(args: argparse.Namespace) -> int:
             results.append(bench.run_study_case(trials=args.study_trials, workers=args.workers))
         elif name == bench.CALIBRATE:
             results.append(bench.run_calibrate_case())
+        elif name == bench.ROBUST_STUDY:
+            results.append(
+                bench.run_robust_study_case(trials=args.study_trials, workers=args.workers)
+            )
         elif name == bench.MARGINS:
             results.append(bench.run_margins_case())
         else:
@@ -800,6 +816,14 @@ def cmd_bench(args: argparse.Namespace) -> int:
                 f"{r.name:<20} {_duration(x['wall_s']):>10} {'':>10} {'':>7}  {x['trials']} trials on "
                 f"{x['workers']} workers, {x['trials_per_s']:.1f} trials/s; in the trials: simulation "
                 f"{x['simulation_s']:.1f} s, sampler/storage/building {x['sampler_and_storage_s']:.1f} s; {err}"
+            )
+            continue
+        if r.name == bench.ROBUST_STUDY:
+            x = r.extra
+            print(
+                f"{r.name:<20} {_duration(x['wall_s']):>10} {'':>10} {'':>7}  {x['trials']} trials on "
+                f"{x['workers']} workers, {x['trials_per_s']:.1f} trials/s, {x['simulations']} "
+                f"simulations, {x['simulations_per_s']:.0f} simulations/s; {err}"
             )
             continue
         if r.name == bench.MARGINS:
@@ -950,6 +974,18 @@ def build_parser() -> argparse.ArgumentParser:
     )
     p.add_argument("--out", help="output folder (default: out/<study name>)")
     p.add_argument("--json", metavar="FILE", help="also write summary.json here")
+    p.add_argument(
+        "--patience",
+        type=int,
+        help="stop when the best has not improved for this many trials (default: the study's)",
+    )
+    p.add_argument(
+        "--warm-start",
+        action="append",
+        default=[],
+        metavar="CONTROLLER",
+        help="try this controller's numbers first (a previous best, a named controller; repeat)",
+    )
     p.set_defaults(func=cmd_tune)
 
     p = sub.add_parser(

@@ -58,7 +58,7 @@ from fuzzyservo.tuning.spec import (
 _TOP = (
     "name", "description", "source", "rig", "scenarios", "controller", "baseline", "parameters",
     "objective", "aggregate", "constraints", "sampler", "seed", "trials", "timeout_s", "storage", "penalty",
-    "workers", "uncertainty",
+    "workers", "uncertainty", "patience", "warm_start",
 )  # fmt: skip
 DEFAULT_BASELINE = "p_k10"
 
@@ -154,6 +154,27 @@ def load_study(path: str | Path) -> StudySpec:
     workers = root.number("workers", default=1)
     if workers < 1 or workers != int(workers):
         root.fail(f"must be a whole number >= 1, got {workers}", key="workers")
+    patience = root.data.get("patience")
+    if patience is not None and (
+        isinstance(patience, bool) or not isinstance(patience, int) or patience < 1
+    ):
+        root.fail(
+            f"must be a whole number of trials >= 1 or null, got {patience!r}", key="patience"
+        )
+    warm = root.data.get("warm_start", [])
+    if isinstance(warm, str):
+        warm = [warm]
+    if not isinstance(warm, list) or not all(isinstance(w, str) for w in warm):
+        root.fail("must list controller files or names, e.g. [flc2_reshaped]", key="warm_start")
+    warm_files = []
+    for n, name in enumerate(warm):
+        try:
+            warm_files.append(
+                str(find_file(name, "studies/controllers", "warm_start", relative_to=here))
+            )
+        except ConfigError as exc:
+            root.fail(f"{exc.detail} (looked beside the study and under studies/controllers/)",
+                      key=f"warm_start[{n}]")  # fmt: skip
     uncertainty = None
     if root.has("uncertainty"):
         from fuzzyservo.io.rigs import load_rig
@@ -182,6 +203,8 @@ def load_study(path: str | Path) -> StudySpec:
             path=file,
             uncertainty=uncertainty,
             workers=int(workers),
+            patience=patience,
+            warm_start=tuple(warm_files),
         )
     except ValueError as exc:
         raise ConfigError(str(exc), file=file) from None

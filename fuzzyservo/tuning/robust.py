@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import math
 import time
+from collections.abc import Callable
 from typing import TYPE_CHECKING
 
 from fuzzyservo.analysis.robustness import SampleRun, run_sample
@@ -43,9 +44,15 @@ def _margin_bounds(spec) -> tuple[float | None, float | None]:
 
 
 def evaluate_samples(
-    evaluator: Evaluator, controller: Controller, *, keep_results: bool = False
+    evaluator: Evaluator,
+    controller: Controller,
+    *,
+    keep_results: bool = False,
+    report: Callable[[int, float], bool] | None = None,
 ) -> Evaluation:
-    """Score ``controller`` on every sample (see the module docstring)."""
+    """Score ``controller`` on every sample (see the module docstring). ``report(k, value)``
+    after sample ``k`` with the worst objective value so far (``worst`` aggregate, one
+    objective): True stops the trial (status ``pruned``): the value can only grow."""
     from fuzzyservo.tuning.objective import Evaluation
 
     spec = evaluator.spec
@@ -65,11 +72,18 @@ def evaluate_samples(
             status = run.status
             message = f"{sample.describe(u.parameters)}: {run.message}"
             break
+        if report is not None and u.aggregate == "worst" and spec.objective.n_values == 1:
+            so_far = max(evaluator._values(r.metrics)[0] for r in runs)
+            if math.isfinite(so_far) and report(sample.index, so_far):
+                status, message = "pruned", f"worst after {len(runs)} sample(s): {so_far:.4g}"
+                break
     results = {}
     if keep_results:  # the nominal plant, for the report's plots
         for scenario in spec.scenarios:
             results[scenario] = simulate(evaluator.rig, controller, scenario)
     sim_time = time.perf_counter() - t0
+    sims = sum(len(r.scenario_metrics) + (r.gain_holds is not None) + (r.delay_holds is not None)
+               for r in runs)  # fmt: skip
     n_values = spec.objective.n_values
     if status != "ok":
         return Evaluation(
@@ -81,6 +95,7 @@ def evaluate_samples(
             message=message,
             sim_time_s=sim_time,
             results=results,
+            simulations=sims,
         )
     how, alpha = u.aggregate, u.alpha
     metrics = {m: aggregate([r.metrics[m] for r in runs], how, alpha) for m in METRIC_NAMES}
@@ -121,4 +136,5 @@ def evaluate_samples(
         message=message,
         sim_time_s=sim_time,
         results=results,
+        simulations=sims,
     )

@@ -3,7 +3,8 @@
 The only module that imports optuna. Trials are stored as they finish, so a study
 stopped at any moment (Ctrl-C, a killed process) resumes with the same command and
 loses no completed trial. The count towards ``trials`` is the number of COMPLETE
-trials; a simulation that diverges or hits an end stop is a COMPLETE trial with the
+trials (and PRUNED ones: robust trials stopped once their worst sample so far is worse
+than the best trial); a simulation that diverges or hits an end stop is a COMPLETE trial with the
 study's penalty as its value and its reason in ``user_attrs``. Trials left RUNNING by
 a killed process are failed by the storage heartbeat and do not count.
 """
@@ -42,6 +43,7 @@ class Outcome:
     wall_s: float = 0.0
     sim_time_s: float = 0.0
     worker_time_s: float = 0.0
+    simulations: int = 0
 
 
 def storage_url(spec: StudySpec, out_dir: Path, override: str | None = None) -> str:
@@ -135,7 +137,11 @@ def open_study(
         try:
             storage = _storage(url)
             study = optuna.create_study(
-                study_name=spec.name, storage=storage, directions=directions, load_if_exists=True
+                study_name=spec.name,
+                storage=storage,
+                directions=directions,
+                load_if_exists=True,
+                pruner=worst_bound_pruner() if spec.uncertainty is not None else None,
             )
             break
         except (
@@ -187,7 +193,14 @@ def _objective(spec: StudySpec, evaluator: Evaluator):
             _record_constraints(trial, spec, [1e300] * len(spec.constraints))
             values = tuple(spec.penalty for _ in range(spec.objective.n_values))
             return values if len(values) > 1 else values[0]
-        ev = evaluator.evaluate(controller)
+        report = None
+        if spec.uncertainty is not None and spec.objective.n_values == 1:
+
+            def report(step: int, value: float) -> bool:
+                trial.report(value, step)
+                return trial.should_prune()
+
+        ev = evaluator.evaluate(controller, report=report)
         trial.set_user_attr("status", ev.status)
         if ev.message:
             trial.set_user_attr("message", ev.message)
@@ -196,15 +209,60 @@ def _objective(spec: StudySpec, evaluator: Evaluator):
         )
         _record_constraints(trial, spec, [v if math.isfinite(v) else 1e300 for v in ev.violations])
         trial.set_user_attr("sim_time_s", ev.sim_time_s)
+        if ev.simulations:
+            trial.set_user_attr("simulations", ev.simulations)
+        if ev.status == "pruned":
+            import optuna
+
+            raise optuna.TrialPruned(ev.message)
         return ev.values if len(ev.values) > 1 else ev.values[0]
 
     return objective
 
 
 def count_complete(study) -> int:
+    """Finished trials: COMPLETE, and PRUNED (a robust trial stopped as hopeless)."""
+    return len(study.get_trials(deepcopy=False, states=_finished()))
+
+
+def _finished() -> tuple:
+    """The trial states that count towards a study's ``trials``."""
     from optuna.trial import TrialState
 
-    return len(study.get_trials(deepcopy=False, states=(TrialState.COMPLETE,)))
+    return (TrialState.COMPLETE, TrialState.PRUNED)
+
+
+def worst_bound_pruner():
+    """Prunes a robust trial (worst over its samples) once its worst sample so far is worse
+    than the best feasible trial: exact, its final value can only be larger. The best is
+    read once per trial."""
+    import optuna
+
+    class WorstBound(optuna.pruners.BasePruner):
+        def __init__(self) -> None:
+            self.bound: dict[int, float | None] = {}
+
+        def prune(self, study, trial) -> bool:
+            step = trial.last_step
+            if step is None:
+                return False
+            if trial.number not in self.bound:
+                self.bound = {trial.number: _best_feasible_value(study)}
+            best = self.bound[trial.number]
+            return best is not None and trial.intermediate_values[step] > best
+
+    return WorstBound()
+
+
+def _best_feasible_value(study) -> float | None:
+    from optuna.trial import TrialState
+
+    values = [
+        t.value
+        for t in study.get_trials(deepcopy=False, states=(TrialState.COMPLETE,))
+        if t.user_attrs.get("status") == "ok" and all(v <= 0 for v in _constraints(t))
+    ]
+    return min(values) if values else None
 
 
 def _optimize(
@@ -215,10 +273,13 @@ def _optimize(
     import signal
 
     from optuna.study import MaxTrialsCallback
-    from optuna.trial import TrialState
 
     if count_complete(study) >= total:
         return
+    if spec.patience and spec.objective.n_values == 1:
+        from fuzzyservo.tuning.warmstart import patience_callback
+
+        extra_callbacks = [*extra_callbacks, patience_callback(spec.patience)]
     evaluator = build_evaluator(spec, rig)
     interrupted = False
 
@@ -234,7 +295,7 @@ def _optimize(
         study.optimize(
             _objective(spec, evaluator),
             timeout=spec.timeout_s,
-            callbacks=[MaxTrialsCallback(total, states=(TrialState.COMPLETE,)), *extra_callbacks],
+            callbacks=[MaxTrialsCallback(total, states=_finished()), *extra_callbacks],
             gc_after_trial=False,
         )
     finally:
@@ -283,6 +344,9 @@ def run_study(
     shared = bool(storage or spec.storage)
     total = trials or spec.trials
     study = open_study(spec, url, rig=rig)  # creates it (and its tables) before any worker starts
+    from fuzzyservo.tuning.warmstart import enqueue
+
+    enqueue(study, spec, list(spec.warm_start))
     done_before = count_complete(study)
     t0 = time.perf_counter()
     bar = _bar(total, done_before, spec.name, progress)
@@ -300,12 +364,11 @@ def run_study(
 def _run_inline(
     spec: StudySpec, url: str, total: int, bar, shared: bool, rig: Rig | None = None
 ) -> None:
-    from optuna.trial import TrialState
 
     study = open_study(spec, url, shared=shared, rig=rig)
 
     def update(study, trial) -> None:
-        if trial.state == TrialState.COMPLETE:
+        if trial.state in _finished():
             bar.update(1)
             _postfix(bar, study)
 
@@ -510,4 +573,5 @@ def collect(spec: StudySpec, url: str, *, wall_s: float = 0.0, rig: Rig | None =
         wall_s=wall_s,
         sim_time_s=sim,
         worker_time_s=worker_time,
+        simulations=sum(t.user_attrs.get("simulations", 0) for t in trials),
     )

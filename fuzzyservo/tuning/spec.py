@@ -120,6 +120,8 @@ class StudySpec:
     path: str = ""
     uncertainty: Uncertainty | None = None
     workers: int = 1
+    patience: int | None = None
+    warm_start: tuple[str, ...] = ()
 
     def __post_init__(self) -> None:
         if self.sampler not in SAMPLERS:
@@ -130,6 +132,8 @@ class StudySpec:
             )
         if self.trials < 1:
             raise ValueError(f"trials: must be >= 1, got {self.trials}")
+        if self.patience is not None and self.patience < 1:
+            raise ValueError(f"patience: must be >= 1 trials or null, got {self.patience}")
         if self.workers < 1:
             raise ValueError(f"workers: must be >= 1, got {self.workers}")
         if self.objective.pareto and self.sampler == "cmaes":

@@ -304,6 +304,18 @@ def _uncertainty(node: Node, rig: Any, scenarios: tuple[str, ...]) -> Any:
         )  # fmt: skip
     except ValueError as exc:
         node.fail(str(exc))
+    from fuzzyservo.tuning.uncertainty import Sample
+
+    for d in u.parameters:  # both ends of every range must make a valid rig
+        for end in d.bounds:
+            try:
+                sample_rig(rig, (d,), Sample(0, {d.target: end}, 0))
+            except (ValueError, KeyError) as exc:
+                pnode.fail(
+                    f"{d.describe()} reaches {end / (d.scale or 1):.4g} {d.unit}, no valid rig: "
+                    f"{exc}; narrow the range",
+                    key=d.target,
+                )
     for sample in u.draws:  # every drawn plant must be a valid rig (e.g. a normal's tail)
         try:
             sample_rig(rig, u.parameters, sample)

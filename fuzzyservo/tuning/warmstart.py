@@ -30,19 +30,23 @@ def get_path(data: Any, path: str) -> float:
 
 
 def params_from(spec: StudySpec, data: dict[str, Any], source: str) -> dict[str, float]:
-    """The study's searched numbers as ``data`` holds them, clipped into their ranges."""
+    """The study's searched numbers as ``data`` holds them, clipped into their ranges; one
+    the controller leaves at its default (e.g. no ``gains:``) is left to the sampler. A
+    controller with none of them is no warm start of this study."""
     params = {}
     for p in spec.parameters:
         try:
             value = get_path(data, p.path)
         except KeyError:
-            raise ConfigError(
-                f"has no number at {p.path}; warm-start from a controller of the study's "
-                f"template ({spec.controller_file})",
-                file=source,
-            ) from None
+            continue
         value = min(max(value, p.low), p.high)
         params[p.path] = round(value) if p.integer else value
+    if not params:
+        raise ConfigError(
+            f"has none of the searched numbers ({', '.join(p.path for p in spec.parameters)}); "
+            f"warm-start from a controller of the study's template ({spec.controller_file})",
+            file=source,
+        )
     return params
 
 

@@ -252,6 +252,14 @@ def _report(
         f"| baseline | {evaluator.baseline.name} (`{spec.baseline_file}`) |",
         f"| objective | {spec.objective.describe()} (minimised) |",
         f"| constraints | {', '.join(f'`{c}`' for c in spec.constraints) or 'none'} |",
+        *(
+            [
+                f"| uncertainty | {spec.uncertainty.describe()}; metrics and objective are over "
+                "these samples, the plots show the nominal plant |"
+            ]
+            if spec.uncertainty is not None
+            else []
+        ),  # fmt: skip
         f"| sampler | {sampler} |",
         f"| trials | {outcome.trials_complete} complete |",
         f"| wall time (this run) | {_duration(outcome.wall_s)} |",

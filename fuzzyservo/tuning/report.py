@@ -259,7 +259,7 @@ def _report(
             ]
             if spec.uncertainty is not None
             else []
-        ),  # fmt: skip
+        ),
         f"| sampler | {sampler} |",
         f"| trials | {outcome.trials_complete} complete |",
         f"| wall time (this run) | {_duration(outcome.wall_s)} |",

@@ -224,8 +224,10 @@ def run_margins_case(root: Path | None = None) -> BenchResult:
     )
 
 
-def run_study_case(*, trials: int = 300, workers: int = 2, root: Path | None = None) -> BenchResult:
-    """``trials`` trials of ``studies/dinca_flc.yaml`` from scratch on ``workers`` processes.
+def run_study_case(
+    *, trials: int = 300, workers: int = 2, root: Path | None = None, study: str = "dinca_flc"
+) -> BenchResult:
+    """``trials`` trials of ``studies/<study>.yaml`` from scratch on ``workers`` processes.
 
     Reports the wall time and how the workers' time splits between simulation (the
     trial's simulations and metrics) and everything else (sampler, storage, process
@@ -237,15 +239,15 @@ def run_study_case(*, trials: int = 300, workers: int = 2, root: Path | None = N
     from fuzzyservo.tuning.runner import run_study
 
     root = root or data_root()
-    spec = load_study(root / "studies" / "dinca_flc.yaml")
+    spec = load_study(root / "studies" / f"{study}.yaml")
     with tempfile.TemporaryDirectory() as tmp:
         t0 = time.perf_counter()
         outcome = run_study(spec, Path(tmp), trials=trials, workers=workers, progress=False)
         wall = time.perf_counter() - t0
     sampler = max(outcome.worker_time_s - outcome.sim_time_s, 0.0)
     return BenchResult(
-        name=STUDY,
-        description=f"{trials} trials of studies/dinca_flc.yaml on {workers} worker processes, SQLite storage",
+        name=ROBUST_STUDY if spec.uncertainty is not None else STUDY,
+        description=f"{trials} trials of studies/{study}.yaml on {workers} worker processes, SQLite storage",
         simulated_s=0.0,
         median_s=wall,
         reference_s=math.nan,
@@ -264,6 +266,8 @@ def run_study_case(*, trials: int = 300, workers: int = 2, root: Path | None = N
             "simulation_s": outcome.sim_time_s,
             "sampler_and_storage_s": sampler,
             "trials_per_s": outcome.trials_complete / wall,
+            "simulations": outcome.simulations,
+            "simulations_per_s": outcome.simulations / wall,
         },
     )
 
@@ -274,43 +278,7 @@ def run_robust_study_case(
     """``studies/dinca_robust.yaml`` from scratch: ``trials`` trials, each on the study's 8
     sampled plants and 2 scenarios (delay and noise on) plus its gain-margin checks;
     trials/s and simulations/s against the wall."""
-    import tempfile
-
-    from fuzzyservo.io.studies import load_study
-    from fuzzyservo.tuning.runner import run_study
-
-    root = root or data_root()
-    spec = load_study(root / "studies" / "dinca_robust.yaml")
-    with tempfile.TemporaryDirectory() as tmp:
-        t0 = time.perf_counter()
-        outcome = run_study(spec, Path(tmp), trials=trials, workers=workers, progress=False)
-        wall = time.perf_counter() - t0
-    sampler = max(outcome.worker_time_s - outcome.sim_time_s, 0.0)
-    return BenchResult(
-        name=ROBUST_STUDY,
-        description=f"{trials} trials of studies/dinca_robust.yaml on {workers} worker processes",
-        simulated_s=0.0,
-        median_s=wall,
-        reference_s=math.nan,
-        ratio=math.nan,
-        runs=1,
-        reference_runs=0,
-        integration_steps=0,
-        error={
-            "best_objective": outcome.best.values[0],
-            "baseline_objective": outcome.baseline.values[0],
-        },
-        extra={
-            "wall_s": wall,
-            "trials": outcome.trials_complete,
-            "workers": workers,
-            "simulations": outcome.simulations,
-            "simulations_per_s": outcome.simulations / wall,
-            "simulation_s": outcome.sim_time_s,
-            "sampler_and_storage_s": sampler,
-            "trials_per_s": outcome.trials_complete / wall,
-        },
-    )
+    return run_study_case(trials=trials, workers=workers, root=root, study="dinca_robust")
 
 
 def run_fuzzy_eval(

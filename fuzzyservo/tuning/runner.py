@@ -554,10 +554,11 @@ def collect(spec: StudySpec, url: str, *, wall_s: float = 0.0, rig: Rig | None =
                 )
         except (RuntimeError, ValueError, ZeroDivisionError):
             importances = {}
-    sim = sum(t.user_attrs.get("sim_time_s", 0.0) for t in trials)
+    finished = study.get_trials(deepcopy=False, states=_finished())  # with pruned ones
+    sim = sum(t.user_attrs.get("sim_time_s", 0.0) for t in finished)
     worker_time = sum(
         (t.datetime_complete - t.datetime_start).total_seconds()
-        for t in trials
+        for t in finished
         if t.datetime_complete and t.datetime_start
     )
     return Outcome(
@@ -573,5 +574,5 @@ def collect(spec: StudySpec, url: str, *, wall_s: float = 0.0, rig: Rig | None =
         wall_s=wall_s,
         sim_time_s=sim,
         worker_time_s=worker_time,
-        simulations=sum(t.user_attrs.get("simulations", 0) for t in trials),
+        simulations=sum(t.user_attrs.get("simulations", 0) for t in finished),
     )

@@ -822,7 +822,7 @@ def cmd_bench(args: argparse.Namespace) -> int:
             x = r.extra
             print(
                 f"{r.name:<20} {_duration(x['wall_s']):>10} {'':>10} {'':>7}  {x['trials']} trials on "
-                f"{x['workers']} workers, {x['trials_per_s']:.1f} trials/s, {x['simulations']} "
+                f"{x['workers']} workers ({x['trials_pruned']} pruned), {x['trials_per_s']:.1f} trials/s, {x['simulations']} "
                 f"simulations, {x['simulations_per_s']:.0f} simulations/s; {err}"
             )
             continue

@@ -167,3 +167,25 @@ def test_warm_start_reads_the_searched_numbers_of_a_controller():
         assert p.path not in params or p.low <= params[p.path] <= p.high
     with pytest.raises(ConfigError, match="has none of the searched numbers"):
         params_from(spec, {"kind": "p", "gain": 10}, "p.yaml")
+
+
+def test_robustness_command_table_json_and_bad_input(tmp_path, capsys):
+    import json
+
+    from fuzzyservo.cli import main
+
+    out, report = tmp_path / "mc", tmp_path / "mc.json"
+    code = main(
+        ["robustness", "dinca_cylinder", "flc_dinca_robust", "--samples", "2",
+         "--scenario", "steps", "--out", str(out), "--json", str(report)]
+    )  # fmt: skip
+    assert code == 0
+    text = capsys.readouterr().out
+    assert "flc_dinca_robust" in text and "failures" in text
+    rows = json.loads(report.read_text())["controllers"]
+    assert rows[0]["samples"] == 2 and rows[0]["gain_margin_checked"] == 2.0
+    assert (out / "dinca_cylinder_robustness.png").is_file()
+    code = main(["robustness", "dinca_cylinder", "p_k10", "--uncertainty", "dinca_flc"])
+    assert code == 2
+    err = capsys.readouterr().err.strip()
+    assert "uncertainty" in err and "\n" not in err

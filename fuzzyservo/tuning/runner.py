@@ -4,7 +4,7 @@ The only module that imports optuna. Trials are stored as they finish, so a stud
 stopped at any moment (Ctrl-C, a killed process) resumes with the same command and
 loses no completed trial. The count towards ``trials`` is the number of COMPLETE
 trials (and PRUNED ones: robust trials stopped once their worst sample so far is worse
-than the best trial); a simulation that diverges or hits an end stop is a COMPLETE trial with the
+than the best feasible trial, which is exact: the worst can only grow); a simulation that diverges or hits an end stop is a COMPLETE trial with the
 study's penalty as its value and its reason in ``user_attrs``. Trials left RUNNING by
 a killed process are failed by the storage heartbeat and do not count.
 """
@@ -44,6 +44,7 @@ class Outcome:
     sim_time_s: float = 0.0
     worker_time_s: float = 0.0
     simulations: int = 0
+    trials_pruned: int = 0
 
 
 def storage_url(spec: StudySpec, out_dir: Path, override: str | None = None) -> str:
@@ -141,7 +142,6 @@ def open_study(
                 storage=storage,
                 directions=directions,
                 load_if_exists=True,
-                pruner=worst_bound_pruner() if spec.uncertainty is not None else None,
             )
             break
         except (
@@ -195,10 +195,14 @@ def _objective(spec: StudySpec, evaluator: Evaluator):
             return values if len(values) > 1 else values[0]
         report = None
         if spec.uncertainty is not None and spec.objective.n_values == 1:
+            # exact pruning: a trial's worst sample can only grow, so once it is worse than
+            # the best feasible trial (read once, at the trial's start) the trial is lost
+            bound = _best_feasible_value(trial.study)
+            last: list[tuple[int, float]] = []
 
             def report(step: int, value: float) -> bool:
-                trial.report(value, step)
-                return trial.should_prune()
+                last[:] = [(step, value)]
+                return bound is not None and value > bound
 
         ev = evaluator.evaluate(controller, report=report)
         trial.set_user_attr("status", ev.status)
@@ -214,6 +218,8 @@ def _objective(spec: StudySpec, evaluator: Evaluator):
         if ev.status == "pruned":
             import optuna
 
+            step, value = last[0]
+            trial.report(value, step)  # TPE ranks a pruned trial by its last value
             raise optuna.TrialPruned(ev.message)
         return ev.values if len(ev.values) > 1 else ev.values[0]
 
@@ -230,28 +236,6 @@ def _finished() -> tuple:
     from optuna.trial import TrialState
 
     return (TrialState.COMPLETE, TrialState.PRUNED)
-
-
-def worst_bound_pruner():
-    """Prunes a robust trial (worst over its samples) once its worst sample so far is worse
-    than the best feasible trial: exact, its final value can only be larger. The best is
-    read once per trial."""
-    import optuna
-
-    class WorstBound(optuna.pruners.BasePruner):
-        def __init__(self) -> None:
-            self.bound: dict[int, float | None] = {}
-
-        def prune(self, study, trial) -> bool:
-            step = trial.last_step
-            if step is None:
-                return False
-            if trial.number not in self.bound:
-                self.bound = {trial.number: _best_feasible_value(study)}
-            best = self.bound[trial.number]
-            return best is not None and trial.intermediate_values[step] > best
-
-    return WorstBound()
 
 
 def _best_feasible_value(study) -> float | None:
@@ -575,4 +559,5 @@ def collect(spec: StudySpec, url: str, *, wall_s: float = 0.0, rig: Rig | None =
         sim_time_s=sim,
         worker_time_s=worker_time,
         simulations=sum(t.user_attrs.get("simulations", 0) for t in finished),
+        trials_pruned=len(finished) - len(trials),
     )

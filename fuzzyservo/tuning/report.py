@@ -261,7 +261,9 @@ def _report(
             else []
         ),
         f"| sampler | {sampler} |",
-        f"| trials | {outcome.trials_complete} complete |",
+        f"| trials | {outcome.trials_complete} complete"
+        + (f", {outcome.trials_pruned} pruned" if outcome.trials_pruned else "")
+        + " |",
         f"| wall time (this run) | {_duration(outcome.wall_s)} |",
         f"| time in trials | simulation {_duration(outcome.sim_time_s)}, sampler, storage "
         f"and controller building {_duration(sampler_s)} (summed over the stored trials) |",

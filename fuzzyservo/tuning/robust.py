@@ -11,12 +11,13 @@ with one run each (:func:`~fuzzyservo.analysis.robustness.holds`).
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import time
 from collections.abc import Callable
 from typing import TYPE_CHECKING
 
-from fuzzyservo.analysis.robustness import SampleRun, run_sample
+from fuzzyservo.analysis.robustness import SampleRun, holds, run_sample
 from fuzzyservo.controllers.base import Controller
 from fuzzyservo.metrics import METRIC_NAMES
 from fuzzyservo.rig import Rig
@@ -64,8 +65,7 @@ def evaluate_samples(
     for sample, rig in zip(u.draws, evaluator.sample_rigs, strict=True):
         run = run_sample(
             sample.index, rig, controller, spec.scenarios, sample.noise_seed,
-            aggregate=spec.aggregate, gain=gain, delay_s=delay,
-            margin_scenario=u.margin_scenario,
+            aggregate=spec.aggregate,
         )  # fmt: skip
         runs.append(run)
         if run.status != "ok":
@@ -77,6 +77,16 @@ def evaluate_samples(
             if math.isfinite(so_far) and report(sample.index, so_far):
                 status, message = "pruned", f"worst after {len(runs)} sample(s): {so_far:.4g}"
                 break
+        # the margin checks last: a pruned trial does not pay for them
+        if gain is not None or delay is not None:
+            where, seed = u.margin_scenario, sample.noise_seed
+            runs[-1] = dataclasses.replace(
+                run,
+                gain_holds=None if gain is None else holds(rig, controller, where, gain=gain,
+                                                           noise_seed=seed),
+                delay_holds=None if delay is None else holds(rig, controller, where,
+                                                             extra_delay_s=delay, noise_seed=seed),
+            )  # fmt: skip
     results = {}
     if keep_results:  # the nominal plant, for the report's plots
         for scenario in spec.scenarios:

@@ -146,6 +146,7 @@ def _median_time(fn: Callable[[], object], runs: int) -> tuple[float, object]:
 
 FUZZY_EVAL = "fuzzy_eval"
 STUDY = "study_dinca_flc"
+ROBUST_STUDY = "study_dinca_robust"
 CALIBRATE = "calibrate_dinca"
 MARGINS = "margins"
 
@@ -223,8 +224,10 @@ def run_margins_case(root: Path | None = None) -> BenchResult:
     )
 
 
-def run_study_case(*, trials: int = 300, workers: int = 2, root: Path | None = None) -> BenchResult:
-    """``trials`` trials of ``studies/dinca_flc.yaml`` from scratch on ``workers`` processes.
+def run_study_case(
+    *, trials: int = 300, workers: int = 2, root: Path | None = None, study: str = "dinca_flc"
+) -> BenchResult:
+    """``trials`` trials of ``studies/<study>.yaml`` from scratch on ``workers`` processes.
 
     Reports the wall time and how the workers' time splits between simulation (the
     trial's simulations and metrics) and everything else (sampler, storage, process
@@ -236,15 +239,15 @@ def run_study_case(*, trials: int = 300, workers: int = 2, root: Path | None = N
     from fuzzyservo.tuning.runner import run_study
 
     root = root or data_root()
-    spec = load_study(root / "studies" / "dinca_flc.yaml")
+    spec = load_study(root / "studies" / f"{study}.yaml")
     with tempfile.TemporaryDirectory() as tmp:
         t0 = time.perf_counter()
         outcome = run_study(spec, Path(tmp), trials=trials, workers=workers, progress=False)
         wall = time.perf_counter() - t0
     sampler = max(outcome.worker_time_s - outcome.sim_time_s, 0.0)
     return BenchResult(
-        name=STUDY,
-        description=f"{trials} trials of studies/dinca_flc.yaml on {workers} worker processes, SQLite storage",
+        name=ROBUST_STUDY if spec.uncertainty is not None else STUDY,
+        description=f"{trials} trials of studies/{study}.yaml on {workers} worker processes, SQLite storage",
         simulated_s=0.0,
         median_s=wall,
         reference_s=math.nan,
@@ -258,13 +261,25 @@ def run_study_case(*, trials: int = 300, workers: int = 2, root: Path | None = N
         },
         extra={
             "wall_s": wall,
-            "trials": outcome.trials_complete,
+            "trials": outcome.trials_complete + outcome.trials_pruned,
             "workers": workers,
             "simulation_s": outcome.sim_time_s,
             "sampler_and_storage_s": sampler,
-            "trials_per_s": outcome.trials_complete / wall,
+            "trials_per_s": (outcome.trials_complete + outcome.trials_pruned) / wall,
+            "trials_pruned": outcome.trials_pruned,
+            "simulations": outcome.simulations,
+            "simulations_per_s": outcome.simulations / wall,
         },
     )
+
+
+def run_robust_study_case(
+    *, trials: int = 300, workers: int = 2, root: Path | None = None
+) -> BenchResult:
+    """``studies/dinca_robust.yaml`` from scratch: ``trials`` trials, each on the study's 8
+    sampled plants and 2 scenarios (delay and noise on) plus its gain-margin checks;
+    trials/s and simulations/s against the wall."""
+    return run_study_case(trials=trials, workers=workers, root=root, study="dinca_robust")
 
 
 def run_fuzzy_eval(

@@ -91,7 +91,7 @@ def _note_compiling() -> None:
 
     if cache_is_cold():
         print(
-            "compiling the simulation kernels (first run after an install or a change; "
+            "compiling the simulation kernels (first run only, after an install or a change; "
             "about a minute, cached afterwards)",
             file=sys.stderr,
             flush=True,
@@ -478,21 +478,33 @@ def cmd_tune(args: argparse.Namespace) -> int:
 
     if args.trials is not None and args.trials < 1:
         raise ConfigError(f"--trials must be >= 1, got {args.trials}")
-    if args.workers < 1:
+    if args.workers is not None and args.workers < 1:
         raise ConfigError(f"--workers must be >= 1, got {args.workers}")
     if args.storage and storage_problem(args.storage):
         raise ConfigError(f"--storage: {storage_problem(args.storage)}")
     _out_file(args.json, "--json")
     spec = load_study(resolve(args.study, "studies", "study"))
+    if args.patience is not None or args.warm_start:
+        import dataclasses
+
+        if args.patience is not None and args.patience < 1:
+            raise ConfigError(f"--patience must be >= 1, got {args.patience}")
+        warm = [str(resolve(w, "studies/controllers", "controller")) for w in args.warm_start]
+        spec = dataclasses.replace(
+            spec,
+            patience=args.patience if args.patience is not None else spec.patience,
+            warm_start=(*spec.warm_start, *warm),
+        )
     out = _out_dir(args.out) or Path("out") / spec.name
     _out_dir(str(out))
     total = args.trials or spec.trials
-    print(
-        f"study {spec.name}: {spec.objective.describe()}; {total} trials, {args.workers} worker(s)"
-    )
+    workers = args.workers or spec.workers
+    print(f"study {spec.name}: {spec.objective.describe()}; {total} trials, {workers} worker(s)")
+    if spec.uncertainty is not None:
+        print(f"uncertainty: {spec.uncertainty.describe()}")
     _note_compiling()
     try:
-        outcome = run_study(spec, out, trials=total, storage=args.storage, workers=args.workers)
+        outcome = run_study(spec, out, trials=total, storage=args.storage, workers=workers)
     except KeyboardInterrupt:
         print(
             "fuzzyservo: interrupted; completed trials are kept: run the same command to resume",
@@ -513,6 +525,98 @@ def cmd_tune(args: argparse.Namespace) -> int:
         shutil.copyfile(paths["summary"], args.json)
         print(f"JSON written to {args.json}")
     return 0
+
+
+def robustness_text(rows: list[dict]) -> str:
+    """The Monte Carlo table: failures and median / 90 % / worst of each metric."""
+    head = f"{'controller':<22} {'failures':>9} {'gain ok':>8}"
+    cols = [("settling_time_s", "settling s", 1.0), ("sse_abs", "sse mm", 1e3),
+            ("overshoot_pct", "overshoot %", 1.0), ("saturation_time_s", "saturated s", 1.0)]  # fmt: skip
+    for _, label, _ in cols:
+        head += f"  {label + ' p50/p90/max':>26}"
+    lines = [head]
+    for r in rows:
+        gain = (
+            f"{r.get('gain_margin_holds', '-')}/{r['samples']}" if "gain_margin_holds" in r else "-"
+        )
+        line = f"{r['controller']:<22} {r['failures']:>5}/{r['samples']:<3} {gain:>8}"
+        for key, _, k in cols:
+            v = r[key]
+            line += (
+                "  " + f"{_fmt(v['p50'] * k)}/{_fmt(v['p90'] * k)}/{_fmt(v['worst'] * k)}".rjust(26)
+            )
+        lines.append(line)
+    return "\n".join(lines)
+
+
+def cmd_robustness(args: argparse.Namespace) -> int:
+    """Monte Carlo of controllers on plants sampled from a study's ``uncertainty:``."""
+    from fuzzyservo.analysis.robustness import monte_carlo
+    from fuzzyservo.io.studies import load_study
+    from fuzzyservo.tuning.robust import sample_rigs
+
+    _at_least_one(samples=args.samples)
+    if args.gain_margin is not None and not args.gain_margin > 1:
+        raise ConfigError(f"--gain-margin must be > 1, got {args.gain_margin}")
+    _out_file(args.json, "--json")
+    out = _out_dir(args.out)
+    rig, controllers = _load(args.rig, args.controllers or [DEFAULT_CONTROLLER])
+    spec = load_study(resolve(args.uncertainty, "studies", "study"))
+    if spec.uncertainty is None:
+        raise ConfigError("has no 'uncertainty:' section; name a robust study", file=spec.path)
+    if Path(spec.rig_file).resolve() != Path(rig.path).resolve():
+        raise ConfigError(
+            f"samples {Path(spec.rig_file).stem}, not {rig.name}; name a study of this rig",
+            file=spec.path,
+        )
+    import dataclasses
+
+    u = dataclasses.replace(spec.uncertainty, samples=args.samples, seed=args.seed, draws=())
+    spec = dataclasses.replace(spec, uncertainty=u)
+    scenarios = list(args.scenario or spec.scenarios)
+    for s in scenarios:
+        _scenario_name(rig, s)
+    print(f"rig {rig.name}: {u.describe()}")
+    print(f"scenarios {', '.join(scenarios)}; metrics: worst scenario of each sample")
+    _note_compiling()
+    rigs = sample_rigs(rig, spec)
+    progress = _progress(len(rigs) * len(controllers), "robustness")
+    mcs = monte_carlo(
+        rig, controllers, rigs, [d.noise_seed for d in u.draws], scenarios,
+        gain=args.gain_margin, progress=progress.update,
+    )  # fmt: skip
+    progress.close()
+    from fuzzyservo.analysis.robustness import SUMMARY_METRICS, summary
+
+    rows = summary(mcs, args.gain_margin)
+    print(robustness_text(rows))
+    for mc in mcs:
+        for run in mc.failures[:3]:
+            print(f"{mc.controller}: {u.draws[run.index].describe(u.parameters)}: {run.reason}")
+    if out is not None:
+        from fuzzyservo import plots
+        from fuzzyservo.analysis.robustness import run_sample
+
+        out.mkdir(parents=True, exist_ok=True)
+        values = {m: {mc.controller: mc.values(m) for mc in mcs} for m in SUMMARY_METRICS}
+        fig = plots.distribution_figure(values, SUMMARY_METRICS)
+        plots.save(fig, out / f"{rig.name}_robustness.png")
+        for mc, controller in zip(mcs, controllers, strict=True):
+            worst = (mc.failures or [mc.worst("settling_time_s")])[0]
+            if worst is None:
+                continue
+            d = u.draws[worst.index]
+            run = run_sample(worst.index, rigs[worst.index], controller, scenarios, d.noise_seed,
+                             keep_results=True)  # fmt: skip
+            for name, result in run.results.items():
+                fig = plots.response_figure([result])
+                fig.suptitle(f"{mc.controller}: worst {d.describe(u.parameters)}", fontsize=8)
+                plots.save(fig, out / f"{rig.name}_{mc.controller}_worst_{name}.png")
+        print(f"plots written to {out}/")
+    if args.json:
+        write_json(args.json, {"rig": rig.name, "uncertainty": u.describe(), "controllers": rows})
+        print(f"JSON written to {args.json}")
+    return EXIT_FAILED_RUN if any(mc.failures for mc in mcs) and args.strict else 0
 
 
 def cmd_designer(args: argparse.Namespace) -> int:
@@ -677,6 +781,7 @@ def cmd_bench(args: argparse.Namespace) -> int:
     _out_file(args.json, "--json")
     known = [bench.FUZZY_EVAL, *(c.name for c in bench.CASES), bench.STUDY, bench.CALIBRATE]
     known.append(bench.MARGINS)
+    known.append(bench.ROBUST_STUDY)
     wanted = args.case or known
     unknown = [c for c in wanted if c not in known]
     if unknown:
@@ -691,6 +796,10 @@ def cmd_bench(args: argparse.Namespace) -> int:
             results.append(bench.run_study_case(trials=args.study_trials, workers=args.workers))
         elif name == bench.CALIBRATE:
             results.append(bench.run_calibrate_case())
+        elif name == bench.ROBUST_STUDY:
+            results.append(
+                bench.run_robust_study_case(trials=args.study_trials, workers=args.workers)
+            )
         elif name == bench.MARGINS:
             results.append(bench.run_margins_case())
         else:
@@ -707,6 +816,14 @@ def cmd_bench(args: argparse.Namespace) -> int:
                 f"{r.name:<20} {_duration(x['wall_s']):>10} {'':>10} {'':>7}  {x['trials']} trials on "
                 f"{x['workers']} workers, {x['trials_per_s']:.1f} trials/s; in the trials: simulation "
                 f"{x['simulation_s']:.1f} s, sampler/storage/building {x['sampler_and_storage_s']:.1f} s; {err}"
+            )
+            continue
+        if r.name == bench.ROBUST_STUDY:
+            x = r.extra
+            print(
+                f"{r.name:<20} {_duration(x['wall_s']):>10} {'':>10} {'':>7}  {x['trials']} trials on "
+                f"{x['workers']} workers ({x['trials_pruned']} pruned), {x['trials_per_s']:.1f} trials/s, {x['simulations']} "
+                f"simulations, {x['simulations_per_s']:.0f} simulations/s; {err}"
             )
             continue
         if r.name == bench.MARGINS:
@@ -852,10 +969,51 @@ def build_parser() -> argparse.ArgumentParser:
         "--storage",
         help="Optuna storage URL, e.g. postgresql://user@host/db (default: SQLite in --out)",
     )
-    p.add_argument("--workers", type=int, default=1, help="local worker processes (default: 1)")
+    p.add_argument(
+        "--workers", type=int, help="local worker processes (default: the study's, else 1)"
+    )
     p.add_argument("--out", help="output folder (default: out/<study name>)")
     p.add_argument("--json", metavar="FILE", help="also write summary.json here")
+    p.add_argument(
+        "--patience",
+        type=int,
+        help="stop when the best has not improved for this many trials (default: the study's)",
+    )
+    p.add_argument(
+        "--warm-start",
+        action="append",
+        default=[],
+        metavar="CONTROLLER",
+        help="try this controller's numbers first (a previous best, a named controller; repeat)",
+    )
     p.set_defaults(func=cmd_tune)
+
+    p = sub.add_parser(
+        "robustness",
+        help="Monte Carlo of controllers on sampled plants: distributions, failures, worst sample",
+    )
+    p.add_argument("rig", help="rig file or name under rigs/")
+    p.add_argument("controllers", nargs="+", help="controller files or names")
+    p.add_argument("--samples", type=int, default=200, help="sampled plants (default: 200)")
+    p.add_argument(
+        "--uncertainty",
+        default="dinca_robust",
+        help="study whose 'uncertainty:' section is sampled (default: dinca_robust)",
+    )
+    p.add_argument(
+        "--seed", type=int, default=2026, help="sampling seed (default 2026, not the study's)"
+    )
+    p.add_argument(
+        "--gain-margin",
+        type=float,
+        default=2.0,
+        help="check on every sample that the loop holds this gain margin (default: 2)",
+    )
+    p.add_argument("--scenario", action="append", help="scenario (repeat; default: the study's)")
+    p.add_argument("--out", default="out", help="folder for the plots (default: out)")
+    p.add_argument("--json", metavar="FILE", help="also write the table as JSON")
+    p.add_argument("--strict", action="store_true", help="exit 1 when any sample fails")
+    p.set_defaults(func=cmd_robustness)
 
     p = sub.add_parser(
         "show", help="a fuzzy controller: terms, rules, membership functions and control curve"

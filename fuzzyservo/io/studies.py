@@ -21,10 +21,23 @@ seed: 1
 trials: 300
 timeout_s: 600
 storage: null                      # default: SQLite in the output folder
+workers: 1                         # local worker processes (--workers overrides)
+uncertainty:                       # optional: tune on sampled plants (tuning/uncertainty.py)
+  samples: 8                       # the same 8 plants and noise realisations for every trial
+  seed: 1
+  noise: true                      # a sensor-noise realisation per sample
+  aggregate: worst                 # over the samples: worst | mean | cvar (with alpha: 0.25)
+  margin_scenario: steps           # where gain_margin/delay_margin_s constraints are checked
+  parameters:                      # rig-file keys, effect.parameter (SI), or io_delay
+    bulk_modulus: {uniform: [12000, 18000], unit: bar}
+    viscous_friction: {log-uniform: [2, 20], unit: N*s/m}
+    bias_current: {normal: [2.83, 0.05], unit: mA}      # mean, std; cut at ±3 std
+    supply_pressure: {interval: [65, 75], unit: bar}    # a fitted interval: uniform in it
 """
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
 from typing import Any
 
@@ -45,6 +58,7 @@ from fuzzyservo.tuning.spec import (
 _TOP = (
     "name", "description", "source", "rig", "scenarios", "controller", "baseline", "parameters",
     "objective", "aggregate", "constraints", "sampler", "seed", "trials", "timeout_s", "storage", "penalty",
+    "workers", "uncertainty", "patience", "warm_start",
 )  # fmt: skip
 DEFAULT_BASELINE = "p_k10"
 
@@ -137,6 +151,37 @@ def load_study(path: str | Path) -> StudySpec:
         root.fail("must be a storage URL (e.g. postgresql://user@host/db) or null", key="storage")
     if storage is not None:
         _check_storage(root, storage)
+    workers = root.number("workers", default=1)
+    if workers < 1 or workers != int(workers):
+        root.fail(f"must be a whole number >= 1, got {workers}", key="workers")
+    patience = root.data.get("patience")
+    if patience is not None and (
+        isinstance(patience, bool) or not isinstance(patience, int) or patience < 1
+    ):
+        root.fail(
+            f"must be a whole number of trials >= 1 or null, got {patience!r}", key="patience"
+        )
+    warm = root.data.get("warm_start", [])
+    if isinstance(warm, str):
+        warm = [warm]
+    if not isinstance(warm, list) or not all(isinstance(w, str) for w in warm):
+        root.fail("must list controller files or names, e.g. [flc2_reshaped]", key="warm_start")
+    warm_files = []
+    for n, name in enumerate(warm):
+        try:
+            warm_files.append(
+                str(find_file(name, "studies/controllers", "warm_start", relative_to=here))
+            )
+        except ConfigError as exc:
+            root.fail(f"{exc.detail} (looked beside the study and under studies/controllers/)",
+                      key=f"warm_start[{n}]")  # fmt: skip
+    uncertainty = None
+    if root.has("uncertainty"):
+        from fuzzyservo.io.rigs import load_rig
+
+        uncertainty = _uncertainty(
+            root.child("uncertainty"), load_rig(files["rig"]), tuple(scenarios)
+        )
     try:
         spec = StudySpec(
             name=root.name("name", default=here.stem),
@@ -156,11 +201,134 @@ def load_study(path: str | Path) -> StudySpec:
             storage=storage,
             penalty=root.number("penalty", default=1.0e6),
             path=file,
+            uncertainty=uncertainty,
+            workers=int(workers),
+            patience=patience,
+            warm_start=tuple(warm_files),
         )
     except ValueError as exc:
         raise ConfigError(str(exc), file=file) from None
     check_against_files(spec)
     return spec
+
+
+_DIST_KEYS = ("uniform", "normal", "log-uniform", "interval")
+
+
+def _uncertainty(node: Node, rig: Any, scenarios: tuple[str, ...]) -> Any:
+    """The ``uncertainty:`` section: distributions of rig parameters (in the file's units,
+    turned into SI here), samples, seed, noise, aggregate over the samples."""
+    from fuzzyservo.components.effects import LIBRARY
+    from fuzzyservo.params import fields_by_key
+    from fuzzyservo.tuning.uncertainty import (
+        IO_DELAY,
+        SAMPLE_AGGREGATES,
+        Distribution,
+        Uncertainty,
+        sample_rig,
+    )
+
+    node.only(("samples", "seed", "noise", "aggregate", "alpha", "margin_scenario", "parameters"))
+    by_key = fields_by_key(type(rig.params))
+    dists = []
+    pnode = node.child("parameters", default={})
+    for target, raw in (pnode.data or {}).items():
+        target = str(target)
+        d = Node(raw, node.file, pnode.path(target))
+        d.only((*_DIST_KEYS, "unit", "source", "note"))
+        given = [k for k in _DIST_KEYS if d.has(k)]
+        if len(given) != 1:
+            d.fail(
+                "give exactly one of uniform: [low, high], log-uniform: [low, high], "
+                "normal: [mean, std] or interval: [low, high] (a fitted interval, drawn uniformly)"
+            )
+        pair = d.data[given[0]]
+        if not (isinstance(pair, list) and len(pair) == 2):
+            d.fail(f"must be a list of two numbers, got {pair!r}", key=given[0])
+        nums = [_num(d, given[0], v) for v in pair]
+        effect, field_name = "", ""
+        if target == IO_DELAY:
+            si = "s"
+        elif "." in target:
+            effect, _, key = target.partition(".")
+            if effect not in LIBRARY or key not in {p.key for p in LIBRARY[effect].params}:
+                pnode.fail(
+                    f"unknown effect parameter {target!r}; effects: {', '.join(sorted(LIBRARY))}",
+                    key=target,
+                )
+            if d.has("unit"):
+                d.fail("effect parameters are given in SI (N, m/s, ...); delete 'unit'", key="unit")
+            si = ""
+        elif target in by_key:
+            field_name = by_key[target].name
+            si = by_key[target].metadata["unit"]
+        else:
+            pnode.fail(
+                f"unknown rig parameter {target!r}; give a plant parameter of "
+                f"{rig.name} ({', '.join(sorted(by_key))}), effect.parameter or io_delay",
+                key=target,
+            )
+        unit = d.str("unit", default=si) if si else ""
+        scale = d.convert(1.0, unit, si) if si else 1.0
+        a, b = (v * scale for v in nums)
+        if given[0] == "normal":
+            b = abs(nums[1]) * scale
+        kind = "uniform" if given[0] == "interval" else given[0]
+        try:
+            dists.append(Distribution(target, kind, a, b, field_name, effect, unit, scale))
+        except ValueError as exc:
+            d.fail(str(exc).split(": ", 1)[-1], key=given[0])
+    aggregate = node.str("aggregate", default="worst")
+    if aggregate not in SAMPLE_AGGREGATES:
+        node.fail(
+            f"unknown {aggregate!r}; choose one of {list(SAMPLE_AGGREGATES)}", key="aggregate"
+        )
+    seed = node.data.get("seed", 0)
+    if isinstance(seed, bool) or not isinstance(seed, int):
+        node.fail(f"must be an integer, got {seed!r}", key="seed")
+    noise = node.data.get("noise", True)
+    if not isinstance(noise, bool):
+        node.fail("must be true or false", key="noise")
+    samples = node.number("samples", default=8)
+    if samples < 1 or samples != int(samples):
+        node.fail(f"must be a whole number >= 1, got {samples}", key="samples")
+    margin_scenario = node.str("margin_scenario", default=scenarios[0])
+    if margin_scenario not in rig.scenarios:
+        node.fail(f"unknown scenario {margin_scenario!r}; the rig has {', '.join(rig.scenarios)}",
+                  key="margin_scenario")  # fmt: skip
+    try:
+        u = Uncertainty(
+            parameters=tuple(dists), samples=int(samples), seed=seed, noise=noise,
+            aggregate=aggregate, alpha=node.number("alpha", default=0.25),
+            margin_scenario=margin_scenario,
+        )  # fmt: skip
+    except ValueError as exc:
+        node.fail(str(exc))
+    from fuzzyservo.tuning.uncertainty import Sample
+
+    for d in u.parameters:  # both ends of every range must make a valid rig
+        for end in d.bounds:
+            try:
+                sample_rig(rig, (d,), Sample(0, {d.target: end}, 0))
+            except (ValueError, KeyError) as exc:
+                pnode.fail(
+                    f"{d.describe()} reaches {end / (d.scale or 1):.4g} {d.unit}, no valid rig: "
+                    f"{exc}; narrow the range",
+                    key=d.target,
+                )
+    for sample in u.draws:  # every drawn plant must be a valid rig (e.g. a normal's tail)
+        try:
+            sample_rig(rig, u.parameters, sample)
+        except (ValueError, KeyError) as exc:
+            node.fail(f"{sample.describe(u.parameters)} is no valid rig: {exc}; narrow the range",
+                      key="parameters")  # fmt: skip
+    return u
+
+
+def _num(node: Node, key: str, value: Any) -> float:
+    if isinstance(value, bool) or not isinstance(value, int | float) or not math.isfinite(value):
+        node.fail(f"must hold two finite numbers, got {value!r}", key=key)
+    return float(value)
 
 
 def _check_storage(root: Node, storage: str) -> None:

@@ -14,12 +14,14 @@ from fuzzyservo.plots._fuzzy import (
     membership_figure,
 )
 from fuzzyservo.plots._response import response_figure
+from fuzzyservo.plots._robustness import distribution_figure
 from fuzzyservo.plots._tuning import history_figure, importance_figure, pareto_figure
 
 __all__ = [
     "bode_figure",
     "candidates_figure",
     "control_curve_figure",
+    "distribution_figure",
     "fuzzy_overview_figure",
     "history_figure",
     "importance_figure",

@@ -88,6 +88,7 @@ class Evaluation:
     message: str = ""
     sim_time_s: float = 0.0
     results: dict[str, SimResult] = field(default_factory=dict, repr=False)
+    simulations: int = 0  # runs it took (robust studies count them; 0: not counted)
 
     @property
     def feasible(self) -> bool:
@@ -112,6 +113,11 @@ class Evaluator:
         self._build = controller_from_data
         self.baseline = baseline
         self.scale: dict[str, float] = {m: 1.0 for m in spec.objective.metrics}
+        self.sample_rigs: list[Rig] = []
+        if spec.uncertainty is not None:  # a robust study: every trial on the same samples
+            from fuzzyservo.tuning.robust import sample_rigs
+
+            self.sample_rigs = sample_rigs(rig, spec)
         self.baseline_evaluation = self.evaluate(baseline, keep_results=True)
         if spec.objective.normalize == "baseline":
             base = self.baseline_evaluation
@@ -136,9 +142,16 @@ class Evaluator:
             data, f"{self.spec.controller_file} (with {', '.join(params) or 'no changes'})"
         )
 
-    def evaluate(self, controller: Controller, *, keep_results: bool = False) -> Evaluation:
-        """Simulate every scenario, aggregate the metrics, compute objective(s) and constraints."""
+    def evaluate(
+        self, controller: Controller, *, keep_results: bool = False, report=None
+    ) -> Evaluation:
+        """Simulate every scenario, aggregate the metrics, compute objective(s) and constraints
+        (on every sampled plant for a study with ``uncertainty``: tuning/robust.py)."""
         spec = self.spec
+        if spec.uncertainty is not None:
+            from fuzzyservo.tuning.robust import evaluate_samples
+
+            return evaluate_samples(self, controller, keep_results=keep_results, report=report)
         t0 = time.perf_counter()
         per: dict[str, dict[str, float]] = {}
         results: dict[str, SimResult] = {}

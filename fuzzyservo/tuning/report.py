@@ -252,8 +252,18 @@ def _report(
         f"| baseline | {evaluator.baseline.name} (`{spec.baseline_file}`) |",
         f"| objective | {spec.objective.describe()} (minimised) |",
         f"| constraints | {', '.join(f'`{c}`' for c in spec.constraints) or 'none'} |",
+        *(
+            [
+                f"| uncertainty | {spec.uncertainty.describe()}; metrics and objective are over "
+                "these samples, the plots show the nominal plant |"
+            ]
+            if spec.uncertainty is not None
+            else []
+        ),
         f"| sampler | {sampler} |",
-        f"| trials | {outcome.trials_complete} complete |",
+        f"| trials | {outcome.trials_complete} complete"
+        + (f", {outcome.trials_pruned} pruned" if outcome.trials_pruned else "")
+        + " |",
         f"| wall time (this run) | {_duration(outcome.wall_s)} |",
         f"| time in trials | simulation {_duration(outcome.sim_time_s)}, sampler, storage "
         f"and controller building {_duration(sampler_s)} (summed over the stored trials) |",

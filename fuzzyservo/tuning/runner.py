@@ -3,7 +3,8 @@
 The only module that imports optuna. Trials are stored as they finish, so a study
 stopped at any moment (Ctrl-C, a killed process) resumes with the same command and
 loses no completed trial. The count towards ``trials`` is the number of COMPLETE
-trials; a simulation that diverges or hits an end stop is a COMPLETE trial with the
+trials (and PRUNED ones: robust trials stopped once their worst sample so far is worse
+than the best feasible trial, which is exact: the worst can only grow); a simulation that diverges or hits an end stop is a COMPLETE trial with the
 study's penalty as its value and its reason in ``user_attrs``. Trials left RUNNING by
 a killed process are failed by the storage heartbeat and do not count.
 """
@@ -42,6 +43,8 @@ class Outcome:
     wall_s: float = 0.0
     sim_time_s: float = 0.0
     worker_time_s: float = 0.0
+    simulations: int = 0
+    trials_pruned: int = 0
 
 
 def storage_url(spec: StudySpec, out_dir: Path, override: str | None = None) -> str:
@@ -69,9 +72,29 @@ def _storage(url: str):
         kwargs = {"connect_args": {"timeout": 60}}
     else:
         kwargs = {"pool_pre_ping": True}
-    return optuna.storages.RDBStorage(
+    storage = optuna.storages.RDBStorage(
         _driver_url(url), engine_kwargs=kwargs, heartbeat_interval=HEARTBEAT_S, grace_period=GRACE_S
     )
+    if url.startswith("sqlite"):
+        _fast_sqlite(storage.engine)
+    return storage
+
+
+def _fast_sqlite(engine) -> None:
+    """Write-ahead log and no fsync per commit: a trial makes some 30 small commits, each
+    about 10 ms with the default rollback journal (a third of a robust trial's own time).
+    A power cut may lose the last trials, never corrupt the file; a killed process loses
+    nothing."""
+    from sqlalchemy import event
+
+    def pragmas(dbapi_connection, _record) -> None:
+        cursor = dbapi_connection.cursor()
+        cursor.execute("PRAGMA journal_mode=WAL")
+        cursor.execute("PRAGMA synchronous=NORMAL")
+        cursor.close()
+
+    event.listen(engine, "connect", pragmas)
+    engine.dispose()  # connections opened while creating the tables get the pragmas too
 
 
 def _cannot_open(url: str, exc: BaseException | None) -> NoReturn:
@@ -112,8 +135,15 @@ def make_sampler(spec: StudySpec, seed: int | None):
     return optuna.samplers.RandomSampler(seed=seed)
 
 
-def open_study(spec: StudySpec, url: str, worker: int = 0, *, shared: bool = False):
-    """Create or load the study; ``worker`` and ``shared`` choose the sampler's seed (:func:`seed_for`)."""
+def open_study(
+    spec: StudySpec, url: str, worker: int = 0, *, shared: bool = False, rig: Rig | None = None
+):
+    """Create or load the study, check that it was made by this definition
+    (:func:`~fuzzyservo.tuning.integrity.check_definition`: a :class:`ConfigError` naming
+    what changed otherwise), and give it a sampler seeded per trial
+    (:func:`~fuzzyservo.tuning.integrity.per_trial_seeded`: no two trials, in any process,
+    replay one random stream). ``worker`` and ``shared`` are kept for callers; the trial
+    number alone decides the seed."""
     import random
     import warnings
 
@@ -128,7 +158,10 @@ def open_study(spec: StudySpec, url: str, worker: int = 0, *, shared: bool = Fal
         try:
             storage = _storage(url)
             study = optuna.create_study(
-                study_name=spec.name, storage=storage, directions=directions, load_if_exists=True
+                study_name=spec.name,
+                storage=storage,
+                directions=directions,
+                load_if_exists=True,
             )
             break
         except (
@@ -143,22 +176,11 @@ def open_study(spec: StudySpec, url: str, worker: int = 0, *, shared: bool = Fal
             time.sleep(0.2 + random.random())
         except (SQLAlchemyError, ImportError) as exc:  # a driver or URL we cannot use
             _cannot_open(url, exc)
-    study.sampler = make_sampler(spec, seed_for(spec, study, worker, shared))
+    from fuzzyservo.tuning.integrity import check_definition, per_trial_seeded
+
+    check_definition(study, spec, url, rig)
+    study.sampler = per_trial_seeded(make_sampler(spec, spec.seed), spec.seed)
     return study
-
-
-def seed_for(spec: StudySpec, study, worker: int, shared: bool) -> int | None:
-    """The sampler seed: the study's seed for a fresh single run (so it is reproducible),
-    moved on by the trials already stored (a resumed run does not repeat its first
-    proposals), by the local worker index, and by the process id when other processes
-    may share the storage (two machines must not propose the same trials)."""
-    import os
-
-    if spec.seed is None:
-        return None
-    done = len(study.get_trials(deepcopy=False))
-    salt = os.getpid() if shared else 0
-    return (spec.seed + 1009 * worker + 7919 * done + salt) % (2**32)
 
 
 def build_evaluator(spec: StudySpec, rig: Rig | None = None) -> Evaluator:
@@ -191,7 +213,18 @@ def _objective(spec: StudySpec, evaluator: Evaluator):
             _record_constraints(trial, spec, [1e300] * len(spec.constraints))
             values = tuple(spec.penalty for _ in range(spec.objective.n_values))
             return values if len(values) > 1 else values[0]
-        ev = evaluator.evaluate(controller)
+        report = None
+        if spec.uncertainty is not None and spec.objective.n_values == 1:
+            # exact pruning: a trial's worst sample can only grow, so once it is worse than
+            # the best feasible trial (read once, at the trial's start) the trial is lost
+            bound = _best_feasible_value(trial.study)
+            last: list[tuple[int, float]] = []
+
+            def report(step: int, value: float) -> bool:
+                last[:] = [(step, value)]
+                return bound is not None and value > bound
+
+        ev = evaluator.evaluate(controller, report=report)
         trial.set_user_attr("status", ev.status)
         if ev.message:
             trial.set_user_attr("message", ev.message)
@@ -200,15 +233,40 @@ def _objective(spec: StudySpec, evaluator: Evaluator):
         )
         _record_constraints(trial, spec, [v if math.isfinite(v) else 1e300 for v in ev.violations])
         trial.set_user_attr("sim_time_s", ev.sim_time_s)
+        if ev.simulations:
+            trial.set_user_attr("simulations", ev.simulations)
+        if ev.status == "pruned":
+            import optuna
+
+            step, value = last[0]
+            trial.report(value, step)  # TPE ranks a pruned trial by its last value
+            raise optuna.TrialPruned(ev.message)
         return ev.values if len(ev.values) > 1 else ev.values[0]
 
     return objective
 
 
 def count_complete(study) -> int:
+    """Finished trials: COMPLETE, and PRUNED (a robust trial stopped as hopeless)."""
+    return len(study.get_trials(deepcopy=False, states=_finished()))
+
+
+def _finished() -> tuple:
+    """The trial states that count towards a study's ``trials``."""
     from optuna.trial import TrialState
 
-    return len(study.get_trials(deepcopy=False, states=(TrialState.COMPLETE,)))
+    return (TrialState.COMPLETE, TrialState.PRUNED)
+
+
+def _best_feasible_value(study) -> float | None:
+    from optuna.trial import TrialState
+
+    values = [
+        t.value
+        for t in study.get_trials(deepcopy=False, states=(TrialState.COMPLETE,))
+        if t.user_attrs.get("status") == "ok" and all(v <= 0 for v in _constraints(t))
+    ]
+    return min(values) if values else None
 
 
 def _optimize(
@@ -219,10 +277,13 @@ def _optimize(
     import signal
 
     from optuna.study import MaxTrialsCallback
-    from optuna.trial import TrialState
 
     if count_complete(study) >= total:
         return
+    if spec.patience and spec.objective.n_values == 1:
+        from fuzzyservo.tuning.warmstart import patience_callback
+
+        extra_callbacks = [*extra_callbacks, patience_callback(spec.patience)]
     evaluator = build_evaluator(spec, rig)
     interrupted = False
 
@@ -238,7 +299,7 @@ def _optimize(
         study.optimize(
             _objective(spec, evaluator),
             timeout=spec.timeout_s,
-            callbacks=[MaxTrialsCallback(total, states=(TrialState.COMPLETE,)), *extra_callbacks],
+            callbacks=[MaxTrialsCallback(total, states=_finished()), *extra_callbacks],
             gc_after_trial=False,
         )
     finally:
@@ -247,8 +308,15 @@ def _optimize(
         raise KeyboardInterrupt
 
 
-def _worker(spec: StudySpec, url: str, total: int, worker: int, shared: bool) -> None:
-    """A local worker process: optimise until the study holds ``total`` complete trials."""
+def _worker(
+    spec: StudySpec, url: str, total: int, worker: int, shared: bool, parent: int = 0
+) -> None:
+    """A local worker process: optimise until the study holds ``total`` complete trials;
+    it ends when its parent ``parent`` does (:func:`~fuzzyservo.tuning.integrity.die_with_parent`)."""
+    if parent:
+        from fuzzyservo.tuning.integrity import die_with_parent
+
+        die_with_parent(parent)
     try:
         _optimize(spec, open_study(spec, url, worker, shared=shared), total, [])
     except KeyboardInterrupt:
@@ -279,7 +347,10 @@ def run_study(
     # a storage named by the user may be shared with other processes or machines
     shared = bool(storage or spec.storage)
     total = trials or spec.trials
-    study = open_study(spec, url)  # creates it (and its tables) before any worker starts
+    study = open_study(spec, url, rig=rig)  # creates it (and its tables) before any worker starts
+    from fuzzyservo.tuning.warmstart import enqueue
+
+    enqueue(study, spec, list(spec.warm_start))
     done_before = count_complete(study)
     t0 = time.perf_counter()
     bar = _bar(total, done_before, spec.name, progress)
@@ -297,12 +368,11 @@ def run_study(
 def _run_inline(
     spec: StudySpec, url: str, total: int, bar, shared: bool, rig: Rig | None = None
 ) -> None:
-    from optuna.trial import TrialState
 
-    study = open_study(spec, url, shared=shared)
+    study = open_study(spec, url, shared=shared, rig=rig)
 
     def update(study, trial) -> None:
-        if trial.state == TrialState.COMPLETE:
+        if trial.state in _finished():
             bar.update(1)
             _postfix(bar, study)
 
@@ -313,10 +383,18 @@ def _run_processes(spec: StudySpec, url: str, total: int, workers: int, bar, sha
     import os
     import signal
 
+    _warm_kernels(spec)
     ctx = mp.get_context("spawn")
     procs = [
-        ctx.Process(target=_worker, args=(spec, url, total, w, shared)) for w in range(workers)
+        ctx.Process(target=_worker, args=(spec, url, total, w, shared, os.getpid()))
+        for w in range(workers)
     ]
+    # SIGINT (also when a background job started with it ignored) and SIGTERM stop the
+    # workers and this process alike; a kill -9 of this process ends them by their watch
+    previous = {
+        sig: signal.signal(sig, signal.default_int_handler)
+        for sig in (signal.SIGINT, signal.SIGTERM)
+    }
     for p in procs:
         p.start()
     study = open_study(spec, url)
@@ -339,11 +417,29 @@ def _run_processes(spec: StudySpec, url: str, total: int, workers: int, bar, sha
     finally:
         for p in procs:
             p.join(timeout=10)
+        for sig, handler in previous.items():
+            signal.signal(sig, handler)
     failed = [p.exitcode for p in procs if p.exitcode not in (0, None)]
     if failed:
         raise RuntimeError(
             f"{len(failed)} worker process(es) failed (exit codes {failed}); see their output above"
         )
+
+
+def _warm_kernels(spec: StudySpec) -> None:
+    """Compile the kernels here, once, before the workers start (else each compiles them)."""
+    from fuzzyservo._jit import cache_is_cold
+
+    if not cache_is_cold():
+        return
+    from fuzzyservo.io.controllers import controller_from_data
+    from fuzzyservo.io.rigs import load_rig
+    from fuzzyservo.io.studies import template_data
+    from fuzzyservo.simulation import simulate
+
+    rig = load_rig(spec.rig_file)
+    controller = controller_from_data(template_data(spec), spec.controller_file)
+    simulate(rig, controller, spec.scenarios[0], duration_s=10 * rig.sample_time_s)
 
 
 def _refresh(bar, study) -> None:
@@ -407,7 +503,7 @@ def collect(spec: StudySpec, url: str, *, wall_s: float = 0.0, rig: Rig | None =
     import optuna
     from optuna.trial import TrialState
 
-    study = open_study(spec, url)
+    study = open_study(spec, url, rig=rig)
     trials = study.get_trials(deepcopy=False, states=(TrialState.COMPLETE,))
     if not trials:
         raise RuntimeError(f"study {spec.name!r} has no complete trial yet in {url}")
@@ -462,10 +558,11 @@ def collect(spec: StudySpec, url: str, *, wall_s: float = 0.0, rig: Rig | None =
                 )
         except (RuntimeError, ValueError, ZeroDivisionError):
             importances = {}
-    sim = sum(t.user_attrs.get("sim_time_s", 0.0) for t in trials)
+    finished = study.get_trials(deepcopy=False, states=_finished())  # with pruned ones
+    sim = sum(t.user_attrs.get("sim_time_s", 0.0) for t in finished)
     worker_time = sum(
         (t.datetime_complete - t.datetime_start).total_seconds()
-        for t in trials
+        for t in finished
         if t.datetime_complete and t.datetime_start
     )
     return Outcome(
@@ -481,4 +578,6 @@ def collect(spec: StudySpec, url: str, *, wall_s: float = 0.0, rig: Rig | None =
         wall_s=wall_s,
         sim_time_s=sim,
         worker_time_s=worker_time,
+        simulations=sum(t.user_attrs.get("simulations", 0) for t in finished),
+        trials_pruned=len(finished) - len(trials),
     )

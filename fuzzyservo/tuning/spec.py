@@ -13,6 +13,8 @@ import math
 import re
 from dataclasses import dataclass, field
 
+from fuzzyservo.tuning.uncertainty import Uncertainty
+
 SAMPLERS = ("tpe", "cmaes", "nsga2", "random")
 AGGREGATES = ("worst", "mean")
 _CONSTRAINT = re.compile(r"^\s*(?P<metric>\w+)\s*(?P<op><=|>=)\s*(?P<bound>[-+0-9.eE]+)\s*$")
@@ -116,6 +118,10 @@ class StudySpec:
     penalty: float = 1.0e6
     description: str = ""
     path: str = ""
+    uncertainty: Uncertainty | None = None
+    workers: int = 1
+    patience: int | None = None
+    warm_start: tuple[str, ...] = ()
 
     def __post_init__(self) -> None:
         if self.sampler not in SAMPLERS:
@@ -126,6 +132,10 @@ class StudySpec:
             )
         if self.trials < 1:
             raise ValueError(f"trials: must be >= 1, got {self.trials}")
+        if self.patience is not None and self.patience < 1:
+            raise ValueError(f"patience: must be >= 1 trials or null, got {self.patience}")
+        if self.workers < 1:
+            raise ValueError(f"workers: must be >= 1, got {self.workers}")
         if self.objective.pareto and self.sampler == "cmaes":
             raise ValueError(
                 "sampler: cmaes optimises one objective; use nsga2 (or tpe) for a Pareto front"

@@ -1,0 +1,221 @@
+"""A controller on many sampled plants: metrics, failures, and margin checks per sample.
+
+Used by robust studies (each trial on the study's samples) and by
+``fuzzyservo robustness`` (Monte Carlo of several controllers). A sample *fails* when a
+scenario diverges, fails a step or hits an end stop, or when a margin check does not hold.
+
+Margin checks take one simulation each: the loop has a gain margin of at least ``g``
+when it does not oscillate with the controller output multiplied by ``g``
+(:func:`~fuzzyservo.analysis.margins.scaled`, the detector of
+:func:`~fuzzyservo.analysis.margins.oscillation`); the delay margin likewise with the
+extra delay added. That is the bisection of :mod:`fuzzyservo.analysis.margins` reduced to
+its last question, at a tenth of its cost.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from fuzzyservo.controllers.base import Controller
+from fuzzyservo.metrics import METRIC_NAMES, result_metrics
+from fuzzyservo.rig import Rig
+from fuzzyservo.simulation import SimResult, simulate
+
+
+@dataclass(frozen=True)
+class SampleRun:
+    """One controller on one sampled plant: ``metrics`` aggregated over the scenarios."""
+
+    index: int
+    status: str
+    message: str
+    metrics: dict[str, float]
+    scenario_metrics: dict[str, dict[str, float]]
+    gain_holds: bool | None = None
+    delay_holds: bool | None = None
+    results: dict[str, SimResult] = field(default_factory=dict, repr=False)
+
+    @property
+    def failed(self) -> bool:
+        return self.status != "ok" or self.gain_holds is False or self.delay_holds is False
+
+    @property
+    def reason(self) -> str:
+        if self.status != "ok":
+            return self.message
+        why = []
+        if self.gain_holds is False:
+            why.append("oscillates at the required gain margin")
+        if self.delay_holds is False:
+            why.append("oscillates at the required delay margin")
+        return "; ".join(why)
+
+
+def holds(
+    rig: Rig,
+    controller: Controller,
+    scenario: str,
+    *,
+    gain: float = 1.0,
+    extra_delay_s: float = 0.0,
+    noise_seed: int = 0,
+) -> bool:
+    """Does the loop stay free of sustained oscillation with the controller output times
+    ``gain`` and ``extra_delay_s`` more loop delay? One simulation."""
+    from fuzzyservo.analysis.margins import delayed, oscillation, scaled
+
+    if extra_delay_s > 0:
+        rig = delayed(rig, extra_delay_s)
+    if gain != 1.0:
+        rig, controller = scaled(rig, controller, gain)
+    result = simulate(rig, controller, scenario, noise_seed=noise_seed)
+    return not oscillation(result).sustained
+
+
+def run_sample(
+    index: int,
+    rig: Rig,
+    controller: Controller,
+    scenarios: Sequence[str],
+    noise_seed: int,
+    *,
+    aggregate: str = "worst",
+    gain: float | None = None,
+    delay_s: float | None = None,
+    margin_scenario: str | None = None,
+    keep_results: bool = False,
+) -> SampleRun:
+    """Simulate every scenario on ``rig`` (noise seeded ``noise_seed``), then the margin
+    checks asked for (``gain``, ``delay_s``) on ``margin_scenario``, unless a run failed."""
+    per: dict[str, dict[str, float]] = {}
+    results: dict[str, SimResult] = {}
+    status, message = "ok", ""
+    for scenario in scenarios:
+        r = simulate(rig, controller, scenario, noise_seed=noise_seed)
+        if keep_results:
+            results[scenario] = r
+        per[scenario] = result_metrics(r).aggregate
+        if r.status != "ok":
+            status, message = r.status, f"{scenario}: {r.message}"
+            break
+    metrics = _over_scenarios(per, aggregate) if status == "ok" else {}
+    where = margin_scenario or scenarios[0]
+    gain_ok = delay_ok = None
+    if status == "ok" and gain is not None:
+        gain_ok = holds(rig, controller, where, gain=gain, noise_seed=noise_seed)
+    if status == "ok" and delay_s is not None:
+        delay_ok = holds(rig, controller, where, extra_delay_s=delay_s, noise_seed=noise_seed)
+    return SampleRun(index, status, message, metrics, per, gain_ok, delay_ok, results)
+
+
+def _over_scenarios(per: dict[str, dict[str, float]], how: str) -> dict[str, float]:
+    out = {}
+    for m in METRIC_NAMES:
+        vals = [s[m] for s in per.values()]
+        if any(not math.isfinite(v) for v in vals):
+            out[m] = math.nan
+        else:
+            out[m] = max(vals) if how == "worst" else sum(vals) / len(vals)
+    return out
+
+
+@dataclass(frozen=True)
+class MonteCarlo:
+    """One controller on every sample: the runs, and their metric distributions."""
+
+    controller: str
+    runs: list[SampleRun]
+
+    @property
+    def failures(self) -> list[SampleRun]:
+        return [r for r in self.runs if r.failed]
+
+    def values(self, metric: str) -> np.ndarray:
+        """``metric`` of the samples that ran through (NaN where it is undefined)."""
+        return np.array([r.metrics.get(metric, math.nan) for r in self.runs if r.status == "ok"])
+
+    def percentiles(self, metric: str, qs: Sequence[float] = (50, 90, 100)) -> list[float]:
+        v = self.values(metric)
+        if v.size == 0:
+            return [math.nan for _ in qs]
+        if not np.isfinite(v).all():  # an undefined metric (never settles) counts as worst
+            v = np.where(np.isfinite(v), v, math.inf)
+        return [float(np.percentile(v, q, method="higher")) for q in qs]
+
+    def worst(self, metric: str) -> SampleRun | None:
+        ok = [r for r in self.runs if r.status == "ok"]
+        if not ok:
+            return None
+
+        def key(r: SampleRun) -> float:
+            v = r.metrics.get(metric, math.nan)
+            return v if math.isfinite(v) else math.inf
+
+        return max(ok, key=key)
+
+
+def monte_carlo(
+    rig: Rig,
+    controllers: Sequence[Controller],
+    rigs: Sequence[Rig],
+    noise_seeds: Sequence[int],
+    scenarios: Sequence[str],
+    *,
+    gain: float | None = 2.0,
+    margin_scenarios: Sequence[str] | None = None,
+    progress=None,
+) -> list[MonteCarlo]:
+    """Every controller on every sampled plant ``rigs`` (noise seeds alike: common random
+    numbers). The gain check (``gain``) runs on each of ``margin_scenarios`` (default: all
+    ``scenarios``) and holds only when it holds on all. ``progress(k)`` is called per run."""
+    where = list(margin_scenarios or scenarios)
+    out = []
+    for controller in controllers:
+        runs = []
+        for i, (sample_rig, seed) in enumerate(zip(rigs, noise_seeds, strict=True)):
+            run = run_sample(i, sample_rig, controller, scenarios, seed)
+            if run.status == "ok" and gain is not None:
+                ok = all(
+                    holds(sample_rig, controller, s, gain=gain, noise_seed=seed) for s in where
+                )
+                run = SampleRun(run.index, run.status, run.message, run.metrics,
+                                run.scenario_metrics, ok)  # fmt: skip
+            runs.append(run)
+            if progress is not None:
+                progress(1)
+        out.append(MonteCarlo(controller.name, runs))
+    return out
+
+
+#: the metrics a Monte Carlo summary shows, with their units
+SUMMARY_METRICS: dict[str, str] = {
+    "settling_time_s": "s",
+    "sse_abs": "m",
+    "overshoot_pct": "%",
+    "saturation_time_s": "s",
+}
+
+
+def summary(mcs: Sequence[MonteCarlo], gain: float | None) -> list[dict[str, object]]:
+    """Per controller: samples, failures (with the gain check), and the median, 90th
+    percentile and worst of each :data:`SUMMARY_METRICS` (an undefined value counts as worst)."""
+    rows = []
+    for mc in mcs:
+        row: dict[str, object] = {
+            "controller": mc.controller,
+            "samples": len(mc.runs),
+            "failures": len(mc.failures),
+            "runs_failed": sum(r.status != "ok" for r in mc.runs),
+        }
+        if gain is not None:
+            row["gain_margin_holds"] = sum(r.gain_holds is True for r in mc.runs)
+            row["gain_margin_checked"] = gain
+        for m in SUMMARY_METRICS:
+            p50, p90, worst = mc.percentiles(m)
+            row[m] = {"p50": p50, "p90": p90, "worst": worst}
+        rows.append(row)
+    return rows

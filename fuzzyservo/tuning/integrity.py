@@ -1,0 +1,243 @@
+"""A study stays one study: its definition's fingerprint, unique proposals, workers that die with their parent.
+
+* **Fingerprint**: what decides a trial's value (the rig, the scenarios, the controller
+  template, the search space, the objective with its constraints and aggregation, the
+  uncertainty) is stored in the Optuna study's user attributes when it is created. Opening
+  the study with an edited definition stops with one line naming what changed, instead of
+  mixing old and new trials (a reported best outside the new search range).
+* **Unique proposals**: each trial's sampler is seeded from the study seed and the
+  trial's number, which the storage hands out once. Processes sharing a storage (the
+  default SQLite file too) never replay the same random stream, and a fresh single-process
+  run is reproducible.
+* **Workers die with their parent**: a worker process asks the kernel for SIGTERM when its
+  parent dies (``prctl(PR_SET_PDEATHSIG)`` on Linux) and also watches its parent's pid
+  (other systems, and the race where the parent died before the request).
+
+Stdlib only at import; optuna is imported inside the functions that need it.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import os
+import signal
+import sys
+import threading
+import time
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+from fuzzyservo.errors import ConfigError
+
+if TYPE_CHECKING:
+    from fuzzyservo.rig import Rig
+    from fuzzyservo.tuning.spec import StudySpec
+
+FINGERPRINT_ATTR = "fingerprint"
+DEFINITION_ATTR = "definition"
+PARTS = ("rig", "scenarios", "template", "search space", "objective", "uncertainty")
+
+
+# --------------------------------------------------------------------------- fingerprint
+def _file_data(path: str) -> Any:
+    """A YAML file's content (comments and layout do not count); the bytes otherwise."""
+    from fuzzyservo.io._yaml import read_yaml
+
+    try:
+        return read_yaml(path)
+    except (ConfigError, ValueError, OSError):
+        try:
+            return hashlib.sha256(Path(path).read_bytes()).hexdigest()
+        except OSError:
+            return str(path)
+
+
+def _rig_data(rig: Rig) -> str:
+    """A rig built in code: the numbers that make it (its parameters, sensor, actuator, timing)."""
+    return repr((rig.params, rig.feedback, rig.actuator, rig.sample_time_s, rig.io_delay_s,
+                 sorted(rig.scenarios)))  # fmt: skip
+
+
+def definition(spec: StudySpec, rig: Rig | None = None) -> dict[str, Any]:
+    """The study's definition, part by part, as plain JSON-able data."""
+    objective = {
+        "weights": dict(spec.objective.weights),
+        "pareto": list(spec.objective.pareto),
+        "normalize": spec.objective.normalize,
+        "aggregate": spec.aggregate,
+        "constraints": [str(c) for c in spec.constraints],
+        "penalty": spec.penalty,
+    }
+    if spec.objective.normalize == "baseline":
+        objective["baseline"] = _digest(_file_data(spec.baseline_file))
+    uncertainty = getattr(spec, "uncertainty", None)
+    return {
+        "rig": _digest(_rig_data(rig) if rig is not None else _file_data(spec.rig_file)),
+        "scenarios": list(spec.scenarios),
+        "template": _digest(_file_data(spec.controller_file)),
+        "search space": {
+            p.path: [p.low, p.high, "log" if p.log else "linear", "int" if p.integer else "float"]
+            for p in spec.parameters
+        },
+        "objective": objective,
+        "uncertainty": uncertainty.describe_data() if uncertainty is not None else None,
+    }
+
+
+def _digest(data: Any) -> str:
+    text = json.dumps(data, sort_keys=True, default=str)
+    return hashlib.sha256(text.encode()).hexdigest()[:16]
+
+
+def fingerprint(spec: StudySpec, rig: Rig | None = None) -> dict[str, str]:
+    """A short hash per part of the definition (:data:`PARTS`)."""
+    return {part: _digest(value) for part, value in definition(spec, rig).items()}
+
+
+def _changes(old: dict[str, Any], new: dict[str, Any], stored: dict[str, str]) -> list[str]:
+    """What differs, part by part, with the changed keys of the search space and objective."""
+    out = []
+    current = {part: _digest(value) for part, value in new.items()}
+    for part in PARTS:
+        if stored.get(part) == current.get(part):
+            continue
+        before, after = old.get(part), new.get(part)
+        if isinstance(before, dict) and isinstance(after, dict):
+            keys = sorted(set(before) | set(after))
+            diffs = []
+            for k in keys:
+                if before.get(k) == after.get(k):
+                    continue
+                if k not in before:
+                    diffs.append(f"{k} added")
+                elif k not in after:
+                    diffs.append(f"{k} removed")
+                else:
+                    diffs.append(f"{k} {_short(before[k])} -> {_short(after[k])}")
+            out.append(f"{part} ({'; '.join(diffs)})" if diffs else part)
+        elif part == "scenarios" and before is not None:
+            out.append(f"scenarios ({_short(before)} -> {_short(after)})")
+        else:
+            out.append(part)
+    return out
+
+
+def _short(value: Any) -> str:
+    if isinstance(value, list) and len(value) == 4 and value[2] in ("log", "linear"):
+        return f"[{value[0]:g}, {value[1]:g}]" + (" log" if value[2] == "log" else "")
+    text = json.dumps(value, default=str)
+    return text if len(text) <= 40 else text[:37] + "..."
+
+
+def check_definition(study: Any, spec: StudySpec, url: str, rig: Rig | None = None) -> None:
+    """Store the definition's fingerprint in a study that has none; raise :class:`ConfigError`
+    (one line: what changed, how to start anew) when the stored one differs."""
+    current = fingerprint(spec, rig)
+    stored = study.user_attrs.get(FINGERPRINT_ATTR)
+    if stored is None:
+        study.set_user_attr(FINGERPRINT_ATTR, current)
+        study.set_user_attr(DEFINITION_ATTR, definition(spec, rig))
+        return
+    if stored == current:
+        return
+    changed = _changes(study.user_attrs.get(DEFINITION_ATTR, {}), definition(spec, rig), stored)
+    where = url
+    fix = "give another --out folder (a new study), or delete the old study's folder"
+    if url.startswith("sqlite:///"):
+        where = url[len("sqlite:///") :]
+        fix = f"give another --out folder (a new study), or delete {where}"
+    elif spec.storage or not url.startswith("sqlite"):
+        fix = "give the study another `name:` (a new study in the same storage)"
+    raise ConfigError(
+        f"study {spec.name!r} in {where} holds trials of another definition: changed "
+        f"{', '.join(changed) or 'definition'}; {fix}",
+        file=spec.path or None,
+    )
+
+
+# --------------------------------------------------------------------------- unique proposals
+def trial_seed(seed: int, number: int) -> int:
+    """The sampler seed of trial ``number`` in a study seeded ``seed``."""
+    return (seed + 7919 * number) % (2**32)
+
+
+def reseed(sampler: Any, seed: int, _depth: int = 0) -> None:
+    """Seed every random state of an Optuna sampler (and of the samplers it holds)."""
+    from optuna.samplers import BaseSampler
+    from optuna.samplers._lazy_random_state import LazyRandomState
+
+    for value in vars(sampler).values():
+        if isinstance(value, LazyRandomState):
+            value.rng.seed(seed)
+        elif isinstance(value, BaseSampler) and _depth < 3:
+            reseed(value, (seed + 1) % (2**32), _depth + 1)
+
+
+def per_trial_seeded(sampler: Any, seed: int | None) -> Any:
+    """``sampler`` reseeded before every trial from ``seed`` and the trial's number (no
+    reseeding when ``seed`` is None: then each process draws its own entropy)."""
+    if seed is None:
+        return sampler
+    from optuna.samplers import BaseSampler
+
+    class TrialSeeded(BaseSampler):
+        """Delegates to the wrapped sampler; seeds it per trial (see the module docstring)."""
+
+        def __init__(self) -> None:
+            self.inner = sampler
+
+        def infer_relative_search_space(self, study, trial):
+            return self.inner.infer_relative_search_space(study, trial)
+
+        def sample_relative(self, study, trial, search_space):
+            return self.inner.sample_relative(study, trial, search_space)
+
+        def sample_independent(self, study, trial, param_name, param_distribution):
+            return self.inner.sample_independent(study, trial, param_name, param_distribution)
+
+        def before_trial(self, study, trial) -> None:
+            reseed(self.inner, trial_seed(seed, trial.number))
+            self.inner.before_trial(study, trial)
+
+        def after_trial(self, study, trial, state, values) -> None:
+            self.inner.after_trial(study, trial, state, values)
+
+        def reseed_rng(self) -> None:
+            self.inner.reseed_rng()
+
+    return TrialSeeded()
+
+
+# --------------------------------------------------------------------------- orphans
+_PR_SET_PDEATHSIG = 1
+
+
+def die_with_parent(parent_pid: int, poll_s: float = 1.0) -> None:
+    """End this process when ``parent_pid`` ends: SIGTERM from the kernel on Linux, and a
+    daemon thread that checks the parent every ``poll_s`` everywhere. SIGTERM then stops
+    the process at once (its running trial is failed by the storage heartbeat)."""
+    signal.signal(signal.SIGTERM, _exit_now)
+    if sys.platform.startswith("linux"):
+        try:
+            import ctypes
+
+            libc = ctypes.CDLL(None, use_errno=True)
+            libc.prctl(_PR_SET_PDEATHSIG, int(signal.SIGTERM), 0, 0, 0)
+        except (OSError, AttributeError):
+            pass
+    if os.getppid() != parent_pid:  # died before we asked
+        _exit_now(signal.SIGTERM, None)
+
+    def watch() -> None:
+        while True:
+            time.sleep(poll_s)
+            if os.getppid() != parent_pid:
+                os.kill(os.getpid(), signal.SIGTERM)
+                return
+
+    threading.Thread(target=watch, name="parent-watch", daemon=True).start()
+
+
+def _exit_now(signum: int, frame: Any) -> None:
+    os._exit(128 + int(signum))

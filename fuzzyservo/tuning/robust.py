@@ -1,0 +1,150 @@
+"""A trial on a study's sampled plants (its ``uncertainty:``), scored as one Evaluation.
+
+Every sample runs every scenario (metrics aggregated over the scenarios by the study's
+``aggregate``); each sample gets its objective value; the trial's value is their worst,
+mean or CVaR (:func:`~fuzzyservo.tuning.uncertainty.aggregate`). A trial where any sample
+diverges, fails a step or hits an end stop is infeasible with that sample as its reason
+(and the remaining samples are skipped); a constraint counts broken when it is broken on
+any sample; ``gain_margin >= g`` and ``delay_margin_s >= d`` are checked on every sample
+with one run each (:func:`~fuzzyservo.analysis.robustness.holds`).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import time
+from collections.abc import Callable
+from typing import TYPE_CHECKING
+
+from fuzzyservo.analysis.robustness import SampleRun, holds, run_sample
+from fuzzyservo.controllers.base import Controller
+from fuzzyservo.metrics import METRIC_NAMES
+from fuzzyservo.rig import Rig
+from fuzzyservo.simulation import simulate
+from fuzzyservo.tuning.uncertainty import aggregate, sample_rig
+
+if TYPE_CHECKING:
+    from fuzzyservo.tuning.objective import Evaluation, Evaluator
+
+
+def sample_rigs(rig: Rig, spec) -> list[Rig]:
+    """The study's drawn plants (the same for every trial: common random numbers)."""
+    u = spec.uncertainty
+    return [sample_rig(rig, u.parameters, s) for s in u.draws]
+
+
+def _margin_bounds(spec) -> tuple[float | None, float | None]:
+    gain = delay = None
+    for c in spec.constraints:
+        if c.metric == "gain_margin" and c.op == ">=":
+            gain = c.bound
+        elif c.metric == "delay_margin_s" and c.op == ">=":
+            delay = c.bound
+    return gain, delay
+
+
+def evaluate_samples(
+    evaluator: Evaluator,
+    controller: Controller,
+    *,
+    keep_results: bool = False,
+    report: Callable[[int, float], bool] | None = None,
+) -> Evaluation:
+    """Score ``controller`` on every sample (see the module docstring). ``report(k, value)``
+    after sample ``k`` with the worst objective value so far (``worst`` aggregate, one
+    objective): True stops the trial (status ``pruned``): the value can only grow."""
+    from fuzzyservo.tuning.objective import Evaluation
+
+    spec = evaluator.spec
+    u = spec.uncertainty
+    gain, delay = _margin_bounds(spec)
+    t0 = time.perf_counter()
+    runs: list[SampleRun] = []
+    status, message = "ok", ""
+    for sample, rig in zip(u.draws, evaluator.sample_rigs, strict=True):
+        run = run_sample(
+            sample.index, rig, controller, spec.scenarios, sample.noise_seed,
+            aggregate=spec.aggregate,
+        )  # fmt: skip
+        runs.append(run)
+        if run.status != "ok":
+            status = run.status
+            message = f"{sample.describe(u.parameters)}: {run.message}"
+            break
+        if report is not None and u.aggregate == "worst" and spec.objective.n_values == 1:
+            so_far = max(evaluator._values(r.metrics)[0] for r in runs)
+            if math.isfinite(so_far) and report(sample.index, so_far):
+                status, message = "pruned", f"worst after {len(runs)} sample(s): {so_far:.4g}"
+                break
+        # the margin checks last: a pruned trial does not pay for them
+        if gain is not None or delay is not None:
+            where, seed = u.margin_scenario, sample.noise_seed
+            runs[-1] = dataclasses.replace(
+                run,
+                gain_holds=None if gain is None else holds(rig, controller, where, gain=gain,
+                                                           noise_seed=seed),
+                delay_holds=None if delay is None else holds(rig, controller, where,
+                                                             extra_delay_s=delay, noise_seed=seed),
+            )  # fmt: skip
+    results = {}
+    if keep_results:  # the nominal plant, for the report's plots
+        for scenario in spec.scenarios:
+            results[scenario] = simulate(evaluator.rig, controller, scenario)
+    sim_time = time.perf_counter() - t0
+    sims = sum(len(r.scenario_metrics) + (r.gain_holds is not None) + (r.delay_holds is not None)
+               for r in runs)  # fmt: skip
+    n_values = spec.objective.n_values
+    if status != "ok":
+        return Evaluation(
+            values=tuple(spec.penalty for _ in range(n_values)),
+            metrics={m: math.nan for m in METRIC_NAMES},
+            scenario_metrics=runs[-1].scenario_metrics,
+            violations=tuple(math.inf for _ in spec.constraints),
+            status=status,
+            message=message,
+            sim_time_s=sim_time,
+            results=results,
+            simulations=sims,
+        )
+    how, alpha = u.aggregate, u.alpha
+    metrics = {m: aggregate([r.metrics[m] for r in runs], how, alpha) for m in METRIC_NAMES}
+    per_sample = [evaluator._values(r.metrics) for r in runs]
+    values = tuple(aggregate([v[k] for v in per_sample], how, alpha) for k in range(n_values))
+    scenario_metrics = {
+        s: {m: aggregate([r.scenario_metrics[s][m] for r in runs], "worst") for m in METRIC_NAMES}
+        for s in spec.scenarios
+    }
+    violations = []
+    failing = []
+    for c in spec.constraints:
+        if c.metric == "gain_margin" and c.op == ">=":
+            bad = [r.index for r in runs if r.gain_holds is False]
+        elif c.metric == "delay_margin_s" and c.op == ">=":
+            bad = [r.index for r in runs if r.delay_holds is False]
+        else:
+            worst = max(c.violation(r.metrics.get(c.metric, math.nan)) for r in runs)
+            violations.append(worst)
+            continue
+        violations.append(float(len(bad)))  # > 0: broken on that many samples
+        if bad:
+            failing.append(f"{c} fails on sample(s) {', '.join(map(str, bad))}")
+        metrics[c.metric] = c.bound if not bad else math.nan
+    if not all(math.isfinite(v) for v in values):
+        bad = [m for m in spec.objective.metrics if not math.isfinite(metrics[m])]
+        status = "undefined"
+        message = f"metric(s) {', '.join(bad)} undefined on some sample (e.g. never settles)"
+        values = tuple(spec.penalty for _ in values)
+    elif failing:
+        message = "; ".join(failing)
+    return Evaluation(
+        values=values,
+        metrics=metrics,
+        scenario_metrics=scenario_metrics,
+        violations=tuple(violations),
+        status=status,
+        message=message,
+        sim_time_s=sim_time,
+        results=results,
+        simulations=sims,
+    )

@@ -1,0 +1,191 @@
+"""Robust studies (issue 13): the uncertainty section, common random numbers, aggregates
+over samples, infeasible samples with their reason, pruning, warm start."""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+
+import numpy as np
+import pytest
+import yaml
+from support import DATA
+
+from fuzzyservo.errors import ConfigError
+from fuzzyservo.io._yaml import read_yaml
+from fuzzyservo.io.controllers import load_controller
+from fuzzyservo.io.studies import load_study
+from fuzzyservo.tuning.integrity import fingerprint
+from fuzzyservo.tuning.runner import build_evaluator
+from fuzzyservo.tuning.uncertainty import Distribution, Uncertainty, aggregate
+from fuzzyservo.tuning.warmstart import params_from
+
+ROBUST = DATA / "studies" / "dinca_robust.yaml"
+
+
+def test_aggregates_over_samples():
+    v = [3.0, 1.0, 8.0, 2.0, 7.0, 4.0, 6.0, 5.0]
+    assert aggregate(v, "worst") == 8.0
+    assert aggregate(v, "mean") == 4.5
+    assert aggregate(v, "cvar", 0.25) == 7.5  # mean of the worst 2 of 8
+    assert aggregate(v, "cvar", 0.01) == 8.0  # at least one sample
+    assert aggregate(v, "cvar", 1.0) == 4.5
+    assert math.isnan(aggregate([1.0, math.nan], "mean"))
+
+
+def test_draws_are_common_random_numbers_within_their_ranges():
+    dists = (
+        Distribution("bulk_modulus", "uniform", 1.2e9, 1.8e9, "bulk_modulus_pa"),
+        Distribution("viscous_friction", "log-uniform", 2.0, 20.0, "viscous_friction"),
+        Distribution("bias_current", "normal", 2.83e-3, 0.05e-3, "bias_current_a"),
+    )
+    u = Uncertainty(parameters=dists, samples=500, seed=3)
+    again = Uncertainty(parameters=dists, samples=500, seed=3)
+    assert u.draws == again.draws  # every trial sees the same plants and noise
+    assert Uncertainty(parameters=dists, samples=500, seed=4).draws != u.draws
+    for d in dists:
+        x = np.array([s.values[d.target] for s in u.draws])
+        lo, hi = d.bounds
+        assert lo <= x.min() and x.max() <= hi
+    logs = np.log([s.values["viscous_friction"] for s in u.draws])
+    assert abs(np.median(logs) - math.log(math.sqrt(40.0))) < 0.2  # log-uniform, not uniform
+    seeds = {s.noise_seed for s in u.draws}
+    assert len(seeds) == 500  # a noise realisation per sample
+
+
+def test_shipped_robust_study_loads_with_its_units():
+    spec = load_study(ROBUST)
+    u = spec.uncertainty
+    assert u.samples == 8 and u.aggregate == "worst" and spec.workers == 2
+    by = {d.target: d for d in u.parameters}
+    assert by["bulk_modulus"].a == pytest.approx(1.2e9)  # 12000 bar in Pa
+    assert by["io_delay"].b == pytest.approx(0.023)
+    assert by["bias_current"].kind == "normal" and by["bias_current"].b == pytest.approx(5e-5)
+
+
+def _study_with(tmp_path, uncertainty):
+    data = yaml.safe_load(ROBUST.read_text())
+    data["rig"] = str(DATA / "rigs" / "dinca_cylinder.yaml")
+    data["controller"] = str(DATA / "studies" / "controllers" / "flc2_reshaped.yaml")
+    data["baseline"] = str(DATA / "studies" / "controllers" / "p_k10.yaml")
+    data["uncertainty"] = uncertainty
+    path = tmp_path / "robust.yaml"
+    path.write_text(yaml.safe_dump(data))
+    return path
+
+
+@pytest.mark.parametrize(
+    ("uncertainty", "key", "text"),
+    [
+        (
+            {"parameters": {"bulk_modulu": {"uniform": [1, 2]}}},
+            "bulk_modulu",
+            "unknown rig parameter",
+        ),
+        (
+            {"parameters": {"bulk_modulus": {"uniform": [2, 1], "unit": "bar"}}},
+            "uniform",
+            "low < high",
+        ),
+        (
+            {"parameters": {"bulk_modulus": {"uniform": [1, 2], "normal": [1, 1]}}},
+            "bulk_modulus",
+            "exactly one of",
+        ),
+        (
+            {"parameters": {"piston_mass": {"normal": [1, 1], "unit": "kg"}}},
+            "parameters",
+            "no valid rig",
+        ),
+        ({"aggregate": "median"}, "aggregate", "choose one of"),
+        ({"samples": 0}, "samples", ">= 1"),
+        ({"parameters": {"viscous_friction": {"interval": [1, 2], "unit": "bar"}}}, "unit", "bar"),
+    ],
+)
+def test_bad_uncertainty_sections_name_the_key(tmp_path, uncertainty, key, text):
+    with pytest.raises(ConfigError) as info:
+        load_study(_study_with(tmp_path, uncertainty))
+    message = str(info.value)
+    assert key in message and text in message, message
+    assert "\n" not in message
+
+
+def _small(tmp_path, samples=2):
+    path = _study_with(
+        tmp_path,
+        {
+            "samples": samples,
+            "seed": 5,
+            "margin_scenario": "steps",
+            "parameters": {
+                "bulk_modulus": {"uniform": [12000, 18000], "unit": "bar"},
+                "io_delay": {"interval": [18, 22], "unit": "ms"},
+            },
+        },
+    )
+    return load_study(path)
+
+
+def test_a_failing_sample_makes_the_trial_infeasible_with_its_reason(tmp_path):
+    evaluator = build_evaluator(_small(tmp_path))
+    ev = evaluator.evaluate(load_controller(DATA / "studies" / "controllers" / "open_loop.yaml"))
+    assert not ev.feasible
+    assert ev.status in ("end_stop", "diverged", "undefined"), ev
+    assert ev.message.startswith("sample 0 (bulk_modulus="), ev.message
+    assert all(v == 1e6 for v in ev.values)
+
+
+def test_robust_value_is_the_worst_sample_and_margin_checks_count(tmp_path):
+    spec = _small(tmp_path)
+    evaluator = build_evaluator(spec)
+    flc2 = load_controller(DATA / "studies" / "controllers" / "flc2_reshaped.yaml")
+    ev = evaluator.evaluate(flc2)
+    assert ev.status == "ok" and ev.simulations == 2 * (2 + 1)  # 2 scenarios + gain check
+    nominal = build_evaluator(dataclasses.replace(spec, uncertainty=None)).evaluate(flc2)
+    assert ev.values[0] >= 0.5 * nominal.values[0]
+    # pruning: told to stop after the first sample
+    pruned = evaluator.evaluate(flc2, report=lambda step, value: True)
+    assert pruned.status == "pruned" and pruned.simulations == 2  # no margin check paid
+
+
+def test_fingerprint_covers_the_uncertainty(tmp_path):
+    spec = _small(tmp_path)
+    other = dataclasses.replace(
+        spec, uncertainty=dataclasses.replace(spec.uncertainty, samples=3, draws=())
+    )
+    a, b = fingerprint(spec), fingerprint(other)
+    assert a["uncertainty"] != b["uncertainty"]
+    assert {k for k in a if a[k] != b[k]} == {"uncertainty"}
+
+
+def test_warm_start_reads_the_searched_numbers_of_a_controller():
+    spec = load_study(ROBUST)
+    file = DATA / "studies" / "controllers" / "flc2_reshaped.yaml"
+    params = params_from(spec, read_yaml(file), str(file))
+    assert set(params) == {p.path for p in spec.parameters} - {"gains.output"}  # left default
+    for p in spec.parameters:
+        assert p.path not in params or p.low <= params[p.path] <= p.high
+    with pytest.raises(ConfigError, match="has none of the searched numbers"):
+        params_from(spec, {"kind": "p", "gain": 10}, "p.yaml")
+
+
+def test_robustness_command_table_json_and_bad_input(tmp_path, capsys):
+    import json
+
+    from fuzzyservo.cli import main
+
+    out, report = tmp_path / "mc", tmp_path / "mc.json"
+    code = main(
+        ["robustness", "dinca_cylinder", "flc_dinca_robust", "--samples", "2",
+         "--scenario", "steps", "--out", str(out), "--json", str(report)]
+    )  # fmt: skip
+    assert code == 0
+    text = capsys.readouterr().out
+    assert "flc_dinca_robust" in text and "failures" in text
+    rows = json.loads(report.read_text())["controllers"]
+    assert rows[0]["samples"] == 2 and rows[0]["gain_margin_checked"] == 2.0
+    assert (out / "dinca_cylinder_robustness.png").is_file()
+    code = main(["robustness", "dinca_cylinder", "p_k10", "--uncertainty", "dinca_flc"])
+    assert code == 2
+    err = capsys.readouterr().err.strip()
+    assert "uncertainty" in err and "\n" not in err

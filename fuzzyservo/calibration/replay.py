@@ -64,14 +64,17 @@ class Replay:
     def measured(self, channel: str) -> np.ndarray:
         return self.data.signals[channel]
 
-    def simulate(self, rig: Rig) -> SimResult:
-        """The replayed run on ``rig``: the data's input, sample time and initial state."""
+    def simulate(self, rig: Rig, controller: Controller | None = None) -> SimResult:
+        """The replayed run on ``rig``: the data's input, sample time and initial state;
+        through ``controller`` (e.g. with fitted gains) instead of the replay's own."""
         replay_rig = dataclasses.replace(rig, sample_time_s=self.sample_time_s, initial={})
-        return simulate(replay_rig, self.controller, self.scenario)
+        return simulate(replay_rig, controller or self.controller, self.scenario)
 
-    def run(self, rig: Rig) -> tuple[dict[str, np.ndarray], str]:
+    def run(
+        self, rig: Rig, controller: Controller | None = None
+    ) -> tuple[dict[str, np.ndarray], str]:
         """Model channels on the data grid (NaN where the run failed) and the run's status."""
-        result = self.simulate(rig)
+        result = self.simulate(rig, controller)
         t = self.t
         out = {}
         for channel, signal in self.channels.items():

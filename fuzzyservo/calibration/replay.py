@@ -7,6 +7,11 @@ command ``u``) is applied through the actuator, held between samples at the data
 sample period. The initial state takes every state the data shows at its first sample
 (position, pressures, speed); the rest comes from the rig file.
 
+A recorded ``load`` (a force on a cylinder, a torque on a motor, in the plant's load
+unit) is applied as the scenario's load in both modes. A recorded ``force`` is compared
+with the loads' force on the actuator (``f_loads``, what a load cell between rod and
+load reads); ``f_hyd`` with the hydraulic force p_A·A_A − p_B·A_B.
+
 The record is split in time: the first 70 % trains (parameters are fitted on it), the
 last 30 % is held out (fit % is reported on it), as MATLAB's System Identification
 Toolbox users split estimation and validation data.
@@ -31,7 +36,8 @@ from fuzzyservo.simulation import simulate
 from fuzzyservo.simulation.result import SimResult
 
 VALIDATION_FRACTION = 0.3
-INPUT_SIGNALS = ("t", "ref", "u", "i")  # what drives a replay; never a compared channel
+INPUT_SIGNALS = ("t", "ref", "u", "i", "load")  # what drives a replay; never a compared channel
+ALIASES = {"force": "f_loads"}  # data signal -> the model signal it is compared with
 DIVERGED_COST = 1e12  # cost of a run that failed (noise-variance units)
 
 
@@ -165,10 +171,14 @@ def make_replay(rig: Rig, data: Measured, controller: Controller | None = None) 
         mode = f"open loop from the recorded {drive}"
     controller = controller.with_limits(*rig.actuator.command_limits)
     n = round((t[-1] + data.sample_period_s) / sample_time)
+    extra = {}
+    if "load" in data.signals:
+        extra["load"] = Sampled(times_s=t, values=_load(rig, data))
     scenario = Scenario(
         name="replay",
         duration_s=n * sample_time,
         reference=Sampled(times_s=t, values=np.asarray(reference, dtype=float)),
+        **extra,
         initial=_initial(rig, data, channels),
         description=f"replay of {data.source}",
         noise=False,  # the data carry the rig's own noise; the model replays noise-free
@@ -193,7 +203,7 @@ def _channels(rig: Rig, data: Measured) -> dict[str, str]:
     for name, unit in data.units.items():
         if name in INPUT_SIGNALS:
             continue
-        signal = rig.output if name == "y" else name
+        signal = rig.output if name == "y" else ALIASES.get(name, name)
         if signal not in plant.signals:
             continue
         if unit != plant.signal_units[signal]:
@@ -210,14 +220,27 @@ def _reference_volts(rig: Rig, data: Measured) -> np.ndarray:
     fb = rig.feedback
     ref = np.asarray(data.signals["ref"], dtype=float)
     unit = data.units["ref"]
-    if unit == "V":
+    if unit == "V" or unit == fb.unit:  # as the controller reads it (V, or e.g. a force in 1)
         return ref
     if unit == rig.plant.signal_units[fb.signal]:
         return np.asarray(fb.read(ref))
     raise DataError(
-        f"{data.source}: column 'ref' is in {unit}; give it in V (the feedback reading) or in "
-        f"{rig.plant.signal_units[fb.signal]} (the sensed {fb.signal})"
+        f"{data.source}: column 'ref' is in {unit}; give it in {fb.unit} (the feedback reading) "
+        f"or in {rig.plant.signal_units[fb.signal]} (the sensed {fb.signal})"
     )
+
+
+def _load(rig: Rig, data: Measured) -> np.ndarray:
+    """The recorded load force (or torque) in the plant's load unit, SI."""
+    name, si_unit = rig.plant.load
+    unit = data.units["load"]
+    if unit != si_unit:
+        raise DataError(
+            f"{data.source}: column 'load' is in {unit} but the plant's load ({name}) is in "
+            f"{si_unit}; give it in {si_unit} (measured: columns can scale it, e.g. "
+            "{as: load_N, from: tf})"
+        )
+    return np.asarray(data.signals["load"], dtype=float)
 
 
 def _initial(rig: Rig, data: Measured, channels: dict[str, str]) -> dict[str, float]:

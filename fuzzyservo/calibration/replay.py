@@ -203,7 +203,10 @@ def _channels(rig: Rig, data: Measured) -> dict[str, str]:
     for name, unit in data.units.items():
         if name in INPUT_SIGNALS:
             continue
-        signal = rig.output if name == "y" else ALIASES.get(name, name)
+        signal = rig.output if name == "y" else name
+        alias = ALIASES.get(name)
+        if alias in plant.signals and unit == plant.signal_units[alias]:
+            signal = alias  # a normalised force (unit 1) is not compared with one in N
         if signal not in plant.signals:
             continue
         if unit != plant.signal_units[signal]:

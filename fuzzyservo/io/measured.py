@@ -211,7 +211,8 @@ def _parse_name(file: str, kind: str, name: str, spec: str) -> _Column:
         if "_" not in spec.strip("_"):
             raise DataError(
                 f"{where}: the name says no unit; name it <signal>_<unit> (e.g. y_cm, u_V) "
-                f"or map it {_MAP} (e.g. {name}: y_cm) with its real signal and unit"
+                f"or map it {_MAP} (e.g. {name}: y_cm) with its real signal and unit, "
+                f"or leave it out with measured: drop: [{name}]"
             )
         head, unit = spec.split("_", 1)
         if not _SIGNAL.match(head):
@@ -504,7 +505,8 @@ def _dropped(file: str, header: list[str], drop: Iterable[str]) -> set[int]:
         if name not in header:
             raise DataError(
                 f"{file}: measured: drop names column {name!r}, which the file does not have; "
-                f"use one of: {', '.join(header)}"
+                f"use one of: {', '.join(header)} (if lines stand above the header, skip them "
+                "with measured: skip_lines)"
             )
         out.add(header.index(name))
     if len(out) == len(header):

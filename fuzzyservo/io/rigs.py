@@ -364,7 +364,8 @@ def _column_scaling(node: Node) -> tuple[str, ColumnScaling]:
     """One scaled column: ``{as: y_mm, from: V, scale: {value: 20, unit: mm/V},
     offset: {value: -5, unit: mm}, tare: 50}`` -> (``y_mm``, scaling in mm per raw unit).
 
-    ``from`` is the unit of the raw numbers (default ``1``: plain numbers). ``scale``
+    ``from`` is the unit of the raw numbers (default: plain numbers with a ``scale``,
+    else the ``as`` unit). ``scale``
     (default 1 in the ``as`` unit per ``from`` unit) may carry a unit, which must be the
     ``as`` unit over the ``from`` unit in dimension; ``offset`` (default 0) is in the
     ``as`` unit unless it says its own; ``tare`` subtracts the mean of the first
@@ -382,7 +383,8 @@ def _column_scaling(node: Node) -> tuple[str, ColumnScaling]:
             key="as",
         )
     target = UNIT_SUFFIXES[suffix][0]  # unit expression of the mapped column
-    raw_unit = node.str("from", default="1")
+    # without `from` and `scale` the raw numbers are already in the `as` unit (a tare only)
+    raw_unit = node.str("from", default="1" if node.has("scale") else target)
     raw = node.unit(raw_unit, key="from")
     target_unit = parse_unit(target)
     if not node.has("scale"):

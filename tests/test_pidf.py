@@ -97,7 +97,6 @@ def test_controller_file_reads_pidf_with_unknown_gains():
         ({"kind": "PIDF", "kp": 1, "form": "ideal"}, "form", "choose one of"),
         ({"kind": "PIDF", "kp": {"fit": [3, 1]}}, "kp.fit", "lower < upper"),
         ({"kind": "PIDF", "kp": {"value": 9, "fit": [1, 3]}}, "kp.fit", "outside its fit bounds"),
-        ({"kind": "PIDF", "kp": {"value": 2}}, "kp", "needs `fit"),
         ({"kind": "PIDF", "kp": 1, "filter_time": -0.1}, "filter_time", ">= 0"),
         ({"kind": "PIDF", "ki": 0}, "kp", "all zero"),
         ({"kind": "PI", "kp": 1, "ki": 1, "kd": 1}, "kd", "kind PIDF"),

@@ -109,7 +109,7 @@ def _gain(
     field name and bounds go to ``unknowns``)."""
     field = "filter_time_s" if key == "filter_time" else key
     raw = root.data.get(key)
-    if not isinstance(raw, dict):
+    if not (isinstance(raw, dict) and "fit" in raw):
         value = root.number(key, default=default)
         if field == "filter_time_s" and value < 0:
             root.fail(
@@ -118,8 +118,6 @@ def _gain(
         return value
     node = Node(raw, root.file, root.path(key))
     node.only(("value", "fit", "source", "note"))
-    if not node.has("fit"):
-        node.fail("a gain given as a mapping needs `fit: [lower, upper]`; or give a plain number")
     bounds = node.numbers("fit")
     if len(bounds) != 2 or not bounds[0] < bounds[1]:
         node.fail(

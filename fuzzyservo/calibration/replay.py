@@ -7,7 +7,8 @@ command ``u``) is applied through the actuator, held between samples at the data
 sample period. The initial state takes every state the data shows at its first sample
 (position, pressures, speed); the rest comes from the rig file.
 
-A recorded ``load`` (a force on a cylinder, a torque on a motor, in the plant's load
+With controller gains declared unknown, a recorded command ``u`` [V] is compared with
+the controller's output too. A recorded ``load`` (a force on a cylinder, a torque on a motor, in the plant's load
 unit) is applied as the scenario's load in both modes. A recorded ``force`` is compared
 with the loads' force on the actuator (``f_loads``, what a load cell between rod and
 load reads); ``f_hyd`` with the hydraulic force p_A·A_A − p_B·A_B.
@@ -84,7 +85,7 @@ class Replay:
         t = self.t
         out = {}
         for channel, signal in self.channels.items():
-            values = result.signals[signal]
+            values = result.signal(signal)
             if np.isfinite(values).all():
                 out[channel] = np.interp(t, result.t, values)
             else:
@@ -170,6 +171,10 @@ def make_replay(rig: Rig, data: Measured, controller: Controller | None = None) 
         sample_time = data.sample_period_s
         mode = f"open loop from the recorded {drive}"
     controller = controller.with_limits(*rig.actuator.command_limits)
+    if drive == "ref" and controller.gain_bounds() and data.units.get("u") == "V":
+        # the logged command separates the controller's unknown gains from the plant's
+        # own gain, which the output alone sees only as their product
+        channels = {**channels, "u": "command"}
     n = round((t[-1] + data.sample_period_s) / sample_time)
     extra = {}
     if "load" in data.signals:

@@ -133,3 +133,27 @@ def test_closed_loop_replay_recovers_unknown_pid_gains():
     assert fitted.ki == pytest.approx(2.0, rel=0.05)
     assert fitted.kd == pytest.approx(0.01, rel=0.05)
     assert outcome.cost_nominal < 1.2  # the noise floor: nothing left to explain
+
+
+def test_gains_fitted_on_a_logged_command():
+    """A log of r, y and the command u of a PI-D: fit_from_log, which steps the same
+    controller on the log, recovers the gains and explains u on the held-out part."""
+    from fuzzyservo.calibration.gains import fit_from_log
+
+    rng = np.random.default_rng(2)
+    r = np.repeat(rng.uniform(-1, 1, 20), 25)
+    y = np.convolve(r, np.full(10, 0.1), mode="same") + 0.01 * rng.normal(size=r.size)
+    true = PIDF(kp=2.0, ki=4.0, kd=0.05, filter_time_s=0.02, form="PI-D")
+    u = _run(true, r, y)
+    start = PIDF(
+        kp=1.0,
+        ki=1.0,
+        kd=0.0,
+        filter_time_s=0.02,
+        form="PI-D",
+        unknowns=(("kp", 0.1, 10.0), ("ki", 0.0, 10.0), ("kd", 0.0, 0.2)),
+    )
+    fitted, gains, fit = fit_from_log(start, r, y, u, TS, split=350)
+    assert (fitted.kp, fitted.ki, fitted.kd) == pytest.approx((2.0, 4.0, 0.05), rel=1e-4)
+    assert fitted.unknowns == () and set(gains) == {"kp", "ki", "kd"}
+    assert fit > 99.9

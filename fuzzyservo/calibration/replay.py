@@ -7,8 +7,9 @@ command ``u``) is applied through the actuator, held between samples at the data
 sample period. The initial state takes every state the data shows at its first sample
 (position, pressures, speed); the rest comes from the rig file.
 
-With controller gains declared unknown, a recorded command ``u`` [V] is compared with
-the controller's output too. A recorded ``load`` (a force on a cylinder, a torque on a motor, in the plant's load
+With controller gains declared unknown and the controller's output ``u`` [V] in the
+record, the gains are fitted on it first (calibration/gains.py) and then held; a ``feedback`` column (in the feedback sensor's unit) says what the
+controller read, else the recorded ``y`` through the feedback sensor. A recorded ``load`` (a force on a cylinder, a torque on a motor, in the plant's load
 unit) is applied as the scenario's load in both modes. A recorded ``force`` is compared
 with the loads' force on the actuator (``f_loads``, what a load cell between rod and
 load reads); ``f_hyd`` with the hydraulic force p_A·A_A − p_B·A_B.
@@ -21,11 +22,12 @@ Toolbox users split estimation and validation data.
 from __future__ import annotations
 
 import dataclasses
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from functools import cached_property
 
 import numpy as np
 
+from fuzzyservo.calibration.gains import fit_from_log
 from fuzzyservo.calibration.residuals import noise_floor
 from fuzzyservo.controllers.base import Controller
 from fuzzyservo.controllers.classical import OpenLoop
@@ -58,6 +60,9 @@ class Replay:
     drive: str
     mode: str
     split: int
+    # gains fitted on the logged command u: gain -> (value, lower, upper); its fit %
+    logged_gains: dict[str, tuple[float, float, float]] = field(default_factory=dict)
+    logged_fit: float = float("nan")
 
     @property
     def t(self) -> np.ndarray:
@@ -171,10 +176,21 @@ def make_replay(rig: Rig, data: Measured, controller: Controller | None = None) 
         sample_time = data.sample_period_s
         mode = f"open loop from the recorded {drive}"
     controller = controller.with_limits(*rig.actuator.command_limits)
-    if drive == "ref" and controller.gain_bounds() and data.units.get("u") == "V":
-        # the logged command separates the controller's unknown gains from the plant's
-        # own gain, which the output alone sees only as their product
-        channels = {**channels, "u": "command"}
+    split = round((1.0 - VALIDATION_FRACTION) * t.size)
+    logged: dict[str, tuple[float, float, float]] = {}
+    logged_fit = float("nan")
+    if drive == "ref" and controller.gain_bounds() and _logs_controller(rig, data, sample_time):
+        # the logged command pins the unknown gains; the output alone sees only their
+        # product with the plant's flow gain
+        controller, logged, logged_fit = fit_from_log(
+            controller,
+            np.asarray(reference, dtype=float),
+            _reading(rig, data),
+            np.asarray(data.signals["u"], dtype=float),
+            sample_time,
+            split,
+        )
+        mode += f" (gains fitted on the logged u: {logged_fit:.1f} % held-out fit)"
     n = round((t[-1] + data.sample_period_s) / sample_time)
     extra = {}
     if "load" in data.signals:
@@ -188,7 +204,6 @@ def make_replay(rig: Rig, data: Measured, controller: Controller | None = None) 
         description=f"replay of {data.source}",
         noise=False,  # the data carry the rig's own noise; the model replays noise-free
     )
-    split = round((1.0 - VALIDATION_FRACTION) * t.size)
     return Replay(
         data=data,
         controller=controller,
@@ -198,7 +213,31 @@ def make_replay(rig: Rig, data: Measured, controller: Controller | None = None) 
         drive=drive,
         mode=mode,
         split=split,
+        logged_gains=logged,
+        logged_fit=logged_fit,
     )
+
+
+def _logs_controller(rig: Rig, data: Measured, sample_time_s: float) -> bool:
+    """The record holds the controller's output ``u`` [V] and the measurement it read
+    (a ``feedback`` column in the feedback unit, or the sensed output ``y``), one sample
+    per controller period."""
+    reads = data.units.get("feedback") == rig.feedback.unit or (
+        "y" in data.signals and rig.feedback.signal == rig.output
+    )
+    return (
+        data.units.get("u") == "V"
+        and reads
+        and abs(data.sample_period_s - sample_time_s) <= 1e-3 * sample_time_s
+    )
+
+
+def _reading(rig: Rig, data: Measured) -> np.ndarray:
+    """What the controller read: the recorded ``feedback`` (e.g. a load cell's normalised
+    force), else the recorded output through the feedback sensor."""
+    if data.units.get("feedback") == rig.feedback.unit:
+        return np.asarray(data.signals["feedback"], dtype=float)
+    return np.asarray(rig.feedback.read(data.signals["y"]), dtype=float)
 
 
 def _channels(rig: Rig, data: Measured) -> dict[str, str]:

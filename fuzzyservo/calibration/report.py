@@ -96,6 +96,9 @@ def summary_data(outcome: Outcome, replay: Replay) -> dict[str, Any]:
         data["fitted_gains"] = {
             k: float(getattr(outcome.controller, k)) for k in bounds
         }  # the controller's gains declared unknown, fitted in the closed-loop replay
+    if replay.logged_gains:
+        data["gains_from_log"] = {k: v[0] for k, v in replay.logged_gains.items()}
+        data["gains_from_log_fit_u_pct"] = replay.logged_fit
     data["decision"] = "none" if not outcome.added else ", ".join(c.name for c in outcome.added)
     data["rounds"] = [
         {
@@ -292,6 +295,18 @@ def _report(
         for f, v in summary["fitted_parameters"].items():
             lo, hi = outcome.declared.unknowns[f]
             lines.append(f"| {f} | [{lo:.4g}, {hi:.4g}] | {v:.6g} |")
+        lines.append("")
+    if replay.logged_gains:
+        lines += [
+            "## Controller gains fitted on the logged command u",
+            "",
+            f"Held-out fit of u: {replay.logged_fit:.1f} %.",
+            "",
+            "| gain | bounds | value |",
+            "|---|---|---|",
+        ]
+        for k, (v, lo, hi) in replay.logged_gains.items():
+            lines.append(f"| {k} | [{lo:.4g}, {hi:.4g}] | {v:.6g} |")
         lines.append("")
     if "fitted_gains" in summary:
         gain_bounds = outcome.controller.gain_bounds()

@@ -35,6 +35,7 @@ _LAZY = {
     "Controller": ("fuzzyservo.controllers.base", "Controller"),
     "P": ("fuzzyservo.controllers.classical", "P"),
     "PI": ("fuzzyservo.controllers.classical", "PI"),
+    "PIDF": ("fuzzyservo.controllers.classical", "PIDF"),
     "FuzzyController": ("fuzzyservo.controllers.fuzzy", "FuzzyController"),
     "StudySpec": ("fuzzyservo.tuning.spec", "StudySpec"),
     "ParamSpec": ("fuzzyservo.tuning.spec", "ParamSpec"),

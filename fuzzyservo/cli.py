@@ -699,7 +699,7 @@ def cmd_calibrate(args: argparse.Namespace) -> int:
     from fuzzyservo.calibration.search import calibrate
     from fuzzyservo.components.effects import LIBRARY
     from fuzzyservo.io.controllers import load_controller
-    from fuzzyservo.io.measured import read_measured
+    from fuzzyservo.io.measured import read_rig_data
     from fuzzyservo.io.rigs import load_rig
 
     out = _out_dir(args.out)
@@ -710,13 +710,7 @@ def cmd_calibrate(args: argparse.Namespace) -> int:
     controller = None
     if args.controller:
         controller = load_controller(resolve(args.controller, "studies/controllers", "controller"))
-    fmt = rig.measured
-    data = read_measured(
-        args.data,
-        mapping=fmt.columns if fmt and fmt.columns else None,
-        sample_period_s=fmt.sample_period_s if fmt else None,
-        resample=bool(fmt and fmt.resample) or args.resample,
-    )
+    data = read_rig_data(args.data, rig.measured, resample=args.resample)
     effects = None
     if args.effects:
         effects = [e.strip() for e in args.effects.split(",") if e.strip()]

@@ -7,7 +7,7 @@ from __future__ import annotations
 
 import dataclasses
 from dataclasses import dataclass, field
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -15,6 +15,9 @@ from fuzzyservo.components.effects import LIBRARY, Scales, fixed_defaults
 from fuzzyservo.params import check
 from fuzzyservo.plants import PlantModel
 from fuzzyservo.signals import Constant, Signal
+
+if TYPE_CHECKING:
+    from fuzzyservo.io.measured import ColumnScaling
 
 
 @dataclass(frozen=True)
@@ -144,13 +147,20 @@ class MeasuredFormat:
     """How a rig's measured-data files are read (the rig file's ``measured:`` section).
 
     ``columns``: plain column name -> ``<signal>_<unit>`` (see :mod:`fuzzyservo.io.measured`);
+    ``scaling``: plain column name -> how its raw numbers become the mapped unit;
     ``sample_period_s``: rebuild time as n·period (None: use the time column);
-    ``resample``: average repeated stamps onto a uniform grid.
+    ``resample``: average repeated stamps onto a uniform grid; ``skip_lines``: lines
+    above the header (a DAQ's preamble); ``names``: the column names of a file without
+    a header line; ``drop``: columns to leave out (dates, comments).
     """
 
     columns: dict[str, str] = field(default_factory=dict)
     sample_period_s: float | None = None
     resample: bool = False
+    scaling: dict[str, ColumnScaling] = field(default_factory=dict)
+    skip_lines: int = 0
+    names: tuple[str, ...] = ()
+    drop: tuple[str, ...] = ()
 
 
 @dataclass(frozen=True)

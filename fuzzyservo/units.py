@@ -94,6 +94,10 @@ _NAMED: dict[str, Unit] = {
     "N": _N,
     "daN": _N.__mul__(_u(10.0)),
     "kN": _N.__mul__(_u(1e3)),
+    # gravitational force units of load cells and test machines (standard g = 9.80665 m/s²)
+    "kgf": _N.__mul__(_u(9.80665)),
+    "tf": _N.__mul__(_u(9806.65)),  # tonne-force
+    "lbf": _N.__mul__(_u(4.4482216152605)),
     "Pa": _PA,
     "kPa": _PA.__mul__(_u(1e3)),
     "MPa": _PA.__mul__(_u(1e6)),

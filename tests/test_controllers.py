@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from fuzzyservo.controllers.classical import PI, OpenLoop, P
+from fuzzyservo.controllers.classical import PI, PIDF, OpenLoop, P
 from fuzzyservo.controllers.fuzzy import (
     FuzzyController,
     FuzzySystem,
@@ -35,6 +35,8 @@ ALL_CONTROLLERS = [
     P(gain=10.0, u_min=-10, u_max=10, name="p"),
     PI(kp=5.0, ki=20.0, u_min=-3, u_max=3, name="pi"),
     OpenLoop(gain=0.01, u_min=-1, u_max=1, name="ol"),
+    PIDF(kp=5.0, ki=20.0, kd=0.05, filter_time_s=0.02, u_min=-3, u_max=3, name="pidf"),
+    PIDF(kp=5.0, ki=20.0, kd=0.05, filter_time_s=0.02, form="I-PD", name="i_pd"),
     _fuzzy("p"),
     _fuzzy("pd"),
     _fuzzy("pi"),

@@ -32,15 +32,9 @@ def calibrate(
     from fuzzyservo.calibration.search import calibrate as search
 
     if not hasattr(data, "signals"):
-        from fuzzyservo.io.measured import read_measured
+        from fuzzyservo.io.measured import read_rig_data
 
-        fmt = rig.measured
-        data = read_measured(
-            data,
-            mapping=fmt.columns if fmt and fmt.columns else None,
-            sample_period_s=fmt.sample_period_s if fmt else None,
-            resample=bool(fmt and fmt.resample),
-        )
+        data = read_rig_data(data, rig.measured)
     replay = make_replay(rig, data, controller)
     return search(replay, rig, effects=effects, max_effects=max_effects)
 

@@ -7,6 +7,13 @@ command ``u``) is applied through the actuator, held between samples at the data
 sample period. The initial state takes every state the data shows at its first sample
 (position, pressures, speed); the rest comes from the rig file.
 
+With controller gains declared unknown and the controller's output ``u`` [V] in the
+record, the gains are fitted on it first (calibration/gains.py) and then held; a ``feedback`` column (in the feedback sensor's unit) says what the
+controller read, else the recorded ``y`` through the feedback sensor. A recorded ``load`` (a force on a cylinder, a torque on a motor, in the plant's load
+unit) is applied as the scenario's load in both modes. A recorded ``force`` is compared
+with the loads' force on the actuator (``f_loads``, what a load cell between rod and
+load reads); ``f_hyd`` with the hydraulic force p_A·A_A − p_B·A_B.
+
 The record is split in time: the first 70 % trains (parameters are fitted on it), the
 last 30 % is held out (fit % is reported on it), as MATLAB's System Identification
 Toolbox users split estimation and validation data.
@@ -15,11 +22,12 @@ Toolbox users split estimation and validation data.
 from __future__ import annotations
 
 import dataclasses
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from functools import cached_property
 
 import numpy as np
 
+from fuzzyservo.calibration.gains import fit_from_log
 from fuzzyservo.calibration.residuals import noise_floor
 from fuzzyservo.controllers.base import Controller
 from fuzzyservo.controllers.classical import OpenLoop
@@ -31,7 +39,8 @@ from fuzzyservo.simulation import simulate
 from fuzzyservo.simulation.result import SimResult
 
 VALIDATION_FRACTION = 0.3
-INPUT_SIGNALS = ("t", "ref", "u", "i")  # what drives a replay; never a compared channel
+INPUT_SIGNALS = ("t", "ref", "u", "i", "load")  # what drives a replay; never a compared channel
+ALIASES = {"force": "f_loads"}  # data signal -> the model signal it is compared with
 DIVERGED_COST = 1e12  # cost of a run that failed (noise-variance units)
 
 
@@ -51,6 +60,9 @@ class Replay:
     drive: str
     mode: str
     split: int
+    # gains fitted on the logged command u: gain -> (value, lower, upper); its fit %
+    logged_gains: dict[str, tuple[float, float, float]] = field(default_factory=dict)
+    logged_fit: float = float("nan")
 
     @property
     def t(self) -> np.ndarray:
@@ -64,18 +76,21 @@ class Replay:
     def measured(self, channel: str) -> np.ndarray:
         return self.data.signals[channel]
 
-    def simulate(self, rig: Rig) -> SimResult:
-        """The replayed run on ``rig``: the data's input, sample time and initial state."""
+    def simulate(self, rig: Rig, controller: Controller | None = None) -> SimResult:
+        """The replayed run on ``rig``: the data's input, sample time and initial state;
+        through ``controller`` (e.g. with fitted gains) instead of the replay's own."""
         replay_rig = dataclasses.replace(rig, sample_time_s=self.sample_time_s, initial={})
-        return simulate(replay_rig, self.controller, self.scenario)
+        return simulate(replay_rig, controller or self.controller, self.scenario)
 
-    def run(self, rig: Rig) -> tuple[dict[str, np.ndarray], str]:
+    def run(
+        self, rig: Rig, controller: Controller | None = None
+    ) -> tuple[dict[str, np.ndarray], str]:
         """Model channels on the data grid (NaN where the run failed) and the run's status."""
-        result = self.simulate(rig)
+        result = self.simulate(rig, controller)
         t = self.t
         out = {}
         for channel, signal in self.channels.items():
-            values = result.signals[signal]
+            values = result.signal(signal)
             if np.isfinite(values).all():
                 out[channel] = np.interp(t, result.t, values)
             else:
@@ -161,16 +176,34 @@ def make_replay(rig: Rig, data: Measured, controller: Controller | None = None) 
         sample_time = data.sample_period_s
         mode = f"open loop from the recorded {drive}"
     controller = controller.with_limits(*rig.actuator.command_limits)
+    split = round((1.0 - VALIDATION_FRACTION) * t.size)
+    logged: dict[str, tuple[float, float, float]] = {}
+    logged_fit = float("nan")
+    if drive == "ref" and controller.gain_bounds() and _logs_controller(rig, data, sample_time):
+        # the logged command pins the unknown gains; the output alone sees only their
+        # product with the plant's flow gain
+        controller, logged, logged_fit = fit_from_log(
+            controller,
+            np.asarray(reference, dtype=float),
+            _reading(rig, data),
+            np.asarray(data.signals["u"], dtype=float),
+            sample_time,
+            split,
+        )
+        mode += f" (gains fitted on the logged u: {logged_fit:.1f} % held-out fit)"
     n = round((t[-1] + data.sample_period_s) / sample_time)
+    extra = {}
+    if "load" in data.signals:
+        extra["load"] = Sampled(times_s=t, values=_load(rig, data))
     scenario = Scenario(
         name="replay",
         duration_s=n * sample_time,
         reference=Sampled(times_s=t, values=np.asarray(reference, dtype=float)),
+        **extra,
         initial=_initial(rig, data, channels),
         description=f"replay of {data.source}",
         noise=False,  # the data carry the rig's own noise; the model replays noise-free
     )
-    split = round((1.0 - VALIDATION_FRACTION) * t.size)
     return Replay(
         data=data,
         controller=controller,
@@ -180,7 +213,31 @@ def make_replay(rig: Rig, data: Measured, controller: Controller | None = None) 
         drive=drive,
         mode=mode,
         split=split,
+        logged_gains=logged,
+        logged_fit=logged_fit,
     )
+
+
+def _logs_controller(rig: Rig, data: Measured, sample_time_s: float) -> bool:
+    """The record holds the controller's output ``u`` [V] and the measurement it read
+    (a ``feedback`` column in the feedback unit, or the sensed output ``y``), one sample
+    per controller period."""
+    reads = data.units.get("feedback") == rig.feedback.unit or (
+        "y" in data.signals and rig.feedback.signal == rig.output
+    )
+    return (
+        data.units.get("u") == "V"
+        and reads
+        and abs(data.sample_period_s - sample_time_s) <= 1e-3 * sample_time_s
+    )
+
+
+def _reading(rig: Rig, data: Measured) -> np.ndarray:
+    """What the controller read: the recorded ``feedback`` (e.g. a load cell's normalised
+    force), else the recorded output through the feedback sensor."""
+    if data.units.get("feedback") == rig.feedback.unit:
+        return np.asarray(data.signals["feedback"], dtype=float)
+    return np.asarray(rig.feedback.read(data.signals["y"]), dtype=float)
 
 
 def _channels(rig: Rig, data: Measured) -> dict[str, str]:
@@ -191,6 +248,9 @@ def _channels(rig: Rig, data: Measured) -> dict[str, str]:
         if name in INPUT_SIGNALS:
             continue
         signal = rig.output if name == "y" else name
+        alias = ALIASES.get(name)
+        if alias in plant.signals and unit == plant.signal_units[alias]:
+            signal = alias  # a normalised force (unit 1) is not compared with one in N
         if signal not in plant.signals:
             continue
         if unit != plant.signal_units[signal]:
@@ -207,14 +267,27 @@ def _reference_volts(rig: Rig, data: Measured) -> np.ndarray:
     fb = rig.feedback
     ref = np.asarray(data.signals["ref"], dtype=float)
     unit = data.units["ref"]
-    if unit == "V":
+    if unit == "V" or unit == fb.unit:  # as the controller reads it (V, or e.g. a force in 1)
         return ref
     if unit == rig.plant.signal_units[fb.signal]:
         return np.asarray(fb.read(ref))
     raise DataError(
-        f"{data.source}: column 'ref' is in {unit}; give it in V (the feedback reading) or in "
-        f"{rig.plant.signal_units[fb.signal]} (the sensed {fb.signal})"
+        f"{data.source}: column 'ref' is in {unit}; give it in {fb.unit} (the feedback reading) "
+        f"or in {rig.plant.signal_units[fb.signal]} (the sensed {fb.signal})"
     )
+
+
+def _load(rig: Rig, data: Measured) -> np.ndarray:
+    """The recorded load force (or torque) in the plant's load unit, SI."""
+    name, si_unit = rig.plant.load
+    unit = data.units["load"]
+    if unit != si_unit:
+        raise DataError(
+            f"{data.source}: column 'load' is in {unit} but the plant's load ({name}) is in "
+            f"{si_unit}; give it in {si_unit} (measured: columns can scale it, e.g. "
+            "{as: load_N, from: tf})"
+        )
+    return np.asarray(data.signals["load"], dtype=float)
 
 
 def _initial(rig: Rig, data: Measured, channels: dict[str, str]) -> dict[str, float]:

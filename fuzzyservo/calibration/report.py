@@ -54,9 +54,11 @@ def residual_analysis(replay: Replay, model: dict[str, np.ndarray]) -> dict[str,
     return out
 
 
-def signature_table(replay: Replay, rig: Rig, model: dict[str, np.ndarray]) -> dict[str, float]:
+def signature_table(
+    replay: Replay, rig: Rig, model: dict[str, np.ndarray], controller=None
+) -> dict[str, float]:
     """R² of the held-out residual regressed on each effect's signature."""
-    result = replay.simulate(rig)
+    result = replay.simulate(rig, controller)
     regs = signatures(result, rig)
     part = slice(replay.split, None)
     t = replay.t
@@ -88,6 +90,15 @@ def summary_data(outcome: Outcome, replay: Replay) -> dict[str, Any]:
             for f in outcome.declared.unknowns
             if owner(f) is None
         }
+    bounds = outcome.controller.gain_bounds() if outcome.controller is not None else {}
+    if bounds:
+        data.setdefault("fit_nominal_pct", fit_table(replay, models["nominal"]))
+        data["fitted_gains"] = {
+            k: float(getattr(outcome.controller, k)) for k in bounds
+        }  # the controller's gains declared unknown, fitted in the closed-loop replay
+    if replay.logged_gains:
+        data["gains_from_log"] = {k: v[0] for k, v in replay.logged_gains.items()}
+        data["gains_from_log_fit_u_pct"] = replay.logged_fit
     data["decision"] = "none" if not outcome.added else ", ".join(c.name for c in outcome.added)
     data["rounds"] = [
         {
@@ -217,7 +228,9 @@ def write_outputs(
         paths[f"residuals_{label}"] = save(fig, out_dir / f"residuals_{label}.png")
         analyses[label] = residual_analysis(replay, model)
     summary["residual_analysis"] = analyses
-    summary["signature_r2"] = signature_table(replay, outcome.nominal, outcome.models["nominal"])
+    summary["signature_r2"] = signature_table(
+        replay, outcome.nominal, outcome.models["nominal"], outcome.controller
+    )
     for k, r in enumerate(outcome.rounds, start=1):
         fig = candidates_figure(
             [c.name for c in r.candidates],
@@ -282,6 +295,25 @@ def _report(
         for f, v in summary["fitted_parameters"].items():
             lo, hi = outcome.declared.unknowns[f]
             lines.append(f"| {f} | [{lo:.4g}, {hi:.4g}] | {v:.6g} |")
+        lines.append("")
+    if replay.logged_gains:
+        lines += [
+            "## Controller gains fitted on the logged command u",
+            "",
+            f"Held-out fit of u: {replay.logged_fit:.1f} %.",
+            "",
+            "| gain | bounds | value |",
+            "|---|---|---|",
+        ]
+        for k, (v, lo, hi) in replay.logged_gains.items():
+            lines.append(f"| {k} | [{lo:.4g}, {hi:.4g}] | {v:.6g} |")
+        lines.append("")
+    if "fitted_gains" in summary:
+        gain_bounds = outcome.controller.gain_bounds()
+        lines += ["## Fitted controller gains", "", "| gain | bounds | value |", "|---|---|---|"]
+        for k, v in summary["fitted_gains"].items():
+            lo, hi = gain_bounds[k]
+            lines.append(f"| {k} | [{lo:.4g}, {hi:.4g}] | {v:.6g} |")
         lines.append("")
     lines += [
         "## Candidates",

@@ -23,9 +23,11 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.optimize import least_squares, minimize_scalar
 
+from fuzzyservo.calibration import gains as _gains
 from fuzzyservo.calibration.replay import DIVERGED_COST, Replay
 from fuzzyservo.calibration.residuals import fit_percent
 from fuzzyservo.components.effects import LIBRARY, EffectParam, owner
+from fuzzyservo.controllers.base import Controller
 from fuzzyservo.rig import Rig
 
 # An effect is added when its held-out cost is below the current model's by this many
@@ -82,6 +84,7 @@ class Outcome:
     cost_final: float
     models: dict[str, dict[str, np.ndarray]] = field(default_factory=dict)
     seconds: float = 0.0
+    controller: Controller | None = None  # the replay's controller, with fitted gains
 
 
 @dataclass
@@ -127,14 +130,22 @@ class _Objective:
         self.cache: dict[tuple[float, ...], tuple[dict[str, np.ndarray], str]] = {}
 
     def rig(self, z: Sequence[float]) -> Rig:
-        values = {f: self.space.value(j, z[j]) for j, (_, f) in enumerate(self.space.names)}
+        values = {
+            f: self.space.value(j, z[j])
+            for j, (_, f) in enumerate(self.space.names)
+            if not _gains.is_gain(f)
+        }
         return self.base.with_params(**values) if values else self.base
+
+    def controller(self, z: Sequence[float]) -> Controller:
+        values = {f: self.space.value(j, z[j]) for j, (_, f) in enumerate(self.space.names)}
+        return _gains.with_gains(self.replay.controller, values)
 
     def model(self, z: Sequence[float]) -> tuple[dict[str, np.ndarray], str]:
         key = tuple(round(float(v), 12) for v in z)
         if key not in self.cache:
             try:
-                self.cache[key] = self.replay.run(self.rig(z))
+                self.cache[key] = self.replay.run(self.rig(z), self.controller(z))
             except ValueError:  # a parameter set the plant rejects (e.g. geometry)
                 nan = np.full(self.replay.t.size, np.nan)
                 self.cache[key] = ({c: nan for c in self.replay.channels}, "rejected")
@@ -147,7 +158,7 @@ class _Objective:
         return self.replay.cost(self.model(z)[0], slice(0, self.replay.split))
 
 
-def _space(rig: Rig, effect: str | None) -> _Space:
+def _space(rig: Rig, effect: str | None, replay: Replay | None = None) -> _Space:
     names: list[tuple[str, str]] = []
     bounds: list[tuple[float, float]] = []
     log: list[bool] = []
@@ -163,6 +174,13 @@ def _space(rig: Rig, effect: str | None) -> _Space:
         names.append((owner(fieldname) or "", fieldname))
         bounds.append((lo, hi))
         log.append(False)
+    if replay is not None:  # controller gains declared unknown (calibration/gains.py)
+        for name, (lo, hi) in _gains.gain_unknowns(
+            replay.controller, replay.drive == "ref"
+        ).items():
+            names.append(("", name))
+            bounds.append((lo, hi))
+            log.append(False)
     return _Space(names, bounds, log)
 
 
@@ -177,12 +195,16 @@ def fit(
 ) -> tuple[Rig, Candidate]:
     """Fit ``effect`` (None: only the rig's unknowns) on the training part; score it."""
     start = time.perf_counter()
-    space = _space(base, effect)
+    space = _space(base, effect, replay)
     objective = _Objective(replay, base, effect, space)
     n_effect = sum(1 for owner, _ in space.names if owner == effect) if effect else 0
     z0 = np.array(
         [
-            START if owner and owner == effect else space.unit(j, getattr(base.params, f))
+            START
+            if owner and owner == effect
+            else space.unit(j, _gains.gain_value(replay.controller, f))
+            if _gains.is_gain(f)
+            else space.unit(j, getattr(base.params, f))
             for j, (owner, f) in enumerate(space.names)
         ]
     )
@@ -291,9 +313,13 @@ def calibrate(
     declared_model, _ = replay.run(rig)
     cost_declared = replay.cost(declared_model, held_out)
     nominal, current_model, cost_nominal = rig, declared_model, cost_declared
-    if rig.unknowns:
+    if rig.unknowns or _gains.gain_unknowns(replay.controller, replay.drive == "ref"):
         nominal, fitted = fit(replay, rig, None, max_evaluations=120)
         current_model, cost_nominal = fitted.model, fitted.cost_val
+        # the effects are then fitted from the fitted gains on
+        replay = dataclasses.replace(
+            replay, controller=_gains.with_gains(replay.controller, fitted.unknowns)
+        )
     current = nominal
     cost = cost_nominal
     models = {"declared": declared_model, "nominal": current_model}
@@ -332,6 +358,7 @@ def calibrate(
         cost_final=cost,
         models=models,
         seconds=time.perf_counter() - start,
+        controller=replay.controller,
     )
 
 

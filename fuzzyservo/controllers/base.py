@@ -22,6 +22,9 @@ class Controller:
     name: str
     u_min: float
     u_max: float
+    # (gain field, lower, upper): gains a controller file declares unknown (`fit: [lo, hi]`),
+    # which calibration fits in a closed-loop replay; none by default
+    unknowns: tuple[tuple[str, float, float], ...] = ()
 
     def pack(self, sample_time_s: float) -> tuple[np.ndarray, np.ndarray]:  # pragma: no cover
         raise NotImplementedError
@@ -35,6 +38,14 @@ class Controller:
     def with_limits(self, u_min: float, u_max: float) -> Controller:
         """The same controller with other output limits [V]."""
         return dataclasses.replace(self, u_min=u_min, u_max=u_max)
+
+    def with_gains(self, **gains: float) -> Controller:
+        """The same controller with the named gain fields changed (e.g. ``kp=2.0``)."""
+        return dataclasses.replace(self, **gains)
+
+    def gain_bounds(self) -> dict[str, tuple[float, float]]:
+        """Gain field -> (lower, upper) of the gains declared unknown."""
+        return {name: (lo, hi) for name, lo, hi in self.unknowns}
 
     @property
     def has_limits(self) -> bool:

@@ -1,4 +1,5 @@
-"""Classical baseline controllers: open loop, P and PI with anti-windup.
+"""Classical controllers: open loop, P, PI and PIDF (PID with a filtered derivative, in
+the parallel, PI-D and I-PD forms), each with output limits and anti-windup.
 
 Each controller passes its state explicitly: ``init() -> state`` and
 ``step(state, r, y) -> (u, state)`` in Python, and the same arithmetic as a compiled
@@ -14,7 +15,7 @@ import numpy as np
 
 from fuzzyservo._jit import njit
 from fuzzyservo.controllers.base import Controller
-from fuzzyservo.controllers.kinds import KIND_OPEN_LOOP, KIND_P, KIND_PI
+from fuzzyservo.controllers.kinds import KIND_OPEN_LOOP, KIND_P, KIND_PI, KIND_PIDF
 
 
 @njit(cache=True, inline="always")
@@ -52,6 +53,45 @@ def pi_step(cp: np.ndarray, cs: np.ndarray, r: float, y: float) -> float:
     return u
 
 
+@njit(cache=True)
+def pidf_step(cp: np.ndarray, cs: np.ndarray, r: float, y: float) -> float:
+    """Discrete two-degree-of-freedom PID with a first-order derivative filter.
+
+    u = Kp·(b·r − y) + Ki·∫(r − y) dt + Kd·D,   Tf·dD/dt + D = d(c·r − y)/dt
+
+    (Åström & Hägglund, "Advanced PID control", §3.4, set-point weights b and c;
+    MATLAB's ``pid(Kp, Ki, Kd, Tf)`` is b = c = 1). The filter is discretised by the
+    backward difference, which is stable for every Tf ≥ 0 (Tf = 0: a plain backward
+    difference); the integral by the forward rectangle with clamping anti-windup as
+    :func:`pi_step`. The derivative starts from the first sample, so it gives no kick.
+    cp = (Kp, Ki, Kd, Tf, b, c, u_min, u_max, T_s); cs = (I, D, previous c·r − y, started).
+    """
+    kp, ki, kd, tf = cp[0], cp[1], cp[2], cp[3]
+    ts = cp[8]
+    e = r - y
+    ed = cp[5] * r - y
+    if cs[3] == 0.0:
+        cs[2] = ed
+        cs[3] = 1.0
+    cs[1] = (tf * cs[1] + (ed - cs[2])) / (tf + ts)
+    cs[2] = ed
+    u_free = kp * (cp[4] * r - y) + ki * cs[0] + kd * cs[1]
+    u = _clip(u_free, cp[6], cp[7])
+    saturated_high = u_free > cp[7] and e > 0.0
+    saturated_low = u_free < cp[6] and e < 0.0
+    if not (saturated_high or saturated_low):
+        cs[0] += e * ts
+    return u
+
+
+# form -> set-point weights (b on the proportional term, c on the derivative term)
+PID_FORMS: dict[str, tuple[float, float]] = {
+    "parallel": (1.0, 1.0),  # all three terms act on the error (MATLAB pid, MTS "PIDF")
+    "PI-D": (1.0, 0.0),  # derivative on the measurement: no kick at a reference step
+    "I-PD": (0.0, 0.0),  # only the integral sees the reference: no overshoot from P or D
+}
+
+
 @dataclass(frozen=True)
 class P(Controller):
     """Proportional controller ``u = K·(r − y)`` with output limits (seed 002 §5: K = 10)."""
@@ -60,6 +100,7 @@ class P(Controller):
     u_min: float = -np.inf
     u_max: float = np.inf
     name: str = "P"
+    unknowns: tuple[tuple[str, float, float], ...] = ()
 
     kind = KIND_P
     kernel = staticmethod(p_step)
@@ -87,9 +128,50 @@ class PI(Controller):
     u_min: float = -np.inf
     u_max: float = np.inf
     name: str = "PI"
+    unknowns: tuple[tuple[str, float, float], ...] = ()
 
     kind = KIND_PI
     kernel = staticmethod(pi_step)
 
     def pack(self, sample_time_s: float) -> tuple[np.ndarray, np.ndarray]:
         return np.array([self.kp, self.ki, self.u_min, self.u_max, sample_time_s]), np.zeros(1)
+
+
+@dataclass(frozen=True)
+class PIDF(Controller):
+    """PID with a filtered derivative, output limits and clamping anti-windup
+    (:func:`pidf_step`): ``kp`` [V/V], ``ki`` [1/s], ``kd`` [s], ``filter_time_s`` the
+    derivative filter's time constant Tf [s] (MATLAB's 1/N), ``form`` one of
+    :data:`PID_FORMS`."""
+
+    kp: float = 1.0
+    ki: float = 0.0
+    kd: float = 0.0
+    filter_time_s: float = 0.0
+    form: str = "parallel"
+    u_min: float = -np.inf
+    u_max: float = np.inf
+    name: str = "PIDF"
+    unknowns: tuple[tuple[str, float, float], ...] = ()
+
+    kind = KIND_PIDF
+    kernel = staticmethod(pidf_step)
+
+    def __post_init__(self) -> None:
+        super().__post_init__()
+        if self.form not in PID_FORMS:
+            raise ValueError(
+                f"form: unknown PID form {self.form!r}; choose one of {list(PID_FORMS)}"
+            )
+        if not self.filter_time_s >= 0:
+            raise ValueError(
+                f"filter_time: `filter_time >= 0` must hold, but got {self.filter_time_s} s"
+            )
+
+    def pack(self, sample_time_s: float) -> tuple[np.ndarray, np.ndarray]:
+        b, c = PID_FORMS[self.form]
+        cp = np.array(
+            [self.kp, self.ki, self.kd, self.filter_time_s, b, c, self.u_min, self.u_max,
+             sample_time_s]
+        )  # fmt: skip
+        return cp, np.zeros(4)

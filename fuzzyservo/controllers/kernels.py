@@ -10,9 +10,9 @@ from __future__ import annotations
 import numpy as np
 
 from fuzzyservo._jit import njit
-from fuzzyservo.controllers.classical import open_loop_step, p_step, pi_step
+from fuzzyservo.controllers.classical import open_loop_step, p_step, pi_step, pidf_step
 from fuzzyservo.controllers.fuzzy.controller import fuzzy_step
-from fuzzyservo.controllers.kinds import KIND_FUZZY, KIND_OPEN_LOOP, KIND_P, KIND_PI
+from fuzzyservo.controllers.kinds import KIND_FUZZY, KIND_OPEN_LOOP, KIND_P, KIND_PI, KIND_PIDF
 
 
 @njit(cache=True)
@@ -24,6 +24,8 @@ def controller_step(kind: int, cp: np.ndarray, cs: np.ndarray, r: float, y: floa
         return pi_step(cp, cs, r, y)
     if kind == KIND_FUZZY:
         return fuzzy_step(cp, cs, r, y)
+    if kind == KIND_PIDF:
+        return pidf_step(cp, cs, r, y)
     if kind == KIND_OPEN_LOOP:
         return open_loop_step(cp, cs, r, y)
     return np.nan

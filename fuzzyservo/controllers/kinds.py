@@ -6,7 +6,7 @@ to its step kernel; a code used twice is refused when this module is imported.
 
 from __future__ import annotations
 
-KINDS: dict[str, int] = {"open_loop": 0, "P": 1, "PI": 2, "fuzzy": 3}
+KINDS: dict[str, int] = {"open_loop": 0, "P": 1, "PI": 2, "fuzzy": 3, "PIDF": 4}
 
 if len(set(KINDS.values())) != len(KINDS):
     raise ValueError(f"controller kind codes must be unique, got {KINDS}")
@@ -15,3 +15,4 @@ KIND_OPEN_LOOP = KINDS["open_loop"]
 KIND_P = KINDS["P"]
 KIND_PI = KINDS["PI"]
 KIND_FUZZY = KINDS["fuzzy"]
+KIND_PIDF = KINDS["PIDF"]

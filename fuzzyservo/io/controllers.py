@@ -5,9 +5,16 @@ kind: P                 # P | PI | open_loop | fuzzy (see fuzzyservo.io.fuzzy)
 description: ...
 source: seed 002 §5
 gain: 10                # V/V (P, open_loop)
-kp: 1.0                 # PI
-ki: 0.5                 # PI, 1/s
+kp: 1.0                 # PI, PIDF
+ki: 0.5                 # PI, PIDF; 1/s
+kd: 0.01                # PIDF; s
+filter_time: 0.002      # PIDF; s, derivative filter time constant Tf (MATLAB's 1/N); default 0
+form: parallel          # PIDF; parallel | PI-D | I-PD (default parallel)
 output_limits: [-3, 3]  # V, optional: default is the rig actuator's command range
+
+A gain of P, PI or PIDF may be declared unknown, ``kp: {value: 2, fit: [0.5, 8]}``
+(the value is the start; without it the start is the middle of the bounds):
+``fuzzyservo calibrate --controller`` then fits it in the closed-loop replay.
 """
 
 from __future__ import annotations
@@ -15,7 +22,7 @@ from __future__ import annotations
 from pathlib import Path
 
 from fuzzyservo.controllers.base import Controller
-from fuzzyservo.controllers.classical import PI, OpenLoop, P
+from fuzzyservo.controllers.classical import PI, PID_FORMS, PIDF, OpenLoop, P
 from fuzzyservo.errors import ConfigError
 from fuzzyservo.io._yaml import Node, read_yaml
 from fuzzyservo.io.fuzzy import KEYS, fuzzy_from_node
@@ -24,6 +31,7 @@ _COMMON = ("name", "kind", "description", "source", "output_limits")
 _KINDS = {
     "P": ("gain",),
     "PI": ("kp", "ki"),
+    "PIDF": ("kp", "ki", "kd", "filter_time", "form"),
     "open_loop": ("gain",),
     "fuzzy": KEYS,
 }
@@ -71,16 +79,64 @@ def controller_from_data(data: dict, file: str) -> Controller:
     if kind == "fuzzy":
         return fuzzy_from_node(root, name, limits, root.str("description", default=""))
     # read every number first: ConfigErrors from the reads keep their own key
+    unknowns: list[tuple[str, float, float]] = []
     if kind == "P":
-        make, gains = P, {"gain": root.number("gain")}
+        make, gains = P, {"gain": _gain(root, "gain", unknowns)}
     elif kind == "PI":
-        make, gains = PI, {"kp": root.number("kp"), "ki": root.number("ki")}
+        make, gains = PI, {"kp": _gain(root, "kp", unknowns), "ki": _gain(root, "ki", unknowns)}
+    elif kind == "PIDF":
+        make = PIDF
+        gains = {k: _gain(root, k, unknowns, default=0.0) for k in ("kp", "ki", "kd")}
+        gains["filter_time_s"] = _gain(root, "filter_time", unknowns, default=0.0)
+        form = root.str("form", default="parallel")
+        if form not in PID_FORMS:
+            root.fail(f"unknown PID form {form!r}; choose one of {list(PID_FORMS)}", key="form")
+        gains["form"] = form
+        if not any(gains[k] or any(u[0] == k for u in unknowns) for k in ("kp", "ki", "kd")):
+            root.fail("kp, ki and kd are all zero; give at least one gain", key="kp")
     else:
         make, gains = OpenLoop, {"gain": root.number("gain", default=1.0)}
     try:
-        return make(**gains, name=name, **limits)
+        return make(**gains, name=name, unknowns=tuple(unknowns), **limits)
     except ValueError as exc:
         raise ConfigError(f"{exc}; fix the controller file", file=file) from None
+
+
+def _gain(
+    root: Node, key: str, unknowns: list[tuple[str, float, float]], default: float | None = None
+) -> float:
+    """A gain: a plain number, or ``{value: x, fit: [lo, hi]}`` declaring it unknown (the
+    field name and bounds go to ``unknowns``)."""
+    field = "filter_time_s" if key == "filter_time" else key
+    raw = root.data.get(key)
+    if not (isinstance(raw, dict) and "fit" in raw):
+        value = root.number(key, default=default)
+        if field == "filter_time_s" and value < 0:
+            root.fail(
+                f"must be >= 0 s, got {value}; give the derivative filter's time constant", key=key
+            )
+        return value
+    node = Node(raw, root.file, root.path(key))
+    node.only(("value", "fit", "source", "note"))
+    bounds = node.numbers("fit")
+    if len(bounds) != 2 or not bounds[0] < bounds[1]:
+        node.fail(
+            f"must be [lower, upper] with lower < upper, got {bounds}; give the range the "
+            "gain may take",
+            key="fit",
+        )
+    lo, hi = bounds
+    if field == "filter_time_s" and lo < 0:
+        node.fail(f"lower bound {lo} < 0; a filter time constant is >= 0 s", key="fit")
+    value = node.number("value", default=0.5 * (lo + hi))
+    if not lo <= value <= hi:
+        node.fail(
+            f"value {value:g} lies outside its fit bounds [{lo:g}, {hi:g}]; widen the bounds "
+            "or move the value",
+            key="fit",
+        )
+    unknowns.append((field, float(lo), float(hi)))
+    return value
 
 
 def write_controller_file(data: dict, path: str | Path) -> Path:

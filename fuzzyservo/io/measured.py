@@ -18,20 +18,31 @@ which is also the row a spreadsheet shows.
 from __future__ import annotations
 
 import csv
+import math
 import re
 from array import array
-from collections.abc import Callable, Iterable, Mapping
+from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import NoReturn
+from typing import TYPE_CHECKING, NoReturn
 
 import numpy as np
 
 from fuzzyservo.errors import DataError
+
+if TYPE_CHECKING:
+    from fuzzyservo.rig import MeasuredFormat
 from fuzzyservo.limits import period_problem
 from fuzzyservo.units import parse_unit, to_si
 
-__all__ = ["UNIT_SUFFIXES", "Measured", "read_measured", "write_measured"]
+__all__ = [
+    "UNIT_SUFFIXES",
+    "ColumnScaling",
+    "Measured",
+    "read_measured",
+    "read_rig_data",
+    "write_measured",
+]
 
 MIN_SAMPLES = 20
 UNEVEN_TOLERANCE = 0.01  # relative spread (max dt - min dt) / median dt
@@ -152,6 +163,25 @@ class Measured:
         return train, held_out
 
 
+@dataclass(frozen=True)
+class ColumnScaling:
+    """A raw column turned into its signal: ``value = scale·raw + offset``, then, with
+    ``tare_samples`` > 0, minus the mean of its first ``tare_samples`` values (a load
+    cell zeroed at the start). ``scale`` and ``offset`` are in the unit the column is
+    mapped to (per raw unit for ``scale``), e.g. 20 mm/V for a 0-10 V sensor over 200 mm.
+    """
+
+    scale: float = 1.0
+    offset: float = 0.0
+    tare_samples: int = 0
+
+    def __post_init__(self) -> None:
+        if not (math.isfinite(self.scale) and self.scale != 0):
+            raise ValueError(f"scale must be finite and non-zero, got {self.scale}")
+        if self.tare_samples < 0:
+            raise ValueError(f"tare must be >= 0 samples, got {self.tare_samples}")
+
+
 @dataclass
 class _Column:
     name: str  # as in the file
@@ -181,7 +211,8 @@ def _parse_name(file: str, kind: str, name: str, spec: str) -> _Column:
         if "_" not in spec.strip("_"):
             raise DataError(
                 f"{where}: the name says no unit; name it <signal>_<unit> (e.g. y_cm, u_V) "
-                f"or map it {_MAP} (e.g. {name}: y_cm) with its real signal and unit"
+                f"or map it {_MAP} (e.g. {name}: y_cm) with its real signal and unit, "
+                f"or leave it out with measured: drop: [{name}]"
             )
         head, unit = spec.split("_", 1)
         if not _SIGNAL.match(head):
@@ -372,41 +403,68 @@ def _read_csv(
     mapping: Mapping[str, str] | None,
     require: Iterable[str],
     has_period: bool,
+    layout: _Layout,
 ) -> tuple[list[_Column], np.ndarray]:
     """Stream the CSV row by row into one float array per column (8 bytes a value, so a
     file is never held as text); the header is checked before any row is read.
     Returns the columns (with their values) and the file line number of each row."""
     kind = "column"
+    skip = layout.skip_lines
     try:
         with p.open(encoding="utf-8-sig", newline="") as fh:
-            first = next((line for line in fh if line.strip()), "")
+            first = next((line for k, line in enumerate(fh) if k >= skip and line.strip()), "")
             if not first:
-                raise DataError(f"{file}: the file is empty; give a header line and data rows")
+                raise DataError(
+                    f"{file}: the file is empty"
+                    + (f" below its first {skip} lines (measured: skip_lines)" if skip else "")
+                    + "; give a header line and data rows"
+                )
             delimiter = next((d for d in ",;\t" if d in first), ",")
             fh.seek(0)
-            reader = csv.reader(fh, delimiter=delimiter)
-            header = next(
-                ([c.strip() for c in cells] for cells in reader if any(c.strip() for c in cells)),
-                None,
+            # skipped lines read as blank ones, so reader.line_num stays the file's line number
+            reader = csv.reader(
+                ("\n" if k < skip else line for k, line in enumerate(fh)), delimiter=delimiter
             )
+            if layout.names:
+                header = list(layout.names)
+            else:
+                header = next(
+                    (
+                        [c.strip() for c in cells]
+                        for cells in reader
+                        if any(c.strip() for c in cells)
+                    ),
+                    None,
+                )
             if header is None:
                 raise DataError(
                     f"{file}: the header line names no column; write <signal>_<unit> names "
                     "such as t_s,y_cm"
                 )
             _check_header(file, header)
-            columns = _columns(file, kind, header, mapping)
+            width = len(header)
+            dropped = _dropped(file, header, layout.drop)
+            kept = [name for j, name in enumerate(header) if j not in dropped]
+            columns = _columns(file, kind, kept, mapping)
             _check_required(file, kind, columns, require, has_period)
-            values = [array("d") for _ in header]
+            values = [array("d") for _ in kept]
             lines = array("q")
             for cells in reader:
                 if not any(c.strip() for c in cells):
                     continue
-                if len(cells) != len(header):
+                if len(cells) != width:
+                    what = "measured: names gives" if layout.names else "the header has"
                     raise DataError(
-                        f"{file}: row {reader.line_num} has {len(cells)} cells, the header has "
-                        f"{len(header)}; fix or delete the row"
+                        f"{file}: row {reader.line_num} has {len(cells)} cells, {what} "
+                        f"{width}; fix or delete the row"
+                        + (
+                            ""
+                            if layout.names
+                            else " (or skip a preamble with measured: skip_lines)"
+                        )
                     )
+                if dropped:
+                    cells = [c for j, c in enumerate(cells) if j not in dropped]
                 try:
                     row = [float(c) for c in cells]
                 except ValueError:
@@ -428,6 +486,32 @@ def _read_csv(
     for col, column in zip(columns, values, strict=True):
         col.values = np.frombuffer(column, dtype=np.float64)
     return columns, np.frombuffer(lines, dtype=np.int64)
+
+
+@dataclass(frozen=True)
+class _Layout:
+    """Where the numbers are in a text file: lines above the header, the column names
+    of a file without a header line, columns to leave out."""
+
+    skip_lines: int = 0
+    names: tuple[str, ...] = ()
+    drop: tuple[str, ...] = ()
+
+
+def _dropped(file: str, header: list[str], drop: Iterable[str]) -> set[int]:
+    """Indices of the columns ``drop`` names (each must exist)."""
+    out = set()
+    for name in drop:
+        if name not in header:
+            raise DataError(
+                f"{file}: measured: drop names column {name!r}, which the file does not have; "
+                f"use one of: {', '.join(header)} (if lines stand above the header, skip them "
+                "with measured: skip_lines)"
+            )
+        out.add(header.index(name))
+    if len(out) == len(header):
+        raise DataError(f"{file}: measured: drop leaves no column; drop fewer columns")
+    return out
 
 
 def _check_header(file: str, header: list[str]) -> None:
@@ -465,6 +549,11 @@ def _bad_cell(
         raise DataError(
             f"{file}: {where}: {cell!r} at row {line} is not a number; write a plain number "
             "(decimal point '.', no units or thousands separators) or delete the row"
+            + (
+                f", or leave a text column out with measured: drop: [{col.name}]"
+                if first_row
+                else ""
+            )
         )
     raise DataError(f"{file}: row {line}: cannot read the numbers; check the row")
 
@@ -513,6 +602,10 @@ def read_measured(
     sample_period_s: float | None = None,
     resample: bool = False,
     require: Iterable[str] = ("t",),
+    scaling: Mapping[str, ColumnScaling] | None = None,
+    skip_lines: int = 0,
+    names: Sequence[str] = (),
+    drop: Sequence[str] = (),
 ) -> Measured:
     """Read a measured-data CSV or ``.mat`` file into SI arrays.
 
@@ -533,6 +626,13 @@ def read_measured(
     require:
         Signals that must be present, e.g. ``("t", "u", "y")`` for a closed-loop replay;
         time (``t``) is always needed, from a column or from ``sample_period_s``.
+    scaling:
+        Plain column or variable name -> :class:`~fuzzyservo.rig.ColumnScaling`: scale,
+        offset and tare that turn its raw numbers (volts of a sensor, tonne-force) into
+        the unit its name (or ``mapping``) gives.
+    skip_lines, names, drop:
+        CSV layout of a DAQ export: lines above the header to skip; the column names
+        of a file without a header line; columns to leave out (dates, comments).
 
     Raises :class:`DataError` (one line: file, column, problem, fix) for a file that
     cannot be used.
@@ -567,7 +667,8 @@ def read_measured(
                 )
     else:
         kind = "column"
-        columns, lines = _read_csv(p, file, mapping, require, sample_period_s is not None)
+        layout = _Layout(skip_lines=skip_lines, names=tuple(names), drop=tuple(drop))
+        columns, lines = _read_csv(p, file, mapping, require, sample_period_s is not None, layout)
 
         def row(i: int) -> str:
             return f"row {lines[i]}"
@@ -576,7 +677,53 @@ def read_measured(
         columns = [c for c in columns if c.signal != "t"]  # time is rebuilt; ignore the stamps
     for col in columns:
         _check_finite(file, col.label(kind), col.values, row)
+    _scale(file, kind, columns, scaling or {})
     return _build(file, kind, columns, row, sample_period_s, resample)
+
+
+def _scale(
+    file: str, kind: str, columns: list[_Column], scaling: Mapping[str, ColumnScaling]
+) -> None:
+    """Apply each column's scale, offset and tare (in the unit it is mapped to)."""
+    names = {c.name for c in columns}
+    for name in scaling:
+        if name not in names:
+            raise DataError(
+                f"{file}: the rig file's measured: columns scales {kind} {name!r}, which the "
+                f"file does not have (or which is dropped); use one of: {', '.join(sorted(names))}"
+            )
+    for col in columns:
+        how = scaling.get(col.name)
+        if how is None:
+            continue
+        values = how.scale * col.values + how.offset
+        if how.tare_samples:
+            if how.tare_samples > values.size:
+                raise DataError(
+                    f"{file}: {col.label(kind)}: tare over the first {how.tare_samples} samples "
+                    f"but the file has {values.size}; give a tare of at most {values.size}"
+                )
+            values = values - float(np.mean(values[: how.tare_samples]))
+        col.values = values
+
+
+def read_rig_data(
+    path: str | Path, fmt: MeasuredFormat | None, *, resample: bool = False
+) -> Measured:
+    """Read a data file as a rig file's ``measured:`` section (``fmt``) says: column
+    mapping and scaling, sample period, resampling (also when ``resample``), layout."""
+    if fmt is None:
+        return read_measured(path, resample=resample)
+    return read_measured(
+        path,
+        mapping=fmt.columns or None,
+        sample_period_s=fmt.sample_period_s,
+        resample=fmt.resample or resample,
+        scaling=fmt.scaling,
+        skip_lines=fmt.skip_lines,
+        names=fmt.names,
+        drop=fmt.drop,
+    )
 
 
 def write_measured(path: str | Path, data: Measured, units: Mapping[str, str]) -> Path:

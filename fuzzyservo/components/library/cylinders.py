@@ -46,6 +46,7 @@ _SIGNALS = (
     Signal("p_a", "Pa", "p_a"),
     Signal("p_b", "Pa", "p_b"),
     Signal("f_stop", "N", "f_stop", "end-stop force"),
+    Signal("f_hyd", "N", "p_a * area_a - p_b * area_b", "hydraulic force p_a·A_a − p_b·A_b"),
     Signal("f_friction", "N", "L.f_fric", "friction of the friction effects"),
     Signal("q_leak", "m^3/s", "L.q_leak", "internal leakage A→B"),
 )

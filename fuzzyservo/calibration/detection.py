@@ -122,20 +122,21 @@ def _ladder(base: Mapping[str, float], factors: Sequence[float]) -> list[dict[st
     return [{k: v * f for k, v in base.items()} for f in factors]
 
 
-# Seed 002, P K=10, pulses: the tests' typical sizes (tests/test_calibration.py), halved
+QUARTERS = tuple(4.0**-k for k in range(8))  # 1, 1/4 … 1/16384
+# Seed 002, P K=10, pulses: the tests' typical sizes (tests/test_calibration.py), quartered
 # down the ladder. Bulk modulus and pump flow grow towards "no effect" instead.
 SEED002_LADDERS: dict[str, list[dict[str, float]]] = {
-    "coulomb_friction": _ladder({"force": 300.0}, (1, 1 / 4, 1 / 16, 1 / 64, 1 / 256)),
+    "coulomb_friction": _ladder({"force": 300.0}, QUARTERS),
     "stribeck_friction": [
         {"coulomb_force": 200.0 * f, "stiction_force": 100.0 * f, "stribeck_velocity": 5e-3}
-        for f in (1, 1 / 4, 1 / 16, 1 / 64)
+        for f in QUARTERS
     ],
-    "line_resistance": _ladder({"resistance": 2e10}, (1, 1 / 4, 1 / 16, 1 / 64)),
-    "internal_leakage": _ladder({"coefficient": 1e-12}, (1, 1 / 4, 1 / 16, 1 / 64)),
-    "valve_deadband": _ladder({"width": 0.5e-3}, (1, 1 / 4, 1 / 16, 1 / 64)),
-    "valve_bias": _ladder({"offset": 0.5e-3}, (1, 1 / 4, 1 / 16, 1 / 64)),
-    "valve_lag": _ladder({"time_constant": 3e-3}, (1, 1 / 4, 1 / 16)),
-    "transport_delay": _ladder({"delay": 0.015}, (1, 1 / 4, 1 / 16, 1 / 64)),
-    "bulk_modulus": [{"effective": e} for e in (0.6e9, 1.2e9, 1.5e9, 1.65e9)],
-    "supply_droop": [{"pump_flow": q} for q in (1.0e-4, 1.5e-4, 2.0e-4, 3.0e-4)],
+    "line_resistance": _ladder({"resistance": 2e10}, QUARTERS),
+    "internal_leakage": _ladder({"coefficient": 1e-12}, QUARTERS),
+    "valve_deadband": _ladder({"width": 0.5e-3}, QUARTERS),
+    "valve_bias": _ladder({"offset": 0.5e-3}, QUARTERS),
+    "valve_lag": _ladder({"time_constant": 3e-3}, QUARTERS),
+    "transport_delay": _ladder({"delay": 0.015}, QUARTERS),
+    "bulk_modulus": [{"effective": e} for e in (0.6e9, 1.2e9, 1.5e9, 1.65e9, 1.72e9, 1.76e9)],
+    "supply_droop": [{"pump_flow": q} for q in (1.0e-4, 1.25e-4, 1.5e-4, 1.75e-4, 2.0e-4)],
 }

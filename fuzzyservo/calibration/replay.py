@@ -26,12 +26,12 @@ from fuzzyservo.controllers.classical import OpenLoop
 from fuzzyservo.errors import DataError
 from fuzzyservo.io.measured import Measured
 from fuzzyservo.rig import Rig, Scenario
-from fuzzyservo.signals import Sampled
+from fuzzyservo.signals import Constant, Sampled
 from fuzzyservo.simulation import simulate
 from fuzzyservo.simulation.result import SimResult
 
 VALIDATION_FRACTION = 0.3
-INPUT_SIGNALS = ("t", "ref", "u", "i")  # what drives a replay; never a compared channel
+INPUT_SIGNALS = ("t", "ref", "u", "i", "load")  # what drives a replay; never a compared channel
 DIVERGED_COST = 1e12  # cost of a run that failed (noise-variance units)
 
 
@@ -167,6 +167,10 @@ def make_replay(rig: Rig, data: Measured, controller: Controller | None = None) 
         duration_s=n * sample_time,
         reference=Sampled(times_s=t, values=np.asarray(reference, dtype=float)),
         initial=_initial(rig, data, channels),
+        # a recorded external load (plant load unit, SI) is applied as recorded
+        load=Sampled(times_s=t, values=np.asarray(data.signals["load"], dtype=float))
+        if "load" in data.signals
+        else Constant(),
         description=f"replay of {data.source}",
         noise=False,  # the data carry the rig's own noise; the model replays noise-free
     )

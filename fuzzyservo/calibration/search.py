@@ -4,7 +4,7 @@ held-out data, add the best only when noise alone would rarely do as well; twice
 Grey-box estimation in the manner of MATLAB's ``nlgreyest``: each candidate is the rig
 with one more effect of :data:`~fuzzyservo.components.effects.LIBRARY` switched on; its
 parameters (and the rig's declared unknowns) are fitted by bounded least squares
-(``scipy.optimize.least_squares``, trust-region reflective, finite differences with an
+(``scipy.optimize.least_squares``, dogleg in the box, finite differences with an
 absolute step on the unit box) on the training part of the replay. Candidates are
 ranked by held-out cost; the best is added when its held-out likelihood ratio over the
 current model passes :mod:`~fuzzyservo.calibration.decision`'s test (error rate
@@ -31,6 +31,7 @@ from fuzzyservo.calibration.decision import (
     threshold,
     tie_threshold,
 )
+from fuzzyservo.calibration.identifiability import Separation, separating_experiments
 from fuzzyservo.calibration.replay import DIVERGED_COST, Replay
 from fuzzyservo.calibration.residuals import fit_percent
 from fuzzyservo.components.effects import LIBRARY, EffectParam, owner
@@ -73,6 +74,7 @@ class Round:
     added: str | None
     threshold: float = math.inf  # the z the best had to exceed
     ambiguous_with: tuple[str, ...] = ()  # candidates the data cannot tell from the best
+    experiments: tuple[Separation, ...] = ()  # excitations that would separate them, best first
 
 
 @dataclass(frozen=True)
@@ -263,6 +265,9 @@ def _minimise(objective: _Objective, z0: np.ndarray, n_effect: int, budget: int)
             z,
             jac=lambda x: _jacobian(objective.residuals, x),
             bounds=(np.zeros(n), np.ones(n)),
+            # dogbox, not trf: trf scales a step by the distance to the bound, so from a
+            # parameter at 0 (an effect off) it stops after two tiny steps
+            method="dogbox",
             xtol=1e-4,
             ftol=1e-4,
             max_nfev=max(budget, 15 * (n + 1)),
@@ -337,6 +342,10 @@ def calibrate(
         best = results[0] if results else None
         accept = best is not None and _significant(best, z_min)
         ambiguous = _ties(replay, results, z_min) if accept else ()
+        experiments: tuple[Separation, ...] = ()
+        if ambiguous:
+            tied = {c.name: c.rig for c in results if c.name in (best.name, *ambiguous)}
+            experiments = tuple(separating_experiments(replay, tied))
         rounds.append(
             Round(
                 cost,
@@ -344,6 +353,7 @@ def calibrate(
                 best.name if accept else None,
                 threshold=z_min,
                 ambiguous_with=ambiguous,
+                experiments=experiments,
             )
         )
         if not accept:

@@ -127,6 +127,16 @@ def summary_data(outcome: Outcome, replay: Replay) -> dict[str, Any]:
         }
         for r in outcome.rounds
     ]
+    data["uncertainty"] = {
+        type(outcome.calibrated.params).__dataclass_fields__[f].metadata["key"]: {
+            "value": e.value,
+            "interval": list(e.interval),
+            "bounds": list(e.bounds),
+            "at_bound": e.at_bound,
+        }
+        for f, e in outcome.uncertainty.items()
+    }
+    data["warnings"] = warnings(outcome)
     data["noise_cost"] = outcome.noise_cost
     data["noise_floor"] = {c: replay.sigma[c] for c in replay.channels}
     data["cost_val"] = {
@@ -142,6 +152,32 @@ def summary_data(outcome: Outcome, replay: Replay) -> dict[str, Any]:
     }
     data["seconds"] = outcome.seconds
     return data
+
+
+def warnings(outcome: Outcome) -> list[str]:
+    """What the user must know before trusting the result: ambiguities (with the
+    experiment that would separate them) and fitted values on a bound."""
+    out = []
+    for r in outcome.rounds:
+        if r.added and r.ambiguous_with:
+            line = (
+                f"{r.added} cannot be told apart from {', '.join(r.ambiguous_with)} on this "
+                "data (the best does not beat them on the held-out part)"
+            )
+            if r.experiments:
+                e = r.experiments[0]
+                line += f"; an experiment that separates them: {e.name}, {e.description}"
+            out.append(line)
+    fields = type(outcome.calibrated.params).__dataclass_fields__
+    for f, e in outcome.uncertainty.items():
+        if e.at_bound:
+            lo, hi = e.bounds
+            out.append(
+                f"{fields[f].metadata['key']} = {e.value:.4g} sits on its bound [{lo:.4g}, "
+                f"{hi:.4g}]: the data want it further out; widen the bound (fit: [...]) or "
+                "look for another effect"
+            )
+    return out
 
 
 def _round_of(outcome: Outcome, name: str):
@@ -189,6 +225,11 @@ def write_outputs(
         f"from rig file {outcome.declared.path}; effects added: "
         f"{', '.join(c.name for c in outcome.added) or 'none'}"
     )
+    intervals = {}
+    for f, est in outcome.uncertainty.items():
+        meta = type(rig.params).__dataclass_fields__[f].metadata
+        key = meta["key"]  # "effect.key" for an effect's parameter
+        intervals[key] = (*est.interval, est.at_bound)
     if outcome.declared.path:
         paths["rig"] = write_calibrated_rig(
             outcome.declared.path,
@@ -196,6 +237,7 @@ def write_outputs(
             parameters=parameters,
             effects=effects,
             header=header,
+            intervals=intervals,
         )
     summary = summary_data(outcome, replay)
     if "rig" in paths:
@@ -276,6 +318,7 @@ def _report(
         f"the last {100 * (1 - replay.split / replay.t.size):.0f} % (from {replay.split_s:.2f} s) "
         "is held out: fits are fitted on the first part and reported on it.",
         "",
+        *[f"> **Warning:** {w}" + "\n" for w in summary["warnings"]],
         f"**Effects added: {summary['decision']}**"
         + (f" → calibrated rig `{rel('rig')}`" if "rig" in paths else ""),
         "",
@@ -298,11 +341,23 @@ def _report(
             f"| {channel} | {sigma} | " + " | ".join(_pct(t[channel]) for t in tables) + " |"
         )
     lines += ["", f"![overlay]({rel('overlay')})", ""]
-    if "fitted_parameters" in summary:
-        lines += ["## Fitted unknowns", "", "| parameter | bounds | value |", "|---|---|---|"]
-        for f, v in summary["fitted_parameters"].items():
-            lo, hi = outcome.declared.unknowns[f]
-            lines.append(f"| {f} | [{lo:.4g}, {hi:.4g}] | {v:.6g} |")
+    if summary["uncertainty"]:
+        lines += [
+            "## Fitted values (SI) with 95 % intervals",
+            "",
+            "Linearised from the Jacobian with the effective sample size (uncertainty.py); "
+            "the calibrated rig carries them as `interval` and `at_bound`.",
+            "",
+            "| parameter | bounds | value | 95 % interval | at bound |",
+            "|---|---|---|---|---|",
+        ]
+        for key, u in summary["uncertainty"].items():
+            lo, hi = u["bounds"]
+            a, b = u["interval"]
+            lines.append(
+                f"| {key} | [{lo:.4g}, {hi:.4g}] | {u['value']:.6g} | [{a:.4g}, {b:.4g}] | "
+                f"{'**yes**' if u['at_bound'] else 'no'} |"
+            )
         lines.append("")
     lines += [
         "## Candidates",

@@ -34,6 +34,7 @@ from fuzzyservo.calibration.decision import (
 from fuzzyservo.calibration.identifiability import Separation, separating_experiments
 from fuzzyservo.calibration.replay import DIVERGED_COST, Replay
 from fuzzyservo.calibration.residuals import fit_percent
+from fuzzyservo.calibration.uncertainty import Estimate, effective_samples, estimates
 from fuzzyservo.components.effects import LIBRARY, EffectParam, owner
 from fuzzyservo.rig import Rig
 
@@ -92,6 +93,7 @@ class Outcome:
     cost_final: float
     models: dict[str, dict[str, np.ndarray]] = field(default_factory=dict)
     seconds: float = 0.0
+    uncertainty: dict[str, Estimate] = field(default_factory=dict)  # field -> 95 % interval
 
 
 @dataclass
@@ -365,6 +367,7 @@ def calibrate(
             replay, current, added, current_model, cost
         )
     models["calibrated"] = current_model
+    uncertainty = _uncertainty(replay, current, added, current_model)
     return Outcome(
         declared=rig,
         nominal=nominal,
@@ -377,7 +380,32 @@ def calibrate(
         cost_final=cost,
         models=models,
         seconds=time.perf_counter() - start,
+        uncertainty=uncertainty,
     )
+
+
+def _uncertainty(
+    replay: Replay, rig: Rig, added: Sequence[Candidate], model: dict[str, np.ndarray]
+) -> dict[str, Estimate]:
+    """95 % intervals and at-bound flags of every fitted value: the rig's unknowns and the
+    added effects' parameters (uncertainty.py), from one Jacobian at the final model."""
+    unknowns = dict(rig.unknowns)
+    scales = rig.scales()
+    for candidate in added:
+        for param in LIBRARY[candidate.name].fitted:
+            unknowns.setdefault(param.field, _bounds(rig, param, scales))
+    if not unknowns:
+        return {}
+    joint = dataclasses.replace(rig, unknowns=unknowns)
+    space = _space(joint, None)
+    objective = _Objective(replay, joint, None, space)
+    values = [float(getattr(rig.params, f)) for _, f in space.names]
+    z = np.array([space.unit(j, v) for j, v in enumerate(values)])
+    jac = _jacobian(objective.residuals, z)
+    samples, effective = effective_samples(replay, model)
+    cost_train = replay.cost(model, slice(0, replay.split))
+    found = estimates(jac, z, values, space.value, space.bounds, cost_train, samples, effective)
+    return {f: e for (_, f), e in zip(space.names, found, strict=True)}
 
 
 def _significant(candidate: Candidate, z_min: float) -> bool:

@@ -121,3 +121,32 @@ def test_leakage_and_null_shift_are_ambiguous_and_the_suggested_experiment_separ
     second = calibrate(make_replay(rig, data2, ctl), rig, max_effects=1).rounds[0]
     assert second.added == "internal_leakage"
     assert "valve_bias" not in second.ambiguous_with
+
+
+# ------------------------------------------------------------------ uncertainty
+
+
+def test_fitted_values_carry_intervals_and_at_bound_flags_into_the_rig(rig, tmp_path) -> None:
+    """A 300 N friction is inside its interval; a null bias of 2 mA, beyond the library's
+    ±1.5 mA (5 % of rated), is fitted on the bound and flagged, in the report's warnings
+    and in the calibrated rig file, which loads."""
+    import yaml
+
+    from fuzzyservo.calibration.report import write_outputs
+
+    ctl = controller_named("p_k10")
+    true = {"coulomb_friction": {"force": 300.0}, "valve_bias": {"offset": 2e-3}}
+    data = synthetic_run(rig, ctl, "pulses", true, NOISE, seed=4)
+    replay = make_replay(rig, data, ctl)
+    outcome = calibrate(replay, rig, effects=["coulomb_friction", "valve_bias"])
+    force = outcome.uncertainty["coulomb_force_si"]
+    assert force.interval[0] <= 300.0 <= force.interval[1] or abs(force.value - 300) < 3
+    assert force.interval[1] - force.interval[0] < 60.0 and not force.at_bound
+    bias = outcome.uncertainty["valve_bias_si"]
+    assert bias.at_bound and bias.value == pytest.approx(1.5e-3, rel=1e-3)
+    _, summary = write_outputs(outcome, replay, tmp_path / "d.csv", tmp_path / "out")
+    assert any("valve_bias.offset" in w and "bound" in w for w in summary["warnings"])
+    text = yaml.safe_load(Path(summary["calibrated_rig"]).read_text(encoding="utf-8"))
+    entry = text["effects"]["valve_bias"]["offset"]
+    assert entry["at_bound"] is True and len(entry["interval"]) == 2
+    assert load_rig(summary["calibrated_rig"]).effects

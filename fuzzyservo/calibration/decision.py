@@ -35,7 +35,6 @@ from scipy.stats import norm
 from fuzzyservo.calibration.replay import Replay
 
 ALPHA = 0.05  # the rate at which an effect is added on data without one (per round)
-ALPHA_TIE = 0.05  # one-sided level at which a runner-up counts as worse than the best
 CORRELATION_TIME_S = 0.25  # longest lag the long-run variance looks at [s] (at least 25 samples)
 
 
@@ -61,11 +60,6 @@ class Evidence:
 def threshold(candidates: int, alpha: float = ALPHA) -> float:
     """The ``z`` the best of ``candidates`` must exceed: ``Φ⁻¹(1 − α/K)``."""
     return float(norm.isf(alpha / max(candidates, 1)))
-
-
-def tie_threshold(alpha: float = ALPHA_TIE) -> float:
-    """The ``z`` by which the best must beat a runner-up for the two to be told apart."""
-    return float(norm.isf(alpha))
 
 
 def _lags(replay: Replay, n: int) -> int:

@@ -6,7 +6,8 @@ with one more effect of :data:`~fuzzyservo.components.effects.LIBRARY` switched 
 parameters (and the rig's declared unknowns) are fitted by bounded least squares
 (``scipy.optimize.least_squares``, dogleg in the box, finite differences with an
 absolute step on the unit box) on the training part of the replay. Candidates are
-ranked by held-out cost; the best is added when its held-out likelihood ratio over the
+ranked by held-out cost (among candidates the data cannot tell apart, the one with the
+fewest parameters first); the best is added when its held-out likelihood ratio over the
 current model passes :mod:`~fuzzyservo.calibration.decision`'s test (error rate
 ``ALPHA`` split over the candidates). Candidates that pass too and that the best does
 not beat on the held-out data are reported as ``ambiguous_with`` (the data cannot tell
@@ -29,7 +30,6 @@ from fuzzyservo.calibration.decision import (
     Evidence,
     held_out_evidence,
     threshold,
-    tie_threshold,
 )
 from fuzzyservo.calibration.identifiability import Separation, separating_experiments
 from fuzzyservo.calibration.replay import DIVERGED_COST, Replay
@@ -258,7 +258,7 @@ def _minimise(objective: _Objective, z0: np.ndarray, n_effect: int, budget: int)
             lambda v: objective.train_cost([v]),
             bounds=(max(z[0] - step, 0.0), min(z[0] + step, 1.0)),
             method="bounded",
-            options={"xatol": 1e-4, "maxiter": 30},
+            options={"xatol": 1e-6, "maxiter": 40},
         )
         best = np.array([sol.x])
     else:
@@ -344,6 +344,14 @@ def calibrate(
         best = results[0] if results else None
         accept = best is not None and _significant(best, z_min)
         ambiguous = _ties(replay, results, z_min) if accept else ()
+        if ambiguous:  # parsimony: the simplest of the tied candidates goes first
+            tied = [c for c in results if c.name in (best.name, *ambiguous)]
+            simplest = min(tied, key=lambda c: (c.n_params, c.score))
+            if simplest is not best:
+                results.remove(simplest)
+                results.insert(0, simplest)
+                ambiguous = tuple(c.name for c in tied if c is not simplest)
+                best = simplest
         experiments: tuple[Separation, ...] = ()
         if ambiguous:
             tied = {c.name: c.rig for c in results if c.name in (best.name, *ambiguous)}
@@ -416,13 +424,14 @@ def _significant(candidate: Candidate, z_min: float) -> bool:
 
 def _ties(replay: Replay, ranked: list[Candidate], z_min: float) -> tuple[str, ...]:
     """Runner-ups that pass the test too and that the best does not beat on the held-out
-    data by ``tie_threshold()`` spreads: the data cannot tell them from the best."""
+    data by the same ``z_min`` spreads an added effect needs: the data cannot tell them
+    from the best (and more parameters must earn their place as an effect does)."""
     best = ranked[0]
     tied = []
     for other in ranked[1:]:
         if not _significant(other, z_min):
             continue
-        if held_out_evidence(replay, other.model, best.model).z < tie_threshold():
+        if held_out_evidence(replay, other.model, best.model).z < z_min:
             tied.append(other.name)
     return tuple(tied)
 

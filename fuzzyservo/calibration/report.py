@@ -22,6 +22,7 @@ from fuzzyservo.calibration.signatures import mean_share, signatures
 from fuzzyservo.components.effects import LIBRARY, owner
 from fuzzyservo.rig import Rig
 
+ZOOM_S = 5.0  # the detail overlay shows this much of the held-out part [s]
 # SI unit -> (display unit, factor) for plots and tables
 _DISPLAY = {"m": ("mm", 1e3), "Pa": ("bar", 1e-5), "A": ("mA", 1e3), "m/s": ("mm/s", 1e3)}
 
@@ -259,6 +260,12 @@ def write_outputs(
         t, measured, before, after, units, replay.split_s, fit_before, fit_after, title
     )
     paths["overlay"] = save(fig, out_dir / "overlay.png")
+    zoom = (replay.split_s, min(float(t[-1]), replay.split_s + ZOOM_S))
+    fig = overlay_figure(
+        t, measured, before, after, units, replay.split_s, fit_before, fit_after,
+        f"{title} (held-out part, first {zoom[1] - zoom[0]:.3g} s)", window=zoom,
+    )  # fmt: skip
+    paths["overlay_zoom"] = save(fig, out_dir / "overlay_zoom.png")
     band = confidence_band(t.size - replay.split)
     input_name, u = _input_signal(replay)
     part = slice(replay.split, None)
@@ -340,7 +347,7 @@ def _report(
         lines.append(
             f"| {channel} | {sigma} | " + " | ".join(_pct(t[channel]) for t in tables) + " |"
         )
-    lines += ["", f"![overlay]({rel('overlay')})", ""]
+    lines += ["", f"![overlay]({rel('overlay')})", f"![held-out detail]({rel('overlay_zoom')})", ""]
     if summary["uncertainty"]:
         lines += [
             "## Fitted values (SI) with 95 % intervals",

@@ -339,6 +339,8 @@ def calibrate(
             _, candidate = fit(replay, current, name)
             evidence = held_out_evidence(replay, current_model, candidate.model)
             results.append(dataclasses.replace(candidate, evidence=evidence))
+        if not results:  # every allowed effect is in already
+            break
         results.sort(key=lambda c: c.score)
         z_min = threshold(len(results))
         best = results[0] if results else None

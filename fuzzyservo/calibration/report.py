@@ -107,6 +107,10 @@ def summary_data(outcome: Outcome, replay: Replay) -> dict[str, Any]:
             "added": r.added,
             "threshold_z": r.threshold,
             "ambiguous_with": list(r.ambiguous_with),
+            "separating_experiments": [
+                {"name": e.name, "description": e.description, "distance": e.distance}
+                for e in r.experiments
+            ],
             "candidates": [
                 {
                     "name": c.name,

@@ -6,8 +6,8 @@ turbulent line loss, a 4.3 ms delay that is not a whole number of samples, a
 second-order spool, a pump with a relief valve …) at the middle of docs/modelling.md's
 typical ranges. ``calibrate`` gets the nominal seed-002 rig and the CSV-like record.
 
-Measured (README, "Formulations the library did not write"): 7 of 10 named first and
-added. The three misses are marked xfail with what was seen.
+Measured (README, "Formulations the library did not write"): 8 of 10 named first and
+added. The two misses are marked xfail with what was seen.
 """
 
 from __future__ import annotations
@@ -24,8 +24,6 @@ from fuzzyservo.calibration.search import calibrate
 from fuzzyservo.io.rigs import load_rig
 
 MISSES = {
-    "coulomb_friction": "LuGre sticks: Stribeck friction with a high stiction ranks first "
-    "(held-out cost 255 against 273 for Coulomb friction); both are friction",
     "internal_leakage": "1e-13 m³/(s·Pa) stays below what the 40 % formulation mismatch "
     "(held-out cost 1.36 with nothing added) lets the test see",
     "bulk_modulus": "the generator's pressure form differs from the library's mass form by "

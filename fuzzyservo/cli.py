@@ -741,6 +741,8 @@ def cmd_calibrate(args: argparse.Namespace) -> int:
     out = out or _out_dir(str(Path("out") / f"calibrate_{rig.name}_{Path(args.data).stem}"))
     paths, summary = write_outputs(outcome, replay, args.data, out)
     summary = json_ready(summary)  # as in summary.json: non-finite numbers are null
+    for warning in summary["warnings"]:
+        print(f"warning: {warning}")
     print(f"effects added: {summary['decision']}")
     for c in outcome.added:
         print(f"  {c.name}: " + ", ".join(f"{k} = {v:.4g}" for k, v in c.params.items()))

@@ -22,6 +22,7 @@ from fuzzyservo.calibration.signatures import mean_share, signatures
 from fuzzyservo.components.effects import LIBRARY, owner
 from fuzzyservo.rig import Rig
 
+ZOOM_S = 5.0  # the detail overlay shows this much of the held-out part [s]
 # SI unit -> (display unit, factor) for plots and tables
 _DISPLAY = {"m": ("mm", 1e3), "Pa": ("bar", 1e-5), "A": ("mA", 1e3), "m/s": ("mm/s", 1e3)}
 
@@ -78,10 +79,21 @@ def summary_data(outcome: Outcome, replay: Replay) -> dict[str, Any]:
     models = outcome.models
     first = outcome.rounds[0].candidates if outcome.rounds else ()
     data: dict[str, Any] = {
-        "effects_added": [{"name": c.name, "params": dict(c.params)} for c in outcome.added],
+        "effects_added": [
+            {
+                "name": c.name,
+                "params": dict(c.params),
+                "ambiguous_with": list(_round_of(outcome, c.name).ambiguous_with),
+                "z": c.evidence.z if c.evidence else None,
+            }
+            for c in outcome.added
+        ],
         "fit_before_pct": fit_table(replay, models["declared"]),
         "fit_after_pct": fit_table(replay, models["calibrated"]),
-        "candidates": [{"name": c.name, "score": c.score} for c in first],
+        "candidates": [
+            {"name": c.name, "score": c.score, "z": c.evidence.z if c.evidence else None}
+            for c in first
+        ],
     }
     if outcome.declared.unknowns:
         data["fit_nominal_pct"] = fit_table(replay, models["nominal"])
@@ -104,6 +116,12 @@ def summary_data(outcome: Outcome, replay: Replay) -> dict[str, Any]:
         {
             "start_cost": r.start_cost_val,
             "added": r.added,
+            "threshold_z": r.threshold,
+            "ambiguous_with": list(r.ambiguous_with),
+            "separating_experiments": [
+                {"name": e.name, "description": e.description, "distance": e.distance}
+                for e in r.experiments
+            ],
             "candidates": [
                 {
                     "name": c.name,
@@ -111,6 +129,9 @@ def summary_data(outcome: Outcome, replay: Replay) -> dict[str, Any]:
                     "cost_train": c.cost_train,
                     "cost_val": c.cost_val,
                     "n_params": c.n_params,
+                    "z": c.evidence.z if c.evidence else None,
+                    "log_lr": c.evidence.log_lr if c.evidence else None,
+                    "n_eff": c.evidence.n_eff if c.evidence else None,
                     "params": dict(c.params),
                     "fit_val_pct": c.fit_val,
                     "status": c.status,
@@ -122,6 +143,16 @@ def summary_data(outcome: Outcome, replay: Replay) -> dict[str, Any]:
         }
         for r in outcome.rounds
     ]
+    data["uncertainty"] = {
+        type(outcome.calibrated.params).__dataclass_fields__[f].metadata["key"]: {
+            "value": e.value,
+            "interval": list(e.interval),
+            "bounds": list(e.bounds),
+            "at_bound": e.at_bound,
+        }
+        for f, e in outcome.uncertainty.items()
+    }
+    data["warnings"] = warnings(outcome)
     data["noise_cost"] = outcome.noise_cost
     data["noise_floor"] = {c: replay.sigma[c] for c in replay.channels}
     data["cost_val"] = {
@@ -137,6 +168,37 @@ def summary_data(outcome: Outcome, replay: Replay) -> dict[str, Any]:
     }
     data["seconds"] = outcome.seconds
     return data
+
+
+def warnings(outcome: Outcome) -> list[str]:
+    """What the user must know before trusting the result: ambiguities (with the
+    experiment that would separate them) and fitted values on a bound."""
+    out = []
+    for r in outcome.rounds:
+        if r.added and r.ambiguous_with:
+            line = (
+                f"{r.added} cannot be told apart from {', '.join(r.ambiguous_with)} on this "
+                "data (the best does not beat them on the held-out part)"
+            )
+            if r.experiments:
+                e = r.experiments[0]
+                line += f"; an experiment that separates them: {e.name}, {e.description}"
+            out.append(line)
+    fields = type(outcome.calibrated.params).__dataclass_fields__
+    for f, e in outcome.uncertainty.items():
+        if e.at_bound:
+            lo, hi = e.bounds
+            out.append(
+                f"{fields[f].metadata['key']} = {e.value:.4g} sits on its bound [{lo:.4g}, "
+                f"{hi:.4g}]: the data want it further out; widen the bound (fit: [...]) or "
+                "look for another effect"
+            )
+    return out
+
+
+def _round_of(outcome: Outcome, name: str):
+    """The round in which effect ``name`` was added."""
+    return next(r for r in outcome.rounds if r.added == name)
 
 
 def write_outputs(
@@ -179,6 +241,11 @@ def write_outputs(
         f"from rig file {outcome.declared.path}; effects added: "
         f"{', '.join(c.name for c in outcome.added) or 'none'}"
     )
+    intervals = {}
+    for f, est in outcome.uncertainty.items():
+        meta = type(rig.params).__dataclass_fields__[f].metadata
+        key = meta["key"]  # "effect.key" for an effect's parameter
+        intervals[key] = (*est.interval, est.at_bound)
     if outcome.declared.path:
         paths["rig"] = write_calibrated_rig(
             outcome.declared.path,
@@ -186,6 +253,7 @@ def write_outputs(
             parameters=parameters,
             effects=effects,
             header=header,
+            intervals=intervals,
         )
     summary = summary_data(outcome, replay)
     if "rig" in paths:
@@ -207,6 +275,12 @@ def write_outputs(
         t, measured, before, after, units, replay.split_s, fit_before, fit_after, title
     )
     paths["overlay"] = save(fig, out_dir / "overlay.png")
+    zoom = (replay.split_s, min(float(t[-1]), replay.split_s + ZOOM_S))
+    fig = overlay_figure(
+        t, measured, before, after, units, replay.split_s, fit_before, fit_after,
+        f"{title} (held-out part, first {zoom[1] - zoom[0]:.3g} s)", window=zoom,
+    )  # fmt: skip
+    paths["overlay_zoom"] = save(fig, out_dir / "overlay_zoom.png")
     band = confidence_band(t.size - replay.split)
     input_name, u = _input_signal(replay)
     part = slice(replay.split, None)
@@ -268,6 +342,7 @@ def _report(
         f"the last {100 * (1 - replay.split / replay.t.size):.0f} % (from {replay.split_s:.2f} s) "
         "is held out: fits are fitted on the first part and reported on it.",
         "",
+        *[f"> **Warning:** {w}" + "\n" for w in summary["warnings"]],
         f"**Effects added: {summary['decision']}**"
         + (f" → calibrated rig `{rel('rig')}`" if "rig" in paths else ""),
         "",
@@ -289,12 +364,24 @@ def _report(
         lines.append(
             f"| {channel} | {sigma} | " + " | ".join(_pct(t[channel]) for t in tables) + " |"
         )
-    lines += ["", f"![overlay]({rel('overlay')})", ""]
-    if "fitted_parameters" in summary:
-        lines += ["## Fitted unknowns", "", "| parameter | bounds | value |", "|---|---|---|"]
-        for f, v in summary["fitted_parameters"].items():
-            lo, hi = outcome.declared.unknowns[f]
-            lines.append(f"| {f} | [{lo:.4g}, {hi:.4g}] | {v:.6g} |")
+    lines += ["", f"![overlay]({rel('overlay')})", f"![held-out detail]({rel('overlay_zoom')})", ""]
+    if summary["uncertainty"]:
+        lines += [
+            "## Fitted values (SI) with 95 % intervals",
+            "",
+            "Linearised from the Jacobian with the effective sample size (uncertainty.py); "
+            "the calibrated rig carries them as `interval` and `at_bound`.",
+            "",
+            "| parameter | bounds | value | 95 % interval | at bound |",
+            "|---|---|---|---|---|",
+        ]
+        for key, u in summary["uncertainty"].items():
+            lo, hi = u["bounds"]
+            a, b = u["interval"]
+            lines.append(
+                f"| {key} | [{lo:.4g}, {hi:.4g}] | {u['value']:.6g} | [{a:.4g}, {b:.4g}] | "
+                f"{'**yes**' if u['at_bound'] else 'no'} |"
+            )
         lines.append("")
     if replay.logged_gains:
         lines += [
@@ -319,22 +406,27 @@ def _report(
         "## Candidates",
         "",
         "Score: held-out mean squared residual in units of each channel's noise variance "
-        "(1 = a perfect model) plus "
-        "0.1 per fitted parameter. An effect is added when it lowers the held-out cost by "
-        "more than 0.25 noise floors and 5 %.",
+        "(1 = a perfect model). z: the held-out log-likelihood ratio over the round's "
+        "starting model divided by its noise-driven spread (effective sample size from the "
+        "residual's autocorrelation). The best is added when its z exceeds the round's "
+        "threshold Φ⁻¹(1 − 0.05/K) for K candidates: on data without a missing effect, "
+        "an effect is added in at most 5 % of runs.",
         "",
     ]
     for k, r in enumerate(outcome.rounds, start=1):
         lines += [
-            f"### Round {k}: starting cost {r.start_cost_val:.4g}, added: {r.added or 'none'}",
+            f"### Round {k}: starting cost {r.start_cost_val:.4g}, threshold z > "
+            f"{r.threshold:.2f}, added: {r.added or 'none'}"
+            + (f" (ambiguous with {', '.join(r.ambiguous_with)})" if r.ambiguous_with else ""),
             "",
-            "| rank | effect | score | held-out cost | parameters | runs | s |",
+            "| rank | effect | score | z | parameters | runs | s |",
             "|---|---|---|---|---|---|---|",
         ]
         for i, c in enumerate(r.candidates, start=1):
             params = ", ".join(f"{key} = {v:.4g}" for key, v in c.params.items())
+            z = f"{c.evidence.z:.2f}" if c.evidence else "n/a"
             lines.append(
-                f"| {i} | {c.name} | {c.score:.4g} | {c.cost_val:.4g} | {params} | "
+                f"| {i} | {c.name} | {c.score:.4g} | {z} | {params} | "
                 f"{c.evaluations} | {c.seconds:.1f} |"
             )
         lines += ["", f"![candidates]({rel(f'candidates_{k}')})", ""]

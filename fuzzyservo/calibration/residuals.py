@@ -89,18 +89,52 @@ def noise_floor(y: np.ndarray) -> float:
     standard deviation. The second difference of the smooth part of a signal sampled
     at 100 Hz is small except around fast transients (steps, breakaway), and the
     median ignores those few samples, so what remains is the noise. Slow signals
-    (``y'' · dt²`` well below σ) are needed; quantisation counts as noise.
+    (``y'' · dt²`` well below σ) are needed.
+
+    Two logger habits are handled (docs/modelling.md "Sensors"):
+
+    * **held samples**: when more than half of the samples repeat the previous one
+      (a logger that holds the last value between sensor updates), the estimate is
+      taken on the updates alone — from changes, not from all samples — else the
+      median of the second differences is 0 and the estimate collapses;
+    * **quantisation**: when every change is a whole multiple of one step ``q`` (the
+      smallest change), the estimate is at least the quantisation noise ``q/√12``.
 
     Non-finite samples are skipped (every second difference touching one). In the
-    units of ``y``; NaN when fewer than three finite samples are in a row.
+    units of ``y``; NaN when fewer than three finite samples are in a row. A noise-free
+    smooth signal (a ramp) gives 0.
     """
     y = _as_1d("y", y)
+    dy = np.diff(y)
+    if dy.size and np.count_nonzero(dy == 0.0) > 0.5 * dy.size:
+        y = y[np.concatenate(([True], dy != 0.0))]  # the updates, each once
     d2 = y[2:] - 2.0 * y[1:-1] + y[:-2]
     d2 = d2[np.isfinite(d2)]
     if d2.size == 0:
         return math.nan
     mad = float(np.median(np.abs(d2 - np.median(d2))))
-    return _MAD_TO_SIGMA * mad / math.sqrt(6.0)
+    sigma = _MAD_TO_SIGMA * mad / math.sqrt(6.0)
+    return max(sigma, quantisation_step(dy) / math.sqrt(12.0))
+
+
+def quantisation_step(dy: np.ndarray) -> float:
+    """The step ``q`` of a quantised record from its changes ``dy`` (0 if not quantised).
+
+    ``q`` is the smallest non-zero ``|dy|``; the record counts as quantised when every
+    change is a whole multiple of it (to 1 %) and the changes are not all one size (a
+    noise-free ramp is not quantisation).
+    """
+    dy = np.abs(np.asarray(dy, dtype=float))
+    dy = dy[np.isfinite(dy) & (dy > 0.0)]
+    if dy.size < 3:
+        return 0.0
+    q = float(dy.min())
+    ratio = dy / q
+    if np.ptp(ratio) < 0.5:  # all changes of one size: a ramp
+        return 0.0
+    if np.max(np.abs(ratio - np.round(ratio))) > 0.01:
+        return 0.0
+    return q
 
 
 def _check_lag(max_lag: int, n: int) -> None:

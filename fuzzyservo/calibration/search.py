@@ -1,14 +1,17 @@
-"""Trace the residual to the effect the model lacks: fit every candidate, score it on
-held-out data, add the best only when it clearly beats the noise floor; twice.
+"""Trace the residual to the effect the model lacks: fit every candidate, test it on
+held-out data, add the best only when noise alone would rarely do as well; twice.
 
 Grey-box estimation in the manner of MATLAB's ``nlgreyest``: each candidate is the rig
 with one more effect of :data:`~fuzzyservo.components.effects.LIBRARY` switched on; its
 parameters (and the rig's declared unknowns) are fitted by bounded least squares
-(``scipy.optimize.least_squares``, trust-region reflective) on the training part of the
-replay. The score is the held-out normalised cost plus one noise floor per fitted
-parameter (a candidate must explain a noise floor's worth of residual for every number
-it adds). The decision never looks at how the data was made: only at the data, its
-noise floor and the held-out costs.
+(``scipy.optimize.least_squares``, dogleg in the box, finite differences with an
+absolute step on the unit box) on the training part of the replay. Candidates are
+ranked by held-out cost (among candidates the data cannot tell apart, the one with the
+fewest parameters first); the best is added when its held-out likelihood ratio over the
+current model passes :mod:`~fuzzyservo.calibration.decision`'s test (error rate
+``ALPHA`` split over the candidates). Candidates that pass too and that the best does
+not beat on the held-out data are reported as ``ambiguous_with`` (the data cannot tell
+them apart). The decision never looks at how the data was made.
 """
 
 from __future__ import annotations
@@ -24,20 +27,23 @@ import numpy as np
 from scipy.optimize import least_squares, minimize_scalar
 
 from fuzzyservo.calibration import gains as _gains
+from fuzzyservo.calibration.decision import (
+    Evidence,
+    held_out_evidence,
+    threshold,
+)
+from fuzzyservo.calibration.identifiability import Separation, separating_experiments
 from fuzzyservo.calibration.replay import DIVERGED_COST, Replay
 from fuzzyservo.calibration.residuals import fit_percent
+from fuzzyservo.calibration.uncertainty import Estimate, effective_samples, estimates
 from fuzzyservo.components.effects import LIBRARY, EffectParam, owner
 from fuzzyservo.controllers.base import Controller
 from fuzzyservo.rig import Rig
 
-# An effect is added when its held-out cost is below the current model's by this many
-# noise floors and by this fraction: clearly more than noise or a lucky fit could give.
-MARGIN_NOISE_FLOORS = 0.25
-MARGIN_RELATIVE = 0.05
-PENALTY_PER_PARAMETER = 0.1  # noise floors
 SCAN = (0.0, 0.25, 0.5, 0.75, 1.0)  # grid of each parameter (unit interval)
 SCAN_FINE = tuple(np.linspace(0.05, 0.95, 10))  # scan of a single parameter
 START = 0.3  # start of the other parameters (unit interval)
+JACOBIAN_STEP = 0.01  # absolute finite-difference step on the unit box
 
 
 @dataclass(frozen=True)
@@ -50,7 +56,7 @@ class Candidate:
     n_params: int
     cost_train: float
     cost_val: float
-    score: float
+    score: float  # the ranking key: held-out cost (inf for a failed run)
     fit_val: dict[str, float]
     status: str
     evaluations: int
@@ -58,6 +64,8 @@ class Candidate:
     model: dict[str, np.ndarray] = field(
         default_factory=dict, repr=False
     )  # channels on the data grid
+    evidence: Evidence | None = None  # held-out test against the round's starting model
+    rig: Rig | None = field(default=None, repr=False, compare=False)  # the fitted rig
 
 
 @dataclass(frozen=True)
@@ -67,6 +75,9 @@ class Round:
     start_cost_val: float
     candidates: tuple[Candidate, ...]  # best first
     added: str | None
+    threshold: float = math.inf  # the z the best had to exceed
+    ambiguous_with: tuple[str, ...] = ()  # candidates the data cannot tell from the best
+    experiments: tuple[Separation, ...] = ()  # excitations that would separate them, best first
 
 
 @dataclass(frozen=True)
@@ -85,6 +96,7 @@ class Outcome:
     models: dict[str, dict[str, np.ndarray]] = field(default_factory=dict)
     seconds: float = 0.0
     controller: Controller | None = None  # the replay's controller, with fitted gains
+    uncertainty: dict[str, Estimate] = field(default_factory=dict)  # field -> 95 % interval
 
 
 @dataclass
@@ -212,7 +224,6 @@ def fit(
     rig = objective.rig(z)
     model, status = objective.model(z)
     cost_train, cost_val = replay.costs(model)
-    noise = replay.noise_cost()
     params = rig.effect_values(effect) if effect else {}
     unknowns = {
         f: space.value(j, z[j]) for j, (owner, f) in enumerate(space.names) if owner != effect
@@ -224,14 +235,13 @@ def fit(
         n_params=n_effect,
         cost_train=cost_train,
         cost_val=cost_val,
-        score=cost_val + n_effect * PENALTY_PER_PARAMETER * noise
-        if cost_val < DIVERGED_COST
-        else math.inf,
+        score=cost_val if cost_val < DIVERGED_COST else math.inf,
         fit_val=fit_table(replay, model),
         status=status,
         evaluations=len(objective.cache),
         seconds=time.perf_counter() - start,
         model=model,
+        rig=rig,
     )
     return rig, candidate
 
@@ -270,21 +280,41 @@ def _minimise(objective: _Objective, z0: np.ndarray, n_effect: int, budget: int)
             lambda v: objective.train_cost([v]),
             bounds=(max(z[0] - step, 0.0), min(z[0] + step, 1.0)),
             method="bounded",
-            options={"xatol": 1e-4, "maxiter": 30},
+            options={"xatol": 1e-6, "maxiter": 40},
         )
         best = np.array([sol.x])
     else:
         sol = least_squares(
             objective.residuals,
             z,
+            jac=lambda x: _jacobian(objective.residuals, x),
             bounds=(np.zeros(n), np.ones(n)),
-            diff_step=1e-2,
+            # dogbox, not trf: trf scales a step by the distance to the bound, so from a
+            # parameter at 0 (an effect off) it stops after two tiny steps
+            method="dogbox",
             xtol=1e-4,
             ftol=1e-4,
             max_nfev=max(budget, 15 * (n + 1)),
         )
         best = sol.x
     return best if objective.train_cost(best) <= objective.train_cost(z) else z
+
+
+def _jacobian(
+    residuals: Callable[[np.ndarray], np.ndarray], z: np.ndarray, step: float = JACOBIAN_STEP
+) -> np.ndarray:
+    """Forward differences with an absolute step on the unit box, taken inward at the
+    upper bound. scipy's ``diff_step`` is relative to the point, so at z = 0 (an effect
+    off, a delay whose best grid point is 0) its step is ~1e-8 and the search cannot
+    leave 0; on the unit box one step size suits every parameter whatever its unit."""
+    r0 = residuals(z)
+    jac = np.empty((r0.size, z.size))
+    for j in range(z.size):
+        h = step if z[j] + step <= 1.0 else -step
+        trial = z.copy()
+        trial[j] += h
+        jac[:, j] = (residuals(trial) - r0) / h
+    return jac
 
 
 def fit_table(replay: Replay, model: dict[str, np.ndarray]) -> dict[str, float]:
@@ -326,26 +356,54 @@ def calibrate(
     added: list[Candidate] = []
     rounds: list[Round] = []
     for _ in range(max_effects):
-        results: list[tuple[Rig, Candidate]] = []
+        results: list[Candidate] = []
         for name in names:
             if name in current.effects:
                 continue
             if progress:
                 progress(name)
-            results.append(fit(replay, current, name))
-        results.sort(key=lambda rc: rc[1].score)
-        best_rig, best = results[0] if results else (None, None)
-        accept = best is not None and _clearly_better(best, cost, noise)
-        rounds.append(Round(cost, tuple(c for _, c in results), best.name if accept else None))
+            _, candidate = fit(replay, current, name)
+            evidence = held_out_evidence(replay, current_model, candidate.model)
+            results.append(dataclasses.replace(candidate, evidence=evidence))
+        if not results:  # every allowed effect is in already
+            break
+        results.sort(key=lambda c: c.score)
+        z_min = threshold(len(results))
+        best = results[0] if results else None
+        accept = best is not None and _significant(best, z_min)
+        ambiguous = _ties(replay, results, z_min) if accept else ()
+        if ambiguous:  # parsimony: the simplest of the tied candidates goes first
+            tied = [c for c in results if c.name in (best.name, *ambiguous)]
+            simplest = min(tied, key=lambda c: (c.n_params, c.score))
+            if simplest is not best:
+                results.remove(simplest)
+                results.insert(0, simplest)
+                ambiguous = tuple(c.name for c in tied if c is not simplest)
+                best = simplest
+        experiments: tuple[Separation, ...] = ()
+        if ambiguous:
+            tied = {c.name: c.rig for c in results if c.name in (best.name, *ambiguous)}
+            experiments = tuple(separating_experiments(replay, tied))
+        rounds.append(
+            Round(
+                cost,
+                tuple(results),
+                best.name if accept else None,
+                threshold=z_min,
+                ambiguous_with=ambiguous,
+                experiments=experiments,
+            )
+        )
         if not accept:
             break
         added.append(best)
-        current, current_model, cost = best_rig, best.model, best.cost_val
+        current, current_model, cost = best.rig, best.model, best.cost_val
     if len(added) > 1:
         current, added, current_model, cost = _refit_jointly(
             replay, current, added, current_model, cost
         )
     models["calibrated"] = current_model
+    uncertainty = _uncertainty(replay, current, added, current_model)
     return Outcome(
         declared=rig,
         nominal=nominal,
@@ -359,13 +417,52 @@ def calibrate(
         models=models,
         seconds=time.perf_counter() - start,
         controller=replay.controller,
+        uncertainty=uncertainty,
     )
 
 
-def _clearly_better(candidate: Candidate, cost: float, noise: float) -> bool:
-    """Held-out cost below the current one by 3 noise floors and by 5 %, penalty included."""
-    gain = cost - candidate.score
-    return gain > MARGIN_NOISE_FLOORS * noise and gain > MARGIN_RELATIVE * cost
+def _uncertainty(
+    replay: Replay, rig: Rig, added: Sequence[Candidate], model: dict[str, np.ndarray]
+) -> dict[str, Estimate]:
+    """95 % intervals and at-bound flags of every fitted value: the rig's unknowns and the
+    added effects' parameters (uncertainty.py), from one Jacobian at the final model."""
+    unknowns = dict(rig.unknowns)
+    scales = rig.scales()
+    for candidate in added:
+        for param in LIBRARY[candidate.name].fitted:
+            unknowns.setdefault(param.field, _bounds(rig, param, scales))
+    if not unknowns:
+        return {}
+    joint = dataclasses.replace(rig, unknowns=unknowns)
+    space = _space(joint, None)
+    objective = _Objective(replay, joint, None, space)
+    values = [float(getattr(rig.params, f)) for _, f in space.names]
+    z = np.array([space.unit(j, v) for j, v in enumerate(values)])
+    jac = _jacobian(objective.residuals, z)
+    samples, effective = effective_samples(replay, model)
+    cost_train = replay.cost(model, slice(0, replay.split))
+    found = estimates(jac, z, values, space.value, space.bounds, cost_train, samples, effective)
+    return {f: e for (_, f), e in zip(space.names, found, strict=True)}
+
+
+def _significant(candidate: Candidate, z_min: float) -> bool:
+    """The candidate's held-out likelihood ratio over the current model exceeds ``z_min``
+    noise spreads (decision.py)."""
+    return candidate.evidence is not None and candidate.evidence.z > z_min
+
+
+def _ties(replay: Replay, ranked: list[Candidate], z_min: float) -> tuple[str, ...]:
+    """Runner-ups that pass the test too and that the best does not beat on the held-out
+    data by the same ``z_min`` spreads an added effect needs: the data cannot tell them
+    from the best (and more parameters must earn their place as an effect does)."""
+    best = ranked[0]
+    tied = []
+    for other in ranked[1:]:
+        if not _significant(other, z_min):
+            continue
+        if held_out_evidence(replay, other.model, best.model).z < z_min:
+            tied.append(other.name)
+    return tuple(tied)
 
 
 def _refit_jointly(

@@ -10,14 +10,14 @@ import numpy as np
 
 from fuzzyservo.controllers.base import Controller
 from fuzzyservo.io.measured import Measured
-from fuzzyservo.rig import Rig
+from fuzzyservo.rig import Rig, Scenario
 from fuzzyservo.simulation import simulate
 
 
 def synthetic_run(
     rig: Rig,
     controller: Controller,
-    scenario: str | None,
+    scenario: str | Scenario | None,
     effects: Mapping[str, Mapping[str, float]],
     noise: Mapping[str, float],
     *,
@@ -42,6 +42,10 @@ def synthetic_run(
     _, input_unit = rig.plant.input
     key = "i" if input_unit == "A" else "u"
     signals[key], units[key] = res.actuator, input_unit
+    if scenario is not None and not isinstance(scenario, str):
+        load = np.asarray(scenario.load.sample(res.t), dtype=float)
+        if np.any(load != 0.0):  # an experiment under a load records it
+            signals["load"], units["load"] = load, rig.plant.mechanics["force"]
     for name, sigma in noise.items():
         signal = rig.output if name == "y" else name
         signals[name] = res.signals[signal] + rng.normal(0.0, sigma, res.t.size)

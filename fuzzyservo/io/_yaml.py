@@ -18,7 +18,9 @@ import yaml
 from fuzzyservo.errors import ConfigError
 from fuzzyservo.units import Unit, parse_unit, to_si
 
-QUANTITY_KEYS = ("value", "unit", "source", "note")
+# ``interval`` ([lo, hi], 95 %, in the value's unit) and ``at_bound`` are written by
+# ``calibrate`` for robust tuning to sample from; a rig reads them as documentation.
+QUANTITY_KEYS = ("value", "unit", "source", "note", "interval", "at_bound")
 
 
 def read_yaml(path: str | Path) -> dict[str, Any]:

@@ -758,10 +758,13 @@ def write_calibrated_rig(
     parameters: dict[str, tuple[float, str, str]],
     effects: dict[str, dict[str, tuple[float, str, str]]],
     header: str,
+    intervals: dict[str, tuple[float, float, bool]] | None = None,
 ) -> Path:
     """Write a copy of rig file ``source`` with ``parameters`` (key -> value, unit,
     source) changed under ``plant.parameters`` and ``effects`` (name -> key -> value,
-    unit, source) declared. Comments of the original are not kept; ``header`` opens the
+    unit, source) declared. ``intervals`` (parameter key or ``effect.key`` -> 95 %
+    interval low, high in the value's unit, at a bound) adds ``interval: [lo, hi]`` and
+    ``at_bound`` to those entries. Comments of the original are not kept; ``header`` opens the
     file. Files the rig names are re-pointed relative to the new location."""
     import os
 
@@ -795,6 +798,7 @@ def write_calibrated_rig(
         old = plant_params.get(key, {})
         note = old.get("source") if isinstance(old, dict) else None
         plant_params[key] = {"value": float(value), "unit": unit, "source": source_text}
+        _add_interval(plant_params[key], (intervals or {}).get(key))
         if note:
             plant_params[key]["note"] = f"declared source: {note}"
     section = data.setdefault("effects", {}) or {}
@@ -802,8 +806,17 @@ def write_calibrated_rig(
         section[name] = {
             key: {"value": float(v), "unit": u, "source": s} for key, (v, u, s) in values.items()
         }
+        for key in values:
+            _add_interval(section[name][key], (intervals or {}).get(f"{name}.{key}"))
     data["effects"] = section
     text = yaml.safe_dump(data, sort_keys=False, allow_unicode=True, width=100)
     lines = "".join(f"# {line}\n" for line in header.splitlines())
     out.write_text(lines + text, encoding="utf-8")
     return out
+
+
+def _add_interval(entry: dict, interval: tuple[float, float, bool] | None) -> None:
+    if interval is not None:
+        lo, hi, at_bound = interval
+        entry["interval"] = [float(lo), float(hi)]
+        entry["at_bound"] = bool(at_bound)

@@ -66,6 +66,7 @@ def overlay_figure(
     fit_before: Mapping[str, float],
     fit_after: Mapping[str, float] | None,
     title: str = "",
+    window: tuple[float, float] | None = None,
 ) -> Figure:
     """Measured channels with the model before and after calibration, as ``compare``.
 
@@ -74,6 +75,8 @@ def overlay_figure(
     with its fit (``fit_percent``) in the legend, e.g. "before: 83.2 %". The held-out
     validation part ``t ≥ split_s`` is shaded and labelled. Arrays are already in the
     display units ``units`` names; NaN samples (a diverged replay) leave gaps.
+    ``window`` (start, end) [s] zooms every panel to that stretch, each y-axis fitted
+    to what is drawn there (a long record's detail cannot be read at full length).
     """
     t = np.asarray(t, dtype=float)
     names = _channels(measured, "overlay_figure")
@@ -110,6 +113,16 @@ def overlay_figure(
         ax.set_ylabel(axis_label(name, units.get(name, "")))
         ax.grid(True, color="0.85", lw=0.6)
         ax.set_xlim(t_start, t_end)
+        if window is not None:
+            ax.set_xlim(*window)
+            inside = (t >= window[0]) & (t <= window[1])
+            drawn = [measured[name], before[name]] + ([after[name]] if after is not None else [])
+            values = np.concatenate([np.asarray(v, dtype=float)[inside] for v in drawn])
+            values = values[np.isfinite(values)]
+            if values.size:
+                lo, hi = float(values.min()), float(values.max())
+                pad = 0.05 * (hi - lo) or 0.05 * max(abs(hi), 1e-12)
+                ax.set_ylim(lo - pad, hi + pad)
         ax.legend(loc="best", fontsize=8)
     axes[-1].set_xlabel("time [s]")
     if title:

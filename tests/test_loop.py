@@ -121,15 +121,15 @@ def test_ros34pw2_is_third_order_on_a_linear_system() -> None:
 
 
 def test_controller_kinds_are_unique_and_each_reaches_its_kernel() -> None:
-    from fuzzyservo.controllers.classical import PI, OpenLoop, P
+    from fuzzyservo.controllers.classical import PI, PIDF, OpenLoop, P
     from fuzzyservo.controllers.fuzzy.controller import FuzzyController
     from fuzzyservo.controllers.kernels import controller_step
     from fuzzyservo.controllers.kinds import KINDS
 
-    classes = (OpenLoop, P, PI, FuzzyController)
+    classes = (OpenLoop, P, PI, FuzzyController, PIDF)
     assert len(set(KINDS.values())) == len(KINDS)
     assert sorted(c.kind for c in classes) == sorted(KINDS.values())
-    for name in ("p_k10", "pi_dinca", "open_loop", "flc2_reshaped"):
+    for name in ("p_k10", "pi_dinca", "open_loop", "flc2_reshaped", "pidf_faster"):
         ctrl = controller_named(name)
         cp, cs = ctrl.init(0.01)
         u_python, _ = ctrl.step((cp, cs), 6.5, 6.2)

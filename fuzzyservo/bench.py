@@ -49,6 +49,33 @@ class BenchResult:
     description: str = ""
     extra: dict[str, float] = field(default_factory=dict)
 
+    @classmethod
+    def once(
+        cls,
+        name: str,
+        description: str,
+        wall_s: float,
+        *,
+        simulated_s: float = 0.0,
+        error: dict[str, float] | None = None,
+        extra: dict[str, float] | None = None,
+    ) -> BenchResult:
+        """A case timed by one run with no reference path (calibrate, margins, studies):
+        its wall time is the median, and ``extra`` carries it as ``wall_s`` too."""
+        return cls(
+            name=name,
+            description=description,
+            simulated_s=simulated_s,
+            median_s=wall_s,
+            reference_s=math.nan,
+            ratio=math.nan,
+            runs=1,
+            reference_runs=0,
+            integration_steps=0,
+            error=error or {},
+            extra={"wall_s": wall_s, **(extra or {})},
+        )
+
     def to_dict(self) -> dict:
         return {
             **self.extra,
@@ -173,19 +200,13 @@ def run_calibrate_case(root: Path | None = None) -> BenchResult:
     outcome = calibrate(replay, rig)
     wall = time.perf_counter() - t0
     runs = sum(c.evaluations for r in outcome.rounds for c in r.candidates)
-    return BenchResult(
-        name=CALIBRATE,
-        description="calibrate, whole library, 30 s of seed-002 data at 100 Hz (Coulomb friction undeclared)",
+    return BenchResult.once(
+        CALIBRATE,
+        "calibrate, whole library, 30 s of seed-002 data at 100 Hz (Coulomb friction undeclared)",
+        wall,
         simulated_s=30.0,
-        median_s=wall,
-        reference_s=math.nan,
-        ratio=math.nan,
-        runs=1,
-        reference_runs=0,
-        integration_steps=0,
         error={"fitted_force_n": outcome.added[0].params["force"] if outcome.added else math.nan},
         extra={
-            "wall_s": wall,
             "replays": runs,
             "replay_ms": 1e3 * wall / max(runs, 1),
             "added": [c.name for c in outcome.added],
@@ -209,18 +230,13 @@ def run_margins_case(root: Path | None = None) -> BenchResult:
     m = margins(rig, controller, "pulses")
     wall = time.perf_counter() - t0
     runs = m.gain.runs + m.delay.runs
-    return BenchResult(
-        name=MARGINS,
-        description="margins of P K=10 on the seed-002 rig (pulses, 22 s per run)",
+    return BenchResult.once(
+        MARGINS,
+        "margins of P K=10 on the seed-002 rig (pulses, 22 s per run)",
+        wall,
         simulated_s=22.0 * runs,
-        median_s=wall,
-        reference_s=math.nan,
-        ratio=math.nan,
-        runs=1,
-        reference_runs=0,
-        integration_steps=0,
         error={"gain_margin": m.gain.value, "delay_margin_s": m.delay.value},
-        extra={"wall_s": wall, "simulations": runs, "ms_per_simulation": 1e3 * wall / runs},
+        extra={"simulations": runs, "ms_per_simulation": 1e3 * wall / runs},
     )
 
 
@@ -245,22 +261,15 @@ def run_study_case(
         outcome = run_study(spec, Path(tmp), trials=trials, workers=workers, progress=False)
         wall = time.perf_counter() - t0
     sampler = max(outcome.worker_time_s - outcome.sim_time_s, 0.0)
-    return BenchResult(
-        name=ROBUST_STUDY if spec.uncertainty is not None else STUDY,
-        description=f"{trials} trials of studies/{study}.yaml on {workers} worker processes, SQLite storage",
-        simulated_s=0.0,
-        median_s=wall,
-        reference_s=math.nan,
-        ratio=math.nan,
-        runs=1,
-        reference_runs=0,
-        integration_steps=0,
+    return BenchResult.once(
+        ROBUST_STUDY if spec.uncertainty is not None else STUDY,
+        f"{trials} trials of studies/{study}.yaml on {workers} worker processes, SQLite storage",
+        wall,
         error={
             "best_objective": outcome.best.values[0],
             "baseline_objective": outcome.baseline.values[0],
         },
         extra={
-            "wall_s": wall,
             "trials": outcome.trials_complete + outcome.trials_pruned,
             "workers": workers,
             "simulation_s": outcome.sim_time_s,

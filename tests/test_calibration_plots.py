@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import warnings
+
 import numpy as np
 import pytest
 
@@ -67,6 +69,23 @@ def test_overlay_figure_without_after(tmp_path):
     labels = [t.get_text() for t in fig.get_axes()[1].get_legend().get_texts()]
     assert labels == ["measured", "before: n/a"]
     _check_saved(fig, tmp_path / "sub" / "overlay_before.png")
+
+
+def test_overlay_zoomed_into_a_long_record_keeps_its_label_in_view(tmp_path):
+    """A window into the held-out part: the "validation" label sits inside the window and
+    the layout is applied without matplotlib's "Tight layout not applied" warning (the
+    label used to be placed mid-span, far right of a zoomed axis)."""
+    t = np.linspace(0.0, 160.0, 16001)
+    measured = {"y": np.sin(t)}
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        fig = overlay_figure(
+            t, measured, measured, measured, {"y": "mm"}, 112.0, {"y": 90.0}, {"y": 95.0},
+            title="a long record (held-out part, first 10 s)", window=(112.0, 122.0),
+        )  # fmt: skip
+        (label,) = [x for x in fig.get_axes()[0].texts if x.get_text() == "validation"]
+        assert 112.0 <= label.get_position()[0] <= 122.0
+        _check_saved(fig, tmp_path / "zoom.png")
 
 
 def test_overlay_figure_rejects_missing_channel_and_wrong_length():

@@ -109,7 +109,8 @@ def overlay_figure(
                 lw=1.2,
                 label=f"after: {_fit_text(fits.get(name))}",
             )
-        _mark_validation(ax, split_s, t_start, t_end)
+        shown = window or (t_start, t_end)
+        _mark_validation(ax, split_s, t_start, t_end, shown)
         ax.set_ylabel(axis_label(name, units.get(name, "")))
         ax.grid(True, color="0.85", lw=0.6)
         ax.set_xlim(t_start, t_end)
@@ -130,15 +131,28 @@ def overlay_figure(
     return fig
 
 
-def _mark_validation(ax: Axes, split_s: float, t_start: float, t_end: float) -> None:
-    """Shade ``t ≥ split_s`` (data not used for fitting) when it lies inside the record."""
+def _mark_validation(
+    ax: Axes,
+    split_s: float,
+    t_start: float,
+    t_end: float,
+    shown: tuple[float, float] | None = None,
+) -> None:
+    """Shade ``t ≥ split_s`` (data not used for fitting) when it lies inside the record.
+
+    The label sits over the part of the span inside ``shown`` (the visible time window),
+    so a zoomed panel keeps it in view and the layout never has to make room for it.
+    """
     if not math.isfinite(split_s) or split_s >= t_end:
         return
     left = max(split_s, t_start)
     ax.axvspan(left, t_end, color=_VALIDATION, zorder=0, lw=0)
     if split_s > t_start:
         ax.axvline(split_s, color="0.5", ls=":", lw=1.0)
-    label_span(ax, left, t_end, "validation")
+    lo, hi = shown or (t_start, t_end)
+    label_left, label_right = max(left, lo), min(t_end, hi)
+    if label_right > label_left:
+        label_span(ax, label_left, label_right, "validation")
 
 
 def residual_figure(

@@ -199,7 +199,7 @@ def integrate_interval(
             h = h_step * fac
             if h < h_min:
                 return STATUS_DIVERGED, h, steps
-    return STATUS_OK, h_first, steps
+    return STATUS_OK, h_first if h_first > 0.0 else h, steps
 
 
 @njit(cache=True)

@@ -87,7 +87,8 @@ def integrate_interval(
     """Advance ``x`` in place over ``duration`` seconds with constant input ``u`` and load.
 
     ``u`` is the actuator value before the input effects (:func:`loop_rhs`, plant
-    null input ``null``). Returns ``(status, h_next, steps)``; ``h`` is the proposed first step. The local
+    null input ``null``). Returns ``(status, h_next, steps)``; ``h`` is the proposed first step,
+    ``h_next`` the one for the next interval: the step proposed after this interval's first. The local
     error of each state is kept below ``tol·scale[i]`` (absolute units per state).
     ``work``, ``mats`` and ``piv`` are scratch space from :func:`workspace`, allocated
     once per run rather than once per interval.
@@ -112,6 +113,7 @@ def integrate_interval(
     loop_rhs(x, u, load, p, null, f0)
     need_jac = True
     jac_fresh = False
+    h_first = 0.0
     while t < duration * (1.0 - 1e-12):
         if steps >= _MAX_STEPS_PER_INTERVAL:
             return STATUS_STEP_FAILURE, h, steps
@@ -184,6 +186,10 @@ def integrate_interval(
                     h = min(h, h_step * fac)
             else:
                 h = min(h_step * fac, duration)
+            if h_first == 0.0:
+                # the next interval starts after a command jump too: it begins with the
+                # step this one proposed after its first, not the one its end settled on
+                h_first = h
         else:
             if not jac_fresh:
                 # retry with the Jacobian at this state before cutting the step
@@ -193,7 +199,7 @@ def integrate_interval(
             h = h_step * fac
             if h < h_min:
                 return STATUS_DIVERGED, h, steps
-    return STATUS_OK, h, steps
+    return STATUS_OK, h_first if h_first > 0.0 else h, steps
 
 
 @njit(cache=True)

@@ -189,3 +189,65 @@ def test_robustness_command_table_json_and_bad_input(tmp_path, capsys):
     assert code == 2
     err = capsys.readouterr().err.strip()
     assert "uncertainty" in err and "\n" not in err
+
+
+def _calibrated_rig(tmp_path):
+    """A calibrated rig file as `fuzzyservo calibrate` writes it: fitted bulk modulus and
+    Coulomb friction with their 95 % intervals, the friction's on a bound."""
+    from fuzzyservo.io.rigs import write_calibrated_rig
+
+    return write_calibrated_rig(
+        DATA / "rigs" / "dinca_cylinder.yaml",
+        tmp_path / "dinca_cylinder_calibrated.yaml",
+        parameters={"bulk_modulus": (1.5e9, "Pa", "fitted")},
+        effects={"coulomb_friction": {"force": (30.0, "N", "fitted")}},
+        header="test",
+        intervals={"bulk_modulus": (1.4e9, 1.6e9, False), "coulomb_friction.force": (20, 40, True)},
+    )
+
+
+def test_uncertainty_reads_fitted_intervals_from_a_calibrated_rig(tmp_path):
+    """`calibrated: FILE` draws every fitted value uniformly in its interval (SI in the
+    file, shown in the file's unit); one also under `parameters:` keeps that range."""
+    rig = _calibrated_rig(tmp_path)
+    spec = load_study(_study_with(tmp_path, {"samples": 8, "calibrated": rig.name}))
+    by = {d.target: d for d in spec.uncertainty.parameters}
+    assert set(by) == {"bulk_modulus", "coulomb_friction.force"}
+    assert (by["bulk_modulus"].a, by["bulk_modulus"].b) == (1.4e9, 1.6e9)
+    assert by["bulk_modulus"].field == "bulk_modulus_pa" and by["bulk_modulus"].origin == "fitted"
+    friction = by["coulomb_friction.force"]
+    assert (friction.effect, friction.a, friction.b) == ("coulomb_friction", 20.0, 40.0)
+    assert "at a bound" in friction.origin and "at a bound" in spec.uncertainty.describe()
+    for s in spec.uncertainty.draws:
+        assert 1.4e9 <= s.values["bulk_modulus"] <= 1.6e9
+        assert 20.0 <= s.values["coulomb_friction.force"] <= 40.0
+    from fuzzyservo.io.rigs import load_rig
+    from fuzzyservo.tuning.robust import sample_rigs
+
+    drawn = sample_rigs(load_rig(spec.rig_file), spec)[0]
+    assert drawn.effect_values("coulomb_friction")["force"] == pytest.approx(
+        spec.uncertainty.draws[0].values["coulomb_friction.force"]
+    )
+    both = {"calibrated": str(rig),
+            "parameters": {"bulk_modulus": {"uniform": [12000, 18000], "unit": "bar"}}}  # fmt: skip
+    by = {d.target: d for d in load_study(_study_with(tmp_path, both)).uncertainty.parameters}
+    assert by["bulk_modulus"].a == pytest.approx(1.2e9) and not by["bulk_modulus"].origin
+
+
+@pytest.mark.parametrize(
+    ("edit", "text"),
+    [
+        (lambda d: d["plant"]["parameters"]["bulk_modulus"].pop("interval"), "no fitted interval"),
+        (lambda d: d["plant"]["parameters"]["bulk_modulus"].update(interval=[2, 1]), "[low, high]"),
+    ],
+)
+def test_bad_calibrated_rig_names_the_file_and_key(tmp_path, edit, text):
+    rig = _calibrated_rig(tmp_path)
+    data = yaml.safe_load(rig.read_text())
+    data["effects"]["coulomb_friction"]["force"].pop("interval")
+    edit(data)
+    rig.write_text(yaml.safe_dump(data))
+    with pytest.raises(ConfigError) as info:
+        load_study(_study_with(tmp_path, {"calibrated": str(rig)}))
+    message = str(info.value)
+    assert text in message and "calibrated" in message and "\n" not in message, message

@@ -251,3 +251,20 @@ def test_bad_calibrated_rig_names_the_file_and_key(tmp_path, edit, text):
         load_study(_study_with(tmp_path, {"calibrated": str(rig)}))
     message = str(info.value)
     assert text in message and "calibrated" in message and "\n" not in message, message
+
+
+def test_cold_cache_means_no_compiled_closed_loop(tmp_path, monkeypatch):
+    """Loading a rig caches small kernels; the compile note and the parent's compile before
+    the workers start must still see the cache as cold until a closed loop is cached."""
+    import numba
+
+    from fuzzyservo._jit import cache_is_cold
+
+    monkeypatch.setattr(numba.config, "CACHE_DIR", str(tmp_path))
+    assert cache_is_cold()
+    (tmp_path / "components_x").mkdir()
+    (tmp_path / "components_x" / "geometry.circle_area-12.py311.nbi").write_bytes(b"")
+    assert cache_is_cold()
+    (tmp_path / "generated_x").mkdir()
+    (tmp_path / "generated_x" / "fuzzyservo_loop_ab.closed_loop-199.py311.nbi").write_bytes(b"")
+    assert not cache_is_cold()

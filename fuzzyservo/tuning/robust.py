@@ -14,10 +14,19 @@ from __future__ import annotations
 import dataclasses
 import math
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
-from fuzzyservo.analysis.robustness import SampleRun, holds, run_sample
+from fuzzyservo.analysis.robustness import (
+    SUMMARY_METRICS,
+    MonteCarlo,
+    SampleRun,
+    holds,
+    monte_carlo,
+    run_sample,
+    summary,
+)
 from fuzzyservo.controllers.base import Controller
 from fuzzyservo.metrics import METRIC_NAMES
 from fuzzyservo.rig import Rig
@@ -148,3 +157,76 @@ def evaluate_samples(
         results=results,
         simulations=sims,
     )
+
+
+#: the seed of the report's Monte Carlo check (as `fuzzyservo robustness`): plants the
+#: study never saw
+CHECK_SEED = 2026
+
+
+@dataclass(frozen=True)
+class Comparison:
+    """Controllers side by side on the nominal plant (``nominal``, noise seed 0) and on
+    ``samples`` plants drawn afresh from the study's uncertainty (``monte_carlo``, seed
+    ``seed``), with the gain check ``gain`` (from ``gain_margin >= g``, else 2) on every
+    scenario."""
+
+    names: list[str]
+    nominal: list[SampleRun]
+    objective: list[float]  # the study's objective of each on the nominal plant
+    monte_carlo: list[MonteCarlo]
+    samples: int
+    seed: int
+    gain: float
+    uncertainty: str
+
+    def rows(self) -> list[dict[str, object]]:
+        """Per controller: the Monte Carlo summary (:func:`analysis.robustness.summary`)
+        with the nominal metrics, objective and gain check beside it."""
+        out = []
+        for row, run, value in zip(summary(self.monte_carlo, self.gain), self.nominal,
+                                   self.objective, strict=True):  # fmt: skip
+            row = dict(row)
+            row["nominal"] = {
+                "status": run.status,
+                "objective": value,
+                "gain_margin_holds": run.gain_holds,
+                **{m: run.metrics.get(m, math.nan) for m in SUMMARY_METRICS},
+            }
+            out.append(row)
+        return out
+
+
+def compare_controllers(
+    evaluator: Evaluator,
+    controllers: Sequence[Controller],
+    *,
+    samples: int,
+    seed: int = CHECK_SEED,
+    progress: Callable[[int], object] | None = None,
+) -> Comparison:
+    """``controllers`` on the study's nominal plant and on ``samples`` fresh draws of its
+    uncertainty (the report's comparison of the tuned controller with the baseline and
+    the template). Metrics: the worst scenario of each sample, as the study counts them."""
+    spec = evaluator.spec
+    u = dataclasses.replace(spec.uncertainty, samples=samples, seed=seed, draws=())
+    gain, _ = _margin_bounds(spec)
+    gain = gain if gain is not None else 2.0
+    rigs = [sample_rig(evaluator.rig, u.parameters, s) for s in u.draws]
+    scenarios = list(spec.scenarios)
+    nominal, objective = [], []
+    for controller in controllers:
+        run = run_sample(-1, evaluator.rig, controller, scenarios, 0, aggregate=spec.aggregate)
+        if run.status == "ok":
+            ok = all(holds(evaluator.rig, controller, s, gain=gain) for s in scenarios)
+            run = dataclasses.replace(run, gain_holds=ok)
+        nominal.append(run)
+        objective.append(evaluator._values(run.metrics)[0] if run.status == "ok" else math.nan)
+    mcs = monte_carlo(
+        evaluator.rig, controllers, rigs, [d.noise_seed for d in u.draws], scenarios,
+        gain=gain, progress=progress,
+    )  # fmt: skip
+    return Comparison(
+        [c.name for c in controllers], nominal, objective, mcs, samples, seed, gain,
+        u.describe(),
+    )  # fmt: skip

@@ -480,6 +480,8 @@ def cmd_tune(args: argparse.Namespace) -> int:
         raise ConfigError(f"--trials must be >= 1, got {args.trials}")
     if args.workers is not None and args.workers < 1:
         raise ConfigError(f"--workers must be >= 1, got {args.workers}")
+    if args.check_samples is not None and args.check_samples < 0:
+        raise ConfigError(f"--check-samples must be >= 0, got {args.check_samples}")
     if args.storage and storage_problem(args.storage):
         raise ConfigError(f"--storage: {storage_problem(args.storage)}")
     _out_file(args.json, "--json")
@@ -515,8 +517,6 @@ def cmd_tune(args: argparse.Namespace) -> int:
     from fuzzyservo.tuning.report import write_outputs
 
     check = args.check_samples
-    if check is not None and check < 0:
-        raise ConfigError(f"--check-samples must be >= 0, got {check}")
     progress = None
     if spec.uncertainty is not None and check != 0:
         n = spec.uncertainty.samples if check is None else check

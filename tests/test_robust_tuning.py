@@ -268,3 +268,25 @@ def test_cold_cache_means_no_compiled_closed_loop(tmp_path, monkeypatch):
     (tmp_path / "generated_x").mkdir()
     (tmp_path / "generated_x" / "fuzzyservo_loop_ab.closed_loop-199.py311.nbi").write_bytes(b"")
     assert not cache_is_cold()
+
+
+def test_report_compares_best_baseline_and_template_nominal_and_monte_carlo(tmp_path):
+    """A robust study's report: the tuned controller beside P K=10 and the template (FLC2)
+    on the nominal plant and on fresh samples, each with its gain check."""
+    from fuzzyservo.tuning.report import _comparison_lines, comparison_controllers
+    from fuzzyservo.tuning.robust import CHECK_SEED, compare_controllers
+
+    spec = dataclasses.replace(_small(tmp_path, samples=1), scenarios=("steps",))
+    evaluator = build_evaluator(spec)
+    best = load_controller(DATA / "studies" / "controllers" / "flc_dinca_robust.yaml")
+    c = compare_controllers(evaluator, comparison_controllers(evaluator, best), samples=2)
+    assert c.names == ["flc_dinca_robust", "p_k10", "flc2_reshaped"]
+    assert (c.samples, c.seed, c.gain) == (2, CHECK_SEED, 2.0)  # gain from the constraint
+    rows = {r["controller"]: r for r in c.rows()}
+    assert rows["p_k10"]["nominal"]["gain_margin_holds"] is False  # P K=10: margin 1.64
+    assert rows["flc_dinca_robust"]["nominal"]["gain_margin_holds"] is True
+    assert rows["flc_dinca_robust"]["failures"] == 0 and rows["p_k10"]["failures"] == 2
+    assert rows["flc_dinca_robust"]["nominal"]["objective"] < rows["p_k10"]["nominal"]["objective"]
+    text = "\n".join(_comparison_lines(c, lambda key: f"{key}.png"))
+    assert "### Nominal plant" in text and "2 plants the study never saw" in text
+    assert "| failures | 0 / 2 | 2 / 2 |" in text and "**oscillates**" in text

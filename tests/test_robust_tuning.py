@@ -143,9 +143,17 @@ def test_robust_value_is_the_worst_sample_and_margin_checks_count(tmp_path):
     assert ev.status == "ok" and ev.simulations == 2 * (2 + 1)  # 2 scenarios + gain check
     nominal = build_evaluator(dataclasses.replace(spec, uncertainty=None)).evaluate(flc2)
     assert ev.values[0] >= 0.5 * nominal.values[0]
-    # pruning: told to stop after the first sample
-    pruned = evaluator.evaluate(flc2, report=lambda step, value: True)
-    assert pruned.status == "pruned" and pruned.simulations == 2  # no margin check paid
+    # pruning: told to stop at the first question, after the shortest scenario (steps)
+    asked = []
+    pruned = evaluator.evaluate(flc2, report=lambda step, value: asked.append(value) or True)
+    assert pruned.status == "pruned" and pruned.simulations == 1  # no margin check paid
+    steps_worst = evaluator._values(ev.scenario_metrics["steps"])[0]  # over both samples
+    assert len(asked) == 1 and 0 < asked[0] <= steps_worst <= ev.values[0]
+    # not stopped: asked after each scenario and each sample, and never above the result
+    asked.clear()
+    again = evaluator.evaluate(flc2, report=lambda step, value: asked.append(value) and False)
+    assert again.values == ev.values and len(asked) == 2 * 2
+    assert asked == sorted(asked) and asked[-1] == pytest.approx(ev.values[0])
 
 
 def test_fingerprint_covers_the_uncertainty(tmp_path):

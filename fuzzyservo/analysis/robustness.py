@@ -15,7 +15,7 @@ its last question, at a tenth of its cost.
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -88,13 +88,18 @@ def run_sample(
     delay_s: float | None = None,
     margin_scenario: str | None = None,
     keep_results: bool = False,
+    stop: Callable[[dict[str, float]], bool] | None = None,
 ) -> SampleRun:
     """Simulate every scenario on ``rig`` (noise seeded ``noise_seed``), then the margin
-    checks asked for (``gain``, ``delay_s``) on ``margin_scenario``, unless a run failed."""
+    checks asked for (``gain``, ``delay_s``) on ``margin_scenario``, unless a run failed.
+
+    ``stop(metrics)``, when given, is asked after each scenario but the last with the
+    metrics aggregated over the scenarios run so far; True ends the sample there with
+    status ``pruned`` (a robust trial that is already lost: tuning/robust.py)."""
     per: dict[str, dict[str, float]] = {}
     results: dict[str, SimResult] = {}
     status, message = "ok", ""
-    for scenario in scenarios:
+    for n, scenario in enumerate(scenarios, 1):
         r = simulate(rig, controller, scenario, noise_seed=noise_seed)
         if keep_results:
             results[scenario] = r
@@ -102,7 +107,10 @@ def run_sample(
         if r.status != "ok":
             status, message = r.status, f"{scenario}: {r.message}"
             break
-    metrics = _over_scenarios(per, aggregate) if status == "ok" else {}
+        if stop is not None and n < len(scenarios) and stop(_over_scenarios(per, aggregate)):
+            status, message = "pruned", f"after {', '.join(per)}"
+            break
+    metrics = _over_scenarios(per, aggregate) if status in ("ok", "pruned") else {}
     where = margin_scenario or scenarios[0]
     gain_ok = delay_ok = None
     if status == "ok" and gain is not None:

@@ -43,6 +43,14 @@ def sample_rigs(rig: Rig, spec) -> list[Rig]:
     return [sample_rig(rig, u.parameters, s) for s in u.draws]
 
 
+def _partial_is_lower_bound(spec) -> bool:
+    """Can a sample be judged after some of its scenarios? Yes when the metrics are the
+    worst over the scenarios and the objective weighs them with no negative weight: then
+    the value over the scenarios run so far can only grow with the rest."""
+    weights = spec.objective.weights.values() if not spec.objective.pareto else [-1.0]
+    return spec.aggregate == "worst" and all(w >= 0 for w in weights)
+
+
 def _margin_bounds(spec) -> tuple[float | None, float | None]:
     gain = delay = None
     for c in spec.constraints:
@@ -62,7 +70,10 @@ def evaluate_samples(
 ) -> Evaluation:
     """Score ``controller`` on every sample (see the module docstring). ``report(k, value)``
     after sample ``k`` with the worst objective value so far (``worst`` aggregate, one
-    objective): True stops the trial (status ``pruned``): the value can only grow."""
+    objective): True stops the trial (status ``pruned``): the value can only grow. When
+    the scenarios too are aggregated by their worst and no weight is negative, it is also
+    asked after each scenario of a sample (shortest scenario first), so a lost trial stops
+    after one run instead of one per scenario."""
     from fuzzyservo.tuning.objective import Evaluation
 
     spec = evaluator.spec
@@ -71,17 +82,35 @@ def evaluate_samples(
     t0 = time.perf_counter()
     runs: list[SampleRun] = []
     status, message = "ok", ""
+    prunable = report is not None and u.aggregate == "worst" and spec.objective.n_values == 1
+    scenarios = list(spec.scenarios)
+    within = prunable and _partial_is_lower_bound(spec)
+    if within:  # the shortest scenario first: a lost trial stops after the cheapest run
+        scenarios.sort(key=lambda s: evaluator.rig.scenario(s).duration_s)
     for sample, rig in zip(u.draws, evaluator.sample_rigs, strict=True):
+        stop = None
+        if within:
+            before = max((evaluator._values(r.metrics)[0] for r in runs), default=-math.inf)
+
+            def stop(partial, k=sample.index, before=before) -> bool:
+                value = max(before, evaluator._values(partial)[0])
+                return math.isfinite(value) and report(k, value)
+
         run = run_sample(
-            sample.index, rig, controller, spec.scenarios, sample.noise_seed,
-            aggregate=spec.aggregate,
+            sample.index, rig, controller, scenarios, sample.noise_seed,
+            aggregate=spec.aggregate, stop=stop,
         )  # fmt: skip
         runs.append(run)
+        if run.status == "pruned":
+            so_far = max(evaluator._values(r.metrics)[0] for r in runs)
+            status = "pruned"
+            message = f"worst after {len(runs)} sample(s) ({run.message}): {so_far:.4g}"
+            break
         if run.status != "ok":
             status = run.status
             message = f"{sample.describe(u.parameters)}: {run.message}"
             break
-        if report is not None and u.aggregate == "worst" and spec.objective.n_values == 1:
+        if prunable:
             so_far = max(evaluator._values(r.metrics)[0] for r in runs)
             if math.isfinite(so_far) and report(sample.index, so_far):
                 status, message = "pruned", f"worst after {len(runs)} sample(s): {so_far:.4g}"

@@ -400,7 +400,7 @@ def _run_processes(spec: StudySpec, url: str, total: int, workers: int, bar, sha
     study = open_study(spec, url)
     try:
         while any(p.is_alive() for p in procs):
-            time.sleep(0.5)
+            time.sleep(1.0)  # each poll reads the storage: no more often than the bar needs
             _refresh(bar, study)
         _refresh(bar, study)
     except KeyboardInterrupt:

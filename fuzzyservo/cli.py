@@ -521,7 +521,8 @@ def cmd_tune(args: argparse.Namespace) -> int:
     if spec.uncertainty is not None and check != 0:
         n = spec.uncertainty.samples if check is None else check
         print(f"checking the best against the baseline and the template on {n} fresh samples")
-        progress = _progress(3 * n, "check")
+        same = Path(spec.controller_file).resolve() == Path(spec.baseline_file).resolve()
+        progress = _progress((2 if same else 3) * n, "check")  # best, baseline, template
     paths = write_outputs(
         outcome, out, check_samples=check, progress=progress.update if progress else None
     )

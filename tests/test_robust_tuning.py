@@ -321,3 +321,34 @@ def test_monte_carlo_in_batches_matches_one_by_one(tmp_path):
             alone = run_sample(run.index, r, controller, ["steps"], seed)
             assert (run.status, run.metrics) == (alone.status, alone.metrics)
             assert run.gain_holds == holds(r, controller, "steps", gain=2.0, noise_seed=seed)
+
+
+@pytest.mark.slow  # a whole `tune` with its report and figures (about 10-35 s here)
+def test_tune_prints_and_reports_the_comparison(tmp_path, capsys):
+    """`fuzzyservo tune` of a robust study ends with the comparison (nominal and fresh
+    samples) on screen, in report.md and in summary.json; a bad --check-samples is one line."""
+    import json
+
+    from fuzzyservo.cli import main
+
+    path = _study_with(
+        tmp_path,
+        {"samples": 1, "seed": 5, "margin_scenario": "steps",
+         "parameters": {"io_delay": {"interval": [18, 22], "unit": "ms"}}},
+    )  # fmt: skip
+    data = yaml.safe_load(path.read_text())
+    data["scenarios"] = ["steps"]
+    path.write_text(yaml.safe_dump(data))
+    out = tmp_path / "out"
+    args = ["tune", str(path), "--trials", "2", "--workers", "1", "--out", str(out)]
+    assert main([*args, "--check-samples", "-1"]) == 2
+    assert "--check-samples" in capsys.readouterr().err
+    assert main([*args, "--check-samples", "1"]) == 0
+    text = capsys.readouterr().out
+    assert "nominal plant" in text and "Monte Carlo on 1 fresh samples (seed 2026)" in text
+    assert "p_k10" in text and "flc2_reshaped" in text
+    assert "## Against the baseline and the template" in (out / "report.md").read_text()
+    c = json.loads((out / "summary.json").read_text())["comparison"]
+    assert c["samples"] == 1 and [r["controller"] for r in c["controllers"]][1:] == [
+        "p_k10", "flc2_reshaped"]  # fmt: skip
+    assert (out / "check.png").is_file()

@@ -353,6 +353,8 @@ def run_study(
     enqueue(study, spec, list(spec.warm_start))
     done_before = count_complete(study)
     t0 = time.perf_counter()
+    if rig is None:
+        _warm_kernels(spec)  # before the bar: its rate (and ETA) should not count compiling
     bar = _bar(total, done_before, spec.name, progress)
     try:
         if workers <= 1:

@@ -55,10 +55,11 @@ if not os.environ.get("NUMBA_CACHE_DIR"):
 
 
 def cache_is_cold() -> bool:
-    """True when no compiled kernel is cached yet: the next run compiles first (about a
-    minute on a small machine), so the command line can say so instead of staying silent."""
+    """True when no compiled closed loop is cached yet: the next run compiles first (about a
+    minute on a small machine), so the command line can say so instead of staying silent.
+    (Loading a rig compiles and caches a few small kernels; they do not count.)"""
     folder = numba.config.CACHE_DIR
-    return not folder or not any(Path(folder).rglob("*.nbi"))
+    return not folder or not any(Path(folder).rglob("*.closed_loop-*.nbi"))
 
 
 _BEGIN = "# >>> plant binding\n"

@@ -16,7 +16,7 @@ from fuzzyservo.errors import ConfigError, FuzzyservoError
 from fuzzyservo.io.jsonfile import json_ready, write_json
 
 DEFAULT_RIG = "dinca_cylinder"
-DEFAULT_STUDY = "dinca_flc"
+DEFAULT_STUDY = "dinca_robust"
 DEFAULT_CONTROLLER = "p_k10"
 DEFAULT_DESIGN = "flc2_reshaped"
 EXIT_USAGE = 2
@@ -480,6 +480,8 @@ def cmd_tune(args: argparse.Namespace) -> int:
         raise ConfigError(f"--trials must be >= 1, got {args.trials}")
     if args.workers is not None and args.workers < 1:
         raise ConfigError(f"--workers must be >= 1, got {args.workers}")
+    if args.check_samples is not None and args.check_samples < 0:
+        raise ConfigError(f"--check-samples must be >= 0, got {args.check_samples}")
     if args.storage and storage_problem(args.storage):
         raise ConfigError(f"--storage: {storage_problem(args.storage)}")
     _out_file(args.json, "--json")
@@ -514,10 +516,23 @@ def cmd_tune(args: argparse.Namespace) -> int:
     print(f"storage: {outcome.storage_url}")
     from fuzzyservo.tuning.report import write_outputs
 
-    paths = write_outputs(outcome, out)
+    check = args.check_samples
+    progress = None
+    if spec.uncertainty is not None and check != 0:
+        n = spec.uncertainty.samples if check is None else check
+        print(f"checking the best against the baseline and the template on {n} fresh samples")
+        same = Path(spec.controller_file).resolve() == Path(spec.baseline_file).resolve()
+        progress = _progress((2 if same else 3) * n, "check")  # best, baseline, template
+    paths = write_outputs(
+        outcome, out, check_samples=check, progress=progress.update if progress else None
+    )
+    if progress is not None:
+        progress.close()
     b, base = outcome.best, outcome.baseline
     print(metrics_table(["baseline", "best"], [base.metrics, b.metrics], {}))
     print(f"objective: best {_fmt_values(b.values)} against baseline {_fmt_values(base.values)}")
+    if progress is not None:
+        print(comparison_text(paths["summary"]))
     print(f"report: {paths['report']}")
     if args.json:
         import shutil
@@ -525,6 +540,34 @@ def cmd_tune(args: argparse.Namespace) -> int:
         shutil.copyfile(paths["summary"], args.json)
         print(f"JSON written to {args.json}")
     return 0
+
+
+def comparison_text(summary_file: Path) -> str:
+    """A robust study's comparison, read back from its summary: nominal, then Monte Carlo."""
+    import json
+
+    c = json.loads(Path(summary_file).read_text(encoding="utf-8"))["comparison"]
+    rows = c["controllers"]
+    lines = [f"nominal plant: {'controller':<22} {'objective':>9} {'settling s':>10} "
+             f"{'sse mm':>8} {'overshoot %':>11} {'gain ' + format(c['gain_margin_checked'], 'g'):>7}"]  # fmt: skip
+    for r in rows:
+        n = r["nominal"]
+        ok = {True: "holds", False: "FAILS", None: "-"}[n["gain_margin_holds"]]
+        lines.append(
+            f"{'':15}{r['controller']:<22} {_fmt(_nan(n['objective'])):>9} "
+            f"{_fmt(_nan(n['settling_time_s'])):>10} {_fmt(_nan(n['sse_abs']) * 1e3):>8} "
+            f"{_fmt(_nan(n['overshoot_pct'])):>11} {ok:>7}"
+        )
+    lines.append(f"Monte Carlo on {c['samples']} fresh samples (seed {c['seed']}):")
+    for r in rows:  # JSON null (undefined: never settles) back to NaN for the table
+        for key in ("settling_time_s", "sse_abs", "overshoot_pct", "saturation_time_s"):
+            r[key] = {q: _nan(v) for q, v in r[key].items()}
+    lines.append(robustness_text(rows))
+    return "\n".join(lines)
+
+
+def _nan(value: float | None) -> float:
+    return math.nan if value is None else value
 
 
 def robustness_text(rows: list[dict]) -> str:
@@ -981,6 +1024,13 @@ def build_parser() -> argparse.ArgumentParser:
         default=[],
         metavar="CONTROLLER",
         help="try this controller's numbers first (a previous best, a named controller; repeat)",
+    )
+    p.add_argument(
+        "--check-samples",
+        type=int,
+        metavar="N",
+        help="robust studies: compare the best with the baseline and the template on N fresh "
+        "sampled plants in the report (default: the study's sample count; 0: skip)",
     )
     p.set_defaults(func=cmd_tune)
 

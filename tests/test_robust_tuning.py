@@ -143,9 +143,17 @@ def test_robust_value_is_the_worst_sample_and_margin_checks_count(tmp_path):
     assert ev.status == "ok" and ev.simulations == 2 * (2 + 1)  # 2 scenarios + gain check
     nominal = build_evaluator(dataclasses.replace(spec, uncertainty=None)).evaluate(flc2)
     assert ev.values[0] >= 0.5 * nominal.values[0]
-    # pruning: told to stop after the first sample
-    pruned = evaluator.evaluate(flc2, report=lambda step, value: True)
-    assert pruned.status == "pruned" and pruned.simulations == 2  # no margin check paid
+    # pruning: told to stop at the first question, after the shortest scenario (steps)
+    asked = []
+    pruned = evaluator.evaluate(flc2, report=lambda step, value: asked.append(value) or True)
+    assert pruned.status == "pruned" and pruned.simulations == 1  # no margin check paid
+    steps_worst = evaluator._values(ev.scenario_metrics["steps"])[0]  # over both samples
+    assert len(asked) == 1 and 0 < asked[0] <= steps_worst <= ev.values[0]
+    # not stopped: asked after each scenario and each sample, and never above the result
+    asked.clear()
+    again = evaluator.evaluate(flc2, report=lambda step, value: asked.append(value) and False)
+    assert again.values == ev.values and len(asked) == 2 * 2
+    assert asked == sorted(asked) and asked[-1] == pytest.approx(ev.values[0])
 
 
 def test_fingerprint_covers_the_uncertainty(tmp_path):
@@ -189,3 +197,158 @@ def test_robustness_command_table_json_and_bad_input(tmp_path, capsys):
     assert code == 2
     err = capsys.readouterr().err.strip()
     assert "uncertainty" in err and "\n" not in err
+
+
+def _calibrated_rig(tmp_path):
+    """A calibrated rig file as `fuzzyservo calibrate` writes it: fitted bulk modulus and
+    Coulomb friction with their 95 % intervals, the friction's on a bound."""
+    from fuzzyservo.io.rigs import write_calibrated_rig
+
+    return write_calibrated_rig(
+        DATA / "rigs" / "dinca_cylinder.yaml",
+        tmp_path / "dinca_cylinder_calibrated.yaml",
+        parameters={"bulk_modulus": (1.5e9, "Pa", "fitted")},
+        effects={"coulomb_friction": {"force": (30.0, "N", "fitted")}},
+        header="test",
+        intervals={"bulk_modulus": (1.4e9, 1.6e9, False), "coulomb_friction.force": (20, 40, True)},
+    )
+
+
+def test_uncertainty_reads_fitted_intervals_from_a_calibrated_rig(tmp_path):
+    """`calibrated: FILE` draws every fitted value uniformly in its interval (SI in the
+    file, shown in the file's unit); one also under `parameters:` keeps that range."""
+    rig = _calibrated_rig(tmp_path)
+    spec = load_study(_study_with(tmp_path, {"samples": 8, "calibrated": rig.name}))
+    by = {d.target: d for d in spec.uncertainty.parameters}
+    assert set(by) == {"bulk_modulus", "coulomb_friction.force"}
+    assert (by["bulk_modulus"].a, by["bulk_modulus"].b) == (1.4e9, 1.6e9)
+    assert by["bulk_modulus"].field == "bulk_modulus_pa" and by["bulk_modulus"].origin == "fitted"
+    friction = by["coulomb_friction.force"]
+    assert (friction.effect, friction.a, friction.b) == ("coulomb_friction", 20.0, 40.0)
+    assert "at a bound" in friction.origin and "at a bound" in spec.uncertainty.describe()
+    for s in spec.uncertainty.draws:
+        assert 1.4e9 <= s.values["bulk_modulus"] <= 1.6e9
+        assert 20.0 <= s.values["coulomb_friction.force"] <= 40.0
+    from fuzzyservo.io.rigs import load_rig
+    from fuzzyservo.tuning.robust import sample_rigs
+
+    drawn = sample_rigs(load_rig(spec.rig_file), spec)[0]
+    assert drawn.effect_values("coulomb_friction")["force"] == pytest.approx(
+        spec.uncertainty.draws[0].values["coulomb_friction.force"]
+    )
+    both = {"calibrated": str(rig),
+            "parameters": {"bulk_modulus": {"uniform": [12000, 18000], "unit": "bar"}}}  # fmt: skip
+    by = {d.target: d for d in load_study(_study_with(tmp_path, both)).uncertainty.parameters}
+    assert by["bulk_modulus"].a == pytest.approx(1.2e9) and not by["bulk_modulus"].origin
+
+
+@pytest.mark.parametrize(
+    ("edit", "text"),
+    [
+        (lambda d: d["plant"]["parameters"]["bulk_modulus"].pop("interval"), "no fitted interval"),
+        (lambda d: d["plant"]["parameters"]["bulk_modulus"].update(interval=[2, 1]), "[low, high]"),
+    ],
+)
+def test_bad_calibrated_rig_names_the_file_and_key(tmp_path, edit, text):
+    rig = _calibrated_rig(tmp_path)
+    data = yaml.safe_load(rig.read_text())
+    data["effects"]["coulomb_friction"]["force"].pop("interval")
+    edit(data)
+    rig.write_text(yaml.safe_dump(data))
+    with pytest.raises(ConfigError) as info:
+        load_study(_study_with(tmp_path, {"calibrated": str(rig)}))
+    message = str(info.value)
+    assert text in message and "calibrated" in message and "\n" not in message, message
+
+
+def test_cold_cache_means_no_compiled_closed_loop(tmp_path, monkeypatch):
+    """Loading a rig caches small kernels; the compile note and the parent's compile before
+    the workers start must still see the cache as cold until a closed loop is cached."""
+    import numba
+
+    from fuzzyservo._jit import cache_is_cold
+
+    monkeypatch.setattr(numba.config, "CACHE_DIR", str(tmp_path))
+    assert cache_is_cold()
+    (tmp_path / "components_x").mkdir()
+    (tmp_path / "components_x" / "geometry.circle_area-12.py311.nbi").write_bytes(b"")
+    assert cache_is_cold()
+    (tmp_path / "generated_x").mkdir()
+    (tmp_path / "generated_x" / "fuzzyservo_loop_ab.closed_loop-199.py311.nbi").write_bytes(b"")
+    assert not cache_is_cold()
+
+
+def test_report_compares_best_baseline_and_template_nominal_and_monte_carlo(tmp_path):
+    """A robust study's report: the tuned controller beside P K=10 and the template (FLC2)
+    on the nominal plant and on fresh samples, each with its gain check."""
+    from fuzzyservo.tuning.report import _comparison_lines, comparison_controllers
+    from fuzzyservo.tuning.robust import CHECK_SEED, compare_controllers
+
+    spec = dataclasses.replace(_small(tmp_path, samples=1), scenarios=("steps",))
+    evaluator = build_evaluator(spec)
+    best = load_controller(DATA / "studies" / "controllers" / "flc_dinca_robust.yaml")
+    c = compare_controllers(evaluator, comparison_controllers(evaluator, best), samples=2)
+    assert c.names == ["flc_dinca_robust", "p_k10", "flc2_reshaped"]
+    assert (c.samples, c.seed, c.gain) == (2, CHECK_SEED, 2.0)  # gain from the constraint
+    rows = {r["controller"]: r for r in c.rows()}
+    assert rows["p_k10"]["nominal"]["gain_margin_holds"] is False  # P K=10: margin 1.64
+    assert rows["flc_dinca_robust"]["nominal"]["gain_margin_holds"] is True
+    assert rows["flc_dinca_robust"]["failures"] == 0 and rows["p_k10"]["failures"] == 2
+    assert rows["flc_dinca_robust"]["nominal"]["objective"] < rows["p_k10"]["nominal"]["objective"]
+    text = "\n".join(_comparison_lines(c, lambda key: f"{key}.png"))
+    assert "### Nominal plant" in text and "2 plants the study never saw" in text
+    assert "| failures | 0 / 2 | 2 / 2 |" in text and "**oscillates**" in text
+
+
+def test_monte_carlo_in_batches_matches_one_by_one(tmp_path):
+    """The batched, parallel Monte Carlo gives each sample exactly the runs and verdicts of
+    run_sample and holds, one by one."""
+    from fuzzyservo.analysis.robustness import holds, monte_carlo, run_sample
+    from fuzzyservo.io.rigs import load_rig
+    from fuzzyservo.tuning.robust import sample_rigs
+
+    spec = _small(tmp_path, samples=3)
+    rig = load_rig(spec.rig_file)
+    rigs = sample_rigs(rig, spec)
+    seeds = [d.noise_seed for d in spec.uncertainty.draws]
+    names = ("p_k10", "flc2_reshaped")
+    controllers = [load_controller(DATA / "studies" / "controllers" / f"{n}.yaml") for n in names]
+    seen = []
+    mcs = monte_carlo(rig, controllers, rigs, seeds, ["steps"], chunk=2, progress=seen.append)
+    assert seen == [2, 1, 2, 1]
+    for mc, controller in zip(mcs, controllers, strict=True):
+        for run, r, seed in zip(mc.runs, rigs, seeds, strict=True):
+            alone = run_sample(run.index, r, controller, ["steps"], seed)
+            assert (run.status, run.metrics) == (alone.status, alone.metrics)
+            assert run.gain_holds == holds(r, controller, "steps", gain=2.0, noise_seed=seed)
+
+
+@pytest.mark.slow  # a whole `tune` with its report and figures (about 10-35 s here)
+def test_tune_prints_and_reports_the_comparison(tmp_path, capsys):
+    """`fuzzyservo tune` of a robust study ends with the comparison (nominal and fresh
+    samples) on screen, in report.md and in summary.json; a bad --check-samples is one line."""
+    import json
+
+    from fuzzyservo.cli import main
+
+    path = _study_with(
+        tmp_path,
+        {"samples": 1, "seed": 5, "margin_scenario": "steps",
+         "parameters": {"io_delay": {"interval": [18, 22], "unit": "ms"}}},
+    )  # fmt: skip
+    data = yaml.safe_load(path.read_text())
+    data["scenarios"] = ["steps"]
+    path.write_text(yaml.safe_dump(data))
+    out = tmp_path / "out"
+    args = ["tune", str(path), "--trials", "2", "--workers", "1", "--out", str(out)]
+    assert main([*args, "--check-samples", "-1"]) == 2
+    assert "--check-samples" in capsys.readouterr().err
+    assert main([*args, "--check-samples", "1"]) == 0
+    text = capsys.readouterr().out
+    assert "nominal plant" in text and "Monte Carlo on 1 fresh samples (seed 2026)" in text
+    assert "p_k10" in text and "flc2_reshaped" in text
+    assert "## Against the baseline and the template" in (out / "report.md").read_text()
+    c = json.loads((out / "summary.json").read_text())["comparison"]
+    assert c["samples"] == 1 and [r["controller"] for r in c["controllers"]][1:] == [
+        "p_k10", "flc2_reshaped"]  # fmt: skip
+    assert (out / "check.png").is_file()

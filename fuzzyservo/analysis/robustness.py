@@ -15,7 +15,7 @@ its last question, at a tenth of its cost.
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -88,13 +88,18 @@ def run_sample(
     delay_s: float | None = None,
     margin_scenario: str | None = None,
     keep_results: bool = False,
+    stop: Callable[[dict[str, float]], bool] | None = None,
 ) -> SampleRun:
     """Simulate every scenario on ``rig`` (noise seeded ``noise_seed``), then the margin
-    checks asked for (``gain``, ``delay_s``) on ``margin_scenario``, unless a run failed."""
+    checks asked for (``gain``, ``delay_s``) on ``margin_scenario``, unless a run failed.
+
+    ``stop(metrics)``, when given, is asked after each scenario but the last with the
+    metrics aggregated over the scenarios run so far; True ends the sample there with
+    status ``pruned`` (a robust trial that is already lost: tuning/robust.py)."""
     per: dict[str, dict[str, float]] = {}
     results: dict[str, SimResult] = {}
     status, message = "ok", ""
-    for scenario in scenarios:
+    for n, scenario in enumerate(scenarios, 1):
         r = simulate(rig, controller, scenario, noise_seed=noise_seed)
         if keep_results:
             results[scenario] = r
@@ -102,7 +107,10 @@ def run_sample(
         if r.status != "ok":
             status, message = r.status, f"{scenario}: {r.message}"
             break
-    metrics = _over_scenarios(per, aggregate) if status == "ok" else {}
+        if stop is not None and n < len(scenarios) and stop(_over_scenarios(per, aggregate)):
+            status, message = "pruned", f"after {', '.join(per)}"
+            break
+    metrics = _over_scenarios(per, aggregate) if status in ("ok", "pruned") else {}
     where = margin_scenario or scenarios[0]
     gain_ok = delay_ok = None
     if status == "ok" and gain is not None:
@@ -168,25 +176,59 @@ def monte_carlo(
     gain: float | None = 2.0,
     margin_scenarios: Sequence[str] | None = None,
     progress=None,
+    chunk: int = 16,
 ) -> list[MonteCarlo]:
     """Every controller on every sampled plant ``rigs`` (noise seeds alike: common random
     numbers). The gain check (``gain``) runs on each of ``margin_scenarios`` (default: all
-    ``scenarios``) and holds only when it holds on all. ``progress(k)`` is called per run."""
+    ``scenarios``) and holds only when it holds on all. ``progress(k)`` is called as runs
+    finish, ``k`` samples at a time.
+
+    The samples go ``chunk`` at a time through one compiled call per scenario and per gain
+    check (:func:`~fuzzyservo.simulation.closed_loop.simulate_batch`, parallel over the
+    cores); each sample's runs are the ones :func:`run_sample` and :func:`holds` make: a
+    sample whose run fails skips its later scenarios and the gain check, and the gain
+    check stops at the first scenario where the loop oscillates."""
+    from fuzzyservo.analysis.margins import oscillation, scaled
+    from fuzzyservo.simulation.closed_loop import simulate_batch
+
     where = list(margin_scenarios or scenarios)
     out = []
     for controller in controllers:
-        runs = []
-        for i, (sample_rig, seed) in enumerate(zip(rigs, noise_seeds, strict=True)):
-            run = run_sample(i, sample_rig, controller, scenarios, seed)
-            if run.status == "ok" and gain is not None:
-                ok = all(
-                    holds(sample_rig, controller, s, gain=gain, noise_seed=seed) for s in where
-                )
-                run = SampleRun(run.index, run.status, run.message, run.metrics,
-                                run.scenario_metrics, ok)  # fmt: skip
-            runs.append(run)
+        runs: list[SampleRun] = []
+        for start in range(0, len(rigs), chunk):
+            idx = range(start, min(start + chunk, len(rigs)))
+            per: dict[int, dict[str, dict[str, float]]] = {i: {} for i in idx}
+            failed: dict[int, str] = {}
+            status: dict[int, str] = {}
+            for scenario in scenarios:
+                todo = [i for i in idx if i not in failed]
+                results = simulate_batch([rigs[i] for i in todo], controller, scenario,
+                                         [noise_seeds[i] for i in todo])  # fmt: skip
+                for i, r in zip(todo, results, strict=True):
+                    per[i][scenario] = result_metrics(r).aggregate
+                    if r.status != "ok":
+                        status[i], failed[i] = r.status, f"{scenario}: {r.message}"
+            held: dict[int, bool | None] = {i: None for i in idx}
+            if gain is not None:
+                for i in idx:
+                    if i not in failed:
+                        held[i] = True
+                for scenario in where:
+                    todo = [i for i in idx if held[i]]
+                    pairs = [scaled(rigs[i], controller, gain) for i in todo]
+                    if not pairs:
+                        break
+                    results = simulate_batch([r for r, _ in pairs], pairs[0][1], scenario,
+                                             [noise_seeds[i] for i in todo])  # fmt: skip
+                    for i, r in zip(todo, results, strict=True):
+                        held[i] = not oscillation(r).sustained
+            for i in idx:
+                ok = i not in failed
+                metrics = _over_scenarios(per[i], "worst") if ok else {}
+                runs.append(SampleRun(i, status.get(i, "ok"), failed.get(i, ""), metrics,
+                                      per[i], held[i]))  # fmt: skip
             if progress is not None:
-                progress(1)
+                progress(len(idx))
         out.append(MonteCarlo(controller.name, runs))
     return out
 

@@ -820,3 +820,62 @@ def _add_interval(entry: dict, interval: tuple[float, float, bool] | None) -> No
         lo, hi, at_bound = interval
         entry["interval"] = [float(lo), float(hi)]
         entry["at_bound"] = bool(at_bound)
+
+
+@dataclasses.dataclass(frozen=True)
+class FittedInterval:
+    """A fitted value's 95 % interval as a calibrated rig file carries it (``interval`` and
+    ``at_bound`` beside ``value`` and ``unit``; :func:`write_calibrated_rig`). ``key``: the
+    plant parameter's key (``valve.rated_flow`` in a composition) or ``effect.key``;
+    ``unit``: the entry's unit (effect parameters are SI, their unit is empty here)."""
+
+    key: str
+    low: float
+    high: float
+    unit: str
+    at_bound: bool
+
+
+def fitted_intervals(path: str | Path) -> list[FittedInterval]:
+    """Every entry of rig file ``path`` that carries a fitted ``interval: [lo, hi]`` (what
+    ``fuzzyservo calibrate`` writes into ``<rig>_calibrated.yaml``), in file order; a
+    malformed interval is one :class:`ConfigError` line naming its key."""
+    file = str(path)
+    root = Node(read_yaml(path), file)
+    plant = root.child("plant")
+    found: list[tuple[str, Node]] = []  # key prefix, parameters section
+    if plant.has("components"):
+        for name, comp in plant.children("components").items():
+            if comp.data.get("parameters"):
+                found.append((f"{name}.", comp.child("parameters")))
+    elif plant.has("parameters"):
+        found.append(("", plant.child("parameters")))
+    out = []
+    for prefix, section in found:
+        for key, entry in section.data.items():
+            if isinstance(entry, dict) and "interval" in entry:
+                out.append(_fitted(Node(entry, file, section.path(str(key))), prefix + str(key)))
+    if root.data.get("effects"):
+        for name, effect in root.children("effects").items():
+            for key, entry in effect.data.items():
+                if isinstance(entry, dict) and "interval" in entry:
+                    node = Node(entry, file, effect.path(str(key)))
+                    out.append(dataclasses.replace(_fitted(node, f"{name}.{key}"), unit=""))
+    return out
+
+
+def _fitted(node: Node, key: str) -> FittedInterval:
+    pair = node.data["interval"]
+    if not (
+        isinstance(pair, list)
+        and len(pair) == 2
+        and all(isinstance(v, int | float) and not isinstance(v, bool) for v in pair)
+        and all(np.isfinite(pair))
+        and pair[0] <= pair[1]
+    ):
+        node.fail(f"must be [low, high], two finite numbers in order, got {pair!r}", key="interval")
+    at_bound = node.data.get("at_bound", False)
+    if not isinstance(at_bound, bool):
+        node.fail(f"must be true or false, got {at_bound!r}", key="at_bound")
+    unit = node.data.get("unit", "")
+    return FittedInterval(key, float(pair[0]), float(pair[1]), str(unit or ""), at_bound)

@@ -33,6 +33,8 @@ uncertainty:                       # optional: tune on sampled plants (tuning/un
     viscous_friction: {log-uniform: [2, 20], unit: N*s/m}
     bias_current: {normal: [2.83, 0.05], unit: mA}      # mean, std; cut at ±3 std
     supply_pressure: {interval: [65, 75], unit: bar}    # a fitted interval: uniform in it
+  calibrated: my_rig_calibrated.yaml   # optional: every fitted value of a calibrated rig file,
+                                       # uniform in its 95 % interval (parameters: above win)
 """
 
 from __future__ import annotations
@@ -218,17 +220,16 @@ _DIST_KEYS = ("uniform", "normal", "log-uniform", "interval")
 def _uncertainty(node: Node, rig: Any, scenarios: tuple[str, ...]) -> Any:
     """The ``uncertainty:`` section: distributions of rig parameters (in the file's units,
     turned into SI here), samples, seed, noise, aggregate over the samples."""
-    from fuzzyservo.components.effects import LIBRARY
     from fuzzyservo.params import fields_by_key
     from fuzzyservo.tuning.uncertainty import (
-        IO_DELAY,
         SAMPLE_AGGREGATES,
         Distribution,
         Uncertainty,
         sample_rig,
     )
 
-    node.only(("samples", "seed", "noise", "aggregate", "alpha", "margin_scenario", "parameters"))
+    node.only(("samples", "seed", "noise", "aggregate", "alpha", "margin_scenario", "parameters",
+               "calibrated"))  # fmt: skip
     by_key = fields_by_key(type(rig.params))
     dists = []
     pnode = node.child("parameters", default={})
@@ -246,28 +247,9 @@ def _uncertainty(node: Node, rig: Any, scenarios: tuple[str, ...]) -> Any:
         if not (isinstance(pair, list) and len(pair) == 2):
             d.fail(f"must be a list of two numbers, got {pair!r}", key=given[0])
         nums = [_num(d, given[0], v) for v in pair]
-        effect, field_name = "", ""
-        if target == IO_DELAY:
-            si = "s"
-        elif "." in target:
-            effect, _, key = target.partition(".")
-            if effect not in LIBRARY or key not in {p.key for p in LIBRARY[effect].params}:
-                pnode.fail(
-                    f"unknown effect parameter {target!r}; effects: {', '.join(sorted(LIBRARY))}",
-                    key=target,
-                )
-            if d.has("unit"):
-                d.fail("effect parameters are given in SI (N, m/s, ...); delete 'unit'", key="unit")
-            si = ""
-        elif target in by_key:
-            field_name = by_key[target].name
-            si = by_key[target].metadata["unit"]
-        else:
-            pnode.fail(
-                f"unknown rig parameter {target!r}; give a plant parameter of "
-                f"{rig.name} ({', '.join(sorted(by_key))}), effect.parameter or io_delay",
-                key=target,
-            )
+        effect, field_name, si = _target(pnode, target, rig, by_key)
+        if effect and d.has("unit"):
+            d.fail("effect parameters are given in SI (N, m/s, ...); delete 'unit'", key="unit")
         unit = d.str("unit", default=si) if si else ""
         scale = d.convert(1.0, unit, si) if si else 1.0
         a, b = (v * scale for v in nums)
@@ -278,6 +260,8 @@ def _uncertainty(node: Node, rig: Any, scenarios: tuple[str, ...]) -> Any:
             dists.append(Distribution(target, kind, a, b, field_name, effect, unit, scale))
         except ValueError as exc:
             d.fail(str(exc).split(": ", 1)[-1], key=given[0])
+    if node.has("calibrated"):
+        dists += _calibrated(node, rig, by_key, {d.target for d in dists})
     aggregate = node.str("aggregate", default="worst")
     if aggregate not in SAMPLE_AGGREGATES:
         node.fail(
@@ -323,6 +307,65 @@ def _uncertainty(node: Node, rig: Any, scenarios: tuple[str, ...]) -> Any:
             node.fail(f"{sample.describe(u.parameters)} is no valid rig: {exc}; narrow the range",
                       key="parameters")  # fmt: skip
     return u
+
+
+def _target(pnode: Node, target: str, rig: Any, by_key: dict) -> tuple[str, str, str]:
+    """What an uncertain ``target`` names: (effect, parameter field, SI unit); effect
+    parameters are SI with no unit to convert (``""``)."""
+    from fuzzyservo.components.effects import LIBRARY
+    from fuzzyservo.tuning.uncertainty import IO_DELAY
+
+    if target == IO_DELAY:
+        return "", "", "s"
+    if target in by_key:
+        return "", by_key[target].name, by_key[target].metadata["unit"]
+    if "." in target:
+        effect, _, key = target.partition(".")
+        if effect not in LIBRARY or key not in {p.key for p in LIBRARY[effect].params}:
+            pnode.fail(
+                f"unknown effect parameter {target!r}; effects: {', '.join(sorted(LIBRARY))}",
+                key=target,
+            )
+        return effect, "", ""
+    pnode.fail(
+        f"unknown rig parameter {target!r}; give a plant parameter of "
+        f"{rig.name} ({', '.join(sorted(by_key))}), effect.parameter or io_delay",
+        key=target,
+    )
+
+
+def _calibrated(node: Node, rig: Any, by_key: dict, given: set[str]) -> list[Any]:
+    """``calibrated: FILE``: each fitted value of a calibrated rig file (``interval: [lo,
+    hi]`` beside it, as ``fuzzyservo calibrate`` writes) drawn uniformly in its interval;
+    a parameter also listed under ``parameters:`` keeps that distribution."""
+    from fuzzyservo.io.rigs import fitted_intervals
+    from fuzzyservo.tuning.uncertainty import Distribution
+
+    name = node.str("calibrated")
+    try:
+        path = find_file(name, "rigs", "calibrated", relative_to=Path(node.file))
+    except ConfigError as exc:
+        node.fail(f"{exc.detail} (looked beside the study and under rigs/)", key="calibrated")
+    fitted = [f for f in fitted_intervals(path) if f.key not in given]
+    if not fitted and not given:
+        node.fail(
+            f"{path} carries no fitted interval (no 'interval: [lo, hi]' entry); name the "
+            "<rig>_calibrated.yaml that `fuzzyservo calibrate` wrote",
+            key="calibrated",
+        )
+    where = Node({f.key: {} for f in fitted}, str(path), "")
+    out = []
+    for f in fitted:
+        effect, field_name, si = _target(where, f.key, rig, by_key)
+        unit = f.unit if si else ""
+        scale = where.convert(1.0, unit or si, si, key=f.key) if si else 1.0
+        origin = "fitted, at a bound: one-sided" if f.at_bound else "fitted"
+        try:
+            out.append(Distribution(f.key, "uniform", f.low * scale, f.high * scale, field_name,
+                                    effect, unit, scale, origin))  # fmt: skip
+        except ValueError as exc:
+            where.fail(f"interval: {str(exc).split(': ', 1)[-1]}", key=f.key)
+    return out
 
 
 def _num(node: Node, key: str, value: Any) -> float:

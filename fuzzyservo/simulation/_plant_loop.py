@@ -21,6 +21,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
+from numba import prange
 
 from fuzzyservo._jit import njit
 from fuzzyservo.components.effects import E_LAG
@@ -290,6 +291,42 @@ def closed_loop(
             actuator[k] = np.nan
             saturated[k] = False
     return status, where, total
+
+
+@njit(cache=True, parallel=True)
+def closed_loop_batch(
+    p: np.ndarray,
+    null: np.ndarray,
+    x0: np.ndarray,
+    ctrl_kind: int,
+    cp: np.ndarray,
+    cs: np.ndarray,
+    ref: np.ndarray,
+    load: np.ndarray,
+    noise: np.ndarray,
+    s: LoopSettings,
+    scale: np.ndarray,
+    typical: np.ndarray,
+    states: np.ndarray,
+    measured: np.ndarray,
+    command: np.ndarray,
+    actuator: np.ndarray,
+    saturated: np.ndarray,
+    out: np.ndarray,
+) -> None:
+    """:func:`closed_loop` of one controller on many plants at once: row ``b`` of every
+    array but ``cp``, ``ref`` and ``load`` (shared) is plant sample ``b`` (its packed
+    parameters, null, start, controller state, noise, tolerances and the recorded
+    signals); ``out[b]`` gets its ``(status, where, steps)``. The samples run in parallel
+    over the cores (numba ``prange``), each exactly as :func:`closed_loop` runs it alone."""
+    for b in prange(p.shape[0]):
+        status, where, steps = closed_loop(
+            p[b], null[b], x0[b], ctrl_kind, cp, cs[b], ref, load, noise[b], s, scale[b],
+            typical[b], states[b], measured[b], command[b], actuator[b], saturated[b],
+        )  # fmt: skip
+        out[b, 0] = status
+        out[b, 1] = where
+        out[b, 2] = steps
 
 
 @njit(cache=True)

@@ -18,12 +18,15 @@ from __future__ import annotations
 
 import math
 import re
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
+from fuzzyservo.analysis.robustness import SUMMARY_METRICS
 from fuzzyservo.io.jsonfile import write_json
 from fuzzyservo.metrics import METRIC_DOCS, METRIC_NAMES
 from fuzzyservo.tuning.objective import Evaluation, split_path
+from fuzzyservo.tuning.robust import Comparison, compare_controllers
 from fuzzyservo.tuning.runner import Outcome, build_evaluator
 
 CONTROLLER_FILE = "best_controller.yaml"
@@ -34,13 +37,26 @@ REPORT_FILE = "report.md"
 _NOISE = 1e-9
 
 
-def write_outputs(outcome: Outcome, out_dir: Path) -> dict[str, Path]:
+def write_outputs(
+    outcome: Outcome,
+    out_dir: Path,
+    *,
+    check_samples: int | None = None,
+    progress: Callable[[int], object] | None = None,
+) -> dict[str, Path]:
     """Write the best controller, ``summary.json``, the figures and ``report.md`` into ``out_dir``.
 
     Returns the written files by role: ``controller``, ``fis`` (fuzzy controllers),
     ``summary``, ``report``, ``history``, ``importances`` (when computed), ``pareto``
-    (Pareto studies), ``curve``, ``membership_before``, ``membership_after`` (fuzzy) and
-    ``response_<scenario>`` per scenario.
+    (Pareto studies), ``curve``, ``membership_before``, ``membership_after`` (fuzzy),
+    ``response_<scenario>`` per scenario and, for a robust study, ``check`` (the Monte
+    Carlo distributions).
+
+    A robust study's report compares the best controller with the baseline and the
+    template on the nominal plant and on ``check_samples`` plants drawn afresh from its
+    uncertainty (default: as many as the study's own samples; 0: no comparison), each
+    with its gain check (:func:`~fuzzyservo.tuning.robust.compare_controllers`;
+    ``progress(1)`` per sampled plant and controller).
     """
     from fuzzyservo.controllers.fuzzy.controller import FuzzyController
     from fuzzyservo.io.controllers import load_controller, write_controller_file
@@ -73,12 +89,101 @@ def write_outputs(outcome: Outcome, out_dir: Path) -> dict[str, Path]:
         paths["fis"] = write_fis(best_controller.system, out_dir / FIS_FILE)
 
     paths.update(_figures(outcome, out_dir, best_controller, fuzzy))
+    comparison = None
+    if spec.uncertainty is not None and check_samples != 0:
+        comparison = _compare(evaluator, best_controller, check_samples, progress)
+        paths["check"] = _check_figure(comparison, out_dir)
     summary = summary_data(outcome, evaluator.baseline.name, trial)
+    if comparison is not None:
+        summary["comparison"] = {
+            "samples": comparison.samples,
+            "seed": comparison.seed,
+            "gain_margin_checked": comparison.gain,
+            "uncertainty": comparison.uncertainty,
+            "controllers": comparison.rows(),
+        }
     paths["summary"] = write_json(out_dir / SUMMARY_FILE, summary)
     paths["report"] = out_dir / REPORT_FILE
-    text = _report(outcome, evaluator, trial, check, paths, out_dir)
+    text = _report(outcome, evaluator, trial, check, paths, out_dir, comparison)
     paths["report"].write_text(text, encoding="utf-8")
     return paths
+
+
+def comparison_controllers(evaluator, best_controller) -> list:
+    """The best controller, the baseline and the template (when it is not the baseline)."""
+    from fuzzyservo.io.controllers import load_controller
+
+    spec = evaluator.spec
+    controllers = [best_controller, evaluator.baseline]
+    if Path(spec.controller_file).resolve() != Path(spec.baseline_file).resolve():
+        controllers.append(load_controller(spec.controller_file))
+    return controllers
+
+
+def _compare(evaluator, best_controller, samples: int | None, progress) -> Comparison:
+    spec = evaluator.spec
+    n = spec.uncertainty.samples if samples is None else samples
+    return compare_controllers(
+        evaluator, comparison_controllers(evaluator, best_controller), samples=n, progress=progress
+    )
+
+
+def _check_figure(comparison: Comparison, out_dir: Path) -> Path:
+    from fuzzyservo import plots
+
+    values = {
+        m: {mc.controller: mc.values(m) for mc in comparison.monte_carlo} for m in SUMMARY_METRICS
+    }
+    return plots.save(plots.distribution_figure(values, SUMMARY_METRICS), out_dir / "check.png")
+
+
+def _comparison_lines(comparison: Comparison, link) -> list[str]:
+    """The report's comparison: nominal plant, then the Monte Carlo table."""
+    names = comparison.names
+    rows = comparison.rows()
+    shown = (("settling_time_s", "settling time 2 %", "s", 1.0), ("sse_abs", "steady-state error",
+             "mm", 1e3), ("overshoot_pct", "overshoot", "%", 1.0),
+             ("saturation_time_s", "converter saturated", "s", 1.0))  # fmt: skip
+    head = "| | " + " | ".join(f"`{n}`" for n in names) + " |"
+    rule = "|---|" + "---:|" * len(names)
+    lines = ["## Against the baseline and the template", "", "### Nominal plant", "", head, rule]
+    lines.append(
+        "| objective | " + " | ".join(_num(r["nominal"]["objective"]) for r in rows) + " |"
+    )
+    for key, label, unit, k in shown:
+        cells = [_num(r["nominal"][key] * k) for r in rows]
+        lines.append(f"| {label} [{unit}] | " + " | ".join(cells) + " |")
+    lines.append(
+        f"| gain margin >= {comparison.gain:g} | "
+        + " | ".join(
+            {True: "holds", False: "**oscillates**", None: "n/a"}[r["nominal"]["gain_margin_holds"]]
+            for r in rows
+        )
+        + " |"
+    )
+    lines += [
+        "",
+        f"### Monte Carlo: {comparison.samples} plants the study never saw",
+        "",
+        f"Drawn with seed {comparison.seed} from the study's uncertainty ({comparison.uncertainty}); "
+        "metrics are the worst scenario of each sample; a failure is a failed run or an "
+        f"oscillation at {comparison.gain:g} times the controller output on any scenario. "
+        "`fuzzyservo robustness` runs the same check on more samples.",
+        "",
+        head,
+        rule,
+        "| failures | " + " | ".join(f"{r['failures']} / {r['samples']}" for r in rows) + " |",
+        f"| gain margin >= {comparison.gain:g} holds | "
+        + " | ".join(f"{r['gain_margin_holds']} / {r['samples']}" for r in rows)
+        + " |",
+    ]
+    for key, label, unit, k in shown:
+        cells = [
+            "/".join(_num(r[key][q] * k, "never") for q in ("p50", "p90", "worst")) for r in rows
+        ]
+        lines.append(f"| {label}: median/90 %/worst [{unit}] | " + " | ".join(cells) + " |")
+    lines += ["", f"![Monte Carlo distributions]({link('check')})", ""]
+    return lines
 
 
 def best_trial_number(outcome: Outcome) -> int | None:
@@ -227,6 +332,7 @@ def _report(
     check: Evaluation,
     paths: dict[str, Path],
     out_dir: Path,
+    comparison: Comparison | None = None,
 ) -> str:
     spec = outcome.spec
     best, base = outcome.best, outcome.baseline
@@ -302,6 +408,9 @@ def _report(
     if "fis" in paths:
         files.append(f"[{FIS_FILE}]({link('fis')}) (MATLAB Fuzzy Logic Designer)")
     lines += ["", "Also written: " + ", ".join(files) + ".", ""]
+
+    if comparison is not None:
+        lines += _comparison_lines(comparison, link)
 
     lines += ["## Best parameters", "", "| parameter | template | best | searched range |"]
     lines.append("|---|---:|---:|---|")

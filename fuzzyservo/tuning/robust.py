@@ -14,10 +14,19 @@ from __future__ import annotations
 import dataclasses
 import math
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
-from fuzzyservo.analysis.robustness import SampleRun, holds, run_sample
+from fuzzyservo.analysis.robustness import (
+    SUMMARY_METRICS,
+    MonteCarlo,
+    SampleRun,
+    holds,
+    monte_carlo,
+    run_sample,
+    summary,
+)
 from fuzzyservo.controllers.base import Controller
 from fuzzyservo.metrics import METRIC_NAMES
 from fuzzyservo.rig import Rig
@@ -32,6 +41,14 @@ def sample_rigs(rig: Rig, spec) -> list[Rig]:
     """The study's drawn plants (the same for every trial: common random numbers)."""
     u = spec.uncertainty
     return [sample_rig(rig, u.parameters, s) for s in u.draws]
+
+
+def _partial_is_lower_bound(spec) -> bool:
+    """Can a sample be judged after some of its scenarios? Yes when the metrics are the
+    worst over the scenarios and the objective weighs them with no negative weight: then
+    the value over the scenarios run so far can only grow with the rest."""
+    weights = spec.objective.weights.values() if not spec.objective.pareto else [-1.0]
+    return spec.aggregate == "worst" and all(w >= 0 for w in weights)
 
 
 def _margin_bounds(spec) -> tuple[float | None, float | None]:
@@ -53,7 +70,10 @@ def evaluate_samples(
 ) -> Evaluation:
     """Score ``controller`` on every sample (see the module docstring). ``report(k, value)``
     after sample ``k`` with the worst objective value so far (``worst`` aggregate, one
-    objective): True stops the trial (status ``pruned``): the value can only grow."""
+    objective): True stops the trial (status ``pruned``): the value can only grow. When
+    the scenarios too are aggregated by their worst and no weight is negative, it is also
+    asked after each scenario of a sample (shortest scenario first), so a lost trial stops
+    after one run instead of one per scenario."""
     from fuzzyservo.tuning.objective import Evaluation
 
     spec = evaluator.spec
@@ -62,17 +82,35 @@ def evaluate_samples(
     t0 = time.perf_counter()
     runs: list[SampleRun] = []
     status, message = "ok", ""
+    prunable = report is not None and u.aggregate == "worst" and spec.objective.n_values == 1
+    scenarios = list(spec.scenarios)
+    within = prunable and _partial_is_lower_bound(spec)
+    if within:  # the shortest scenario first: a lost trial stops after the cheapest run
+        scenarios.sort(key=lambda s: evaluator.rig.scenario(s).duration_s)
     for sample, rig in zip(u.draws, evaluator.sample_rigs, strict=True):
+        stop = None
+        if within:
+            before = max((evaluator._values(r.metrics)[0] for r in runs), default=-math.inf)
+
+            def stop(partial, k=sample.index, before=before) -> bool:
+                value = max(before, evaluator._values(partial)[0])
+                return math.isfinite(value) and report(k, value)
+
         run = run_sample(
-            sample.index, rig, controller, spec.scenarios, sample.noise_seed,
-            aggregate=spec.aggregate,
+            sample.index, rig, controller, scenarios, sample.noise_seed,
+            aggregate=spec.aggregate, stop=stop,
         )  # fmt: skip
         runs.append(run)
+        if run.status == "pruned":
+            so_far = max(evaluator._values(r.metrics)[0] for r in runs)
+            status = "pruned"
+            message = f"worst after {len(runs)} sample(s) ({run.message}): {so_far:.4g}"
+            break
         if run.status != "ok":
             status = run.status
             message = f"{sample.describe(u.parameters)}: {run.message}"
             break
-        if report is not None and u.aggregate == "worst" and spec.objective.n_values == 1:
+        if prunable:
             so_far = max(evaluator._values(r.metrics)[0] for r in runs)
             if math.isfinite(so_far) and report(sample.index, so_far):
                 status, message = "pruned", f"worst after {len(runs)} sample(s): {so_far:.4g}"
@@ -148,3 +186,76 @@ def evaluate_samples(
         results=results,
         simulations=sims,
     )
+
+
+#: the seed of the report's Monte Carlo check (as `fuzzyservo robustness`): plants the
+#: study never saw
+CHECK_SEED = 2026
+
+
+@dataclass(frozen=True)
+class Comparison:
+    """Controllers side by side on the nominal plant (``nominal``, noise seed 0) and on
+    ``samples`` plants drawn afresh from the study's uncertainty (``monte_carlo``, seed
+    ``seed``), with the gain check ``gain`` (from ``gain_margin >= g``, else 2) on every
+    scenario."""
+
+    names: list[str]
+    nominal: list[SampleRun]
+    objective: list[float]  # the study's objective of each on the nominal plant
+    monte_carlo: list[MonteCarlo]
+    samples: int
+    seed: int
+    gain: float
+    uncertainty: str
+
+    def rows(self) -> list[dict[str, object]]:
+        """Per controller: the Monte Carlo summary (:func:`analysis.robustness.summary`)
+        with the nominal metrics, objective and gain check beside it."""
+        out = []
+        for row, run, value in zip(summary(self.monte_carlo, self.gain), self.nominal,
+                                   self.objective, strict=True):  # fmt: skip
+            row = dict(row)
+            row["nominal"] = {
+                "status": run.status,
+                "objective": value,
+                "gain_margin_holds": run.gain_holds,
+                **{m: run.metrics.get(m, math.nan) for m in SUMMARY_METRICS},
+            }
+            out.append(row)
+        return out
+
+
+def compare_controllers(
+    evaluator: Evaluator,
+    controllers: Sequence[Controller],
+    *,
+    samples: int,
+    seed: int = CHECK_SEED,
+    progress: Callable[[int], object] | None = None,
+) -> Comparison:
+    """``controllers`` on the study's nominal plant and on ``samples`` fresh draws of its
+    uncertainty (the report's comparison of the tuned controller with the baseline and
+    the template). Metrics: the worst scenario of each sample, as the study counts them."""
+    spec = evaluator.spec
+    u = dataclasses.replace(spec.uncertainty, samples=samples, seed=seed, draws=())
+    gain, _ = _margin_bounds(spec)
+    gain = gain if gain is not None else 2.0
+    rigs = [sample_rig(evaluator.rig, u.parameters, s) for s in u.draws]
+    scenarios = list(spec.scenarios)
+    nominal, objective = [], []
+    for controller in controllers:
+        run = run_sample(-1, evaluator.rig, controller, scenarios, 0, aggregate=spec.aggregate)
+        if run.status == "ok":
+            ok = all(holds(evaluator.rig, controller, s, gain=gain) for s in scenarios)
+            run = dataclasses.replace(run, gain_holds=ok)
+        nominal.append(run)
+        objective.append(evaluator._values(run.metrics)[0] if run.status == "ok" else math.nan)
+    mcs = monte_carlo(
+        evaluator.rig, controllers, rigs, [d.noise_seed for d in u.draws], scenarios,
+        gain=gain, progress=progress,
+    )  # fmt: skip
+    return Comparison(
+        [c.name for c in controllers], nominal, objective, mcs, samples, seed, gain,
+        u.describe(),
+    )  # fmt: skip

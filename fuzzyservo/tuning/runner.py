@@ -353,6 +353,8 @@ def run_study(
     enqueue(study, spec, list(spec.warm_start))
     done_before = count_complete(study)
     t0 = time.perf_counter()
+    if rig is None:
+        _warm_kernels(spec)  # before the bar: its rate (and ETA) should not count compiling
     bar = _bar(total, done_before, spec.name, progress)
     try:
         if workers <= 1:
@@ -400,7 +402,7 @@ def _run_processes(spec: StudySpec, url: str, total: int, workers: int, bar, sha
     study = open_study(spec, url)
     try:
         while any(p.is_alive() for p in procs):
-            time.sleep(0.5)
+            time.sleep(1.0)  # each poll reads the storage: no more often than the bar needs
             _refresh(bar, study)
         _refresh(bar, study)
     except KeyboardInterrupt:

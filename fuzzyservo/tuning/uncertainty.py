@@ -43,7 +43,8 @@ class Distribution:
     ``io_delay``); ``field``: the parameter field it sets (``effect`` names the effect for
     effect parameters); ``kind``: uniform/log-uniform on ``[a, b]``, or normal with mean
     ``a`` and standard deviation ``b`` cut at ±3σ. ``unit``: how the file gave it (for
-    tables).
+    tables); ``origin``: where the range came from when not the study file (``fitted``:
+    a calibrated rig's 95 % interval).
     """
 
     target: str
@@ -54,6 +55,7 @@ class Distribution:
     effect: str = ""
     unit: str = ""
     scale: float = 1.0  # SI per file unit, to show drawn values in the file's unit
+    origin: str = ""  # e.g. "fitted" for an interval read from a calibrated rig file
 
     def __post_init__(self) -> None:
         if self.kind not in KINDS:
@@ -89,9 +91,10 @@ class Distribution:
     def describe(self) -> str:
         s = self.scale or 1.0
         u = f" {self.unit}" if self.unit else ""
+        why = f" ({self.origin})" if self.origin else ""
         if self.kind == "normal":
-            return f"{self.target} ~ N({self.a / s:.4g}, {self.b / s:.4g}){u}"
-        return f"{self.target} ~ {self.kind}[{self.a / s:.4g}, {self.b / s:.4g}]{u}"
+            return f"{self.target} ~ N({self.a / s:.4g}, {self.b / s:.4g}){u}{why}"
+        return f"{self.target} ~ {self.kind}[{self.a / s:.4g}, {self.b / s:.4g}]{u}{why}"
 
 
 @dataclass(frozen=True)

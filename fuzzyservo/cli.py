@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import argparse
 import math
+import os
 import sys
 from collections.abc import Sequence
 from pathlib import Path
@@ -706,6 +707,7 @@ def cmd_calibrate(args: argparse.Namespace) -> int:
     _out_file(args.json, "--json")
     if args.max_effects < 0:
         raise ConfigError(f"--max-effects must be >= 0, got {args.max_effects}")
+    _at_least_one(workers=args.workers)
     rig = load_rig(resolve(args.rig, "rigs", "rig"))
     controller = None
     if args.controller:
@@ -735,6 +737,7 @@ def cmd_calibrate(args: argparse.Namespace) -> int:
             effects=effects,
             max_effects=args.max_effects,
             progress=lambda name: (bar.set_postfix_str(name), bar.update(1)),
+            workers=args.workers,
         )
     finally:
         bar.close()
@@ -1134,6 +1137,12 @@ def build_parser() -> argparse.ArgumentParser:
         "--effects", help="comma-separated candidate effects (default: the whole library)"
     )
     p.add_argument("--max-effects", type=int, default=2, help="effects to add at most (default 2)")
+    p.add_argument(
+        "--workers",
+        type=int,
+        default=os.cpu_count() or 1,
+        help="processes that fit a round's candidates in parallel (default: one per core)",
+    )
     p.add_argument(
         "--resample", action="store_true", help="resample uneven or repeated time stamps"
     )

@@ -330,8 +330,14 @@ def calibrate(
     effects: Sequence[str] | None = None,
     max_effects: int = 2,
     progress: Callable[[str], None] | None = None,
+    workers: int = 1,
 ) -> Outcome:
-    """Fit the rig's unknowns, then add up to ``max_effects`` effects from the library."""
+    """Fit the rig's unknowns, then add up to ``max_effects`` effects from the library.
+
+    ``workers`` > 1 fits a round's candidates in that many processes (each candidate is
+    independent of the others); ``progress`` gets each candidate's name as it starts
+    (one process) or as it ends (several).
+    """
     start = time.perf_counter()
     names = [
         e
@@ -355,49 +361,43 @@ def calibrate(
     models = {"declared": declared_model, "nominal": current_model}
     added: list[Candidate] = []
     rounds: list[Round] = []
-    for _ in range(max_effects):
-        results: list[Candidate] = []
-        for name in names:
-            if name in current.effects:
-                continue
-            if progress:
-                progress(name)
-            _, candidate = fit(replay, current, name)
-            evidence = held_out_evidence(replay, current_model, candidate.model)
-            results.append(dataclasses.replace(candidate, evidence=evidence))
-        if not results:  # every allowed effect is in already
-            break
-        results.sort(key=lambda c: c.score)
-        z_min = threshold(len(results))
-        best = results[0] if results else None
-        accept = best is not None and _significant(best, z_min)
-        ambiguous = _ties(replay, results, z_min) if accept else ()
-        if ambiguous:  # parsimony: the simplest of the tied candidates goes first
-            tied = [c for c in results if c.name in (best.name, *ambiguous)]
-            simplest = min(tied, key=lambda c: (c.n_params, c.score))
-            if simplest is not best:
-                results.remove(simplest)
-                results.insert(0, simplest)
-                ambiguous = tuple(c.name for c in tied if c is not simplest)
-                best = simplest
-        experiments: tuple[Separation, ...] = ()
-        if ambiguous:
-            tied = {c.name: c.rig for c in results if c.name in (best.name, *ambiguous)}
-            experiments = tuple(separating_experiments(replay, tied))
-        rounds.append(
-            Round(
-                cost,
-                tuple(results),
-                best.name if accept else None,
-                threshold=z_min,
-                ambiguous_with=ambiguous,
-                experiments=experiments,
+    with _Pool(workers, len(names)) as pool:
+        for _ in range(max_effects):
+            todo = [name for name in names if name not in current.effects]
+            if not todo:  # every allowed effect is in already
+                break
+            results = pool.map(_candidate, replay, current, current_model, todo, progress)
+            results.sort(key=lambda c: c.score)
+            z_min = threshold(len(results))
+            best = results[0] if results else None
+            accept = best is not None and _significant(best, z_min)
+            ambiguous = _ties(replay, results, z_min) if accept else ()
+            if ambiguous:  # parsimony: the simplest of the tied candidates goes first
+                tied = [c for c in results if c.name in (best.name, *ambiguous)]
+                simplest = min(tied, key=lambda c: (c.n_params, c.score))
+                if simplest is not best:
+                    results.remove(simplest)
+                    results.insert(0, simplest)
+                    ambiguous = tuple(c.name for c in tied if c is not simplest)
+                    best = simplest
+            experiments: tuple[Separation, ...] = ()
+            if ambiguous:
+                tied = {c.name: c.rig for c in results if c.name in (best.name, *ambiguous)}
+                experiments = tuple(separating_experiments(replay, tied))
+            rounds.append(
+                Round(
+                    cost,
+                    tuple(results),
+                    best.name if accept else None,
+                    threshold=z_min,
+                    ambiguous_with=ambiguous,
+                    experiments=experiments,
+                )
             )
-        )
-        if not accept:
-            break
-        added.append(best)
-        current, current_model, cost = best.rig, best.model, best.cost_val
+            if not accept:
+                break
+            added.append(best)
+            current, current_model, cost = best.rig, best.model, best.cost_val
     if len(added) > 1:
         current, added, current_model, cost = _refit_jointly(
             replay, current, added, current_model, cost
@@ -419,6 +419,66 @@ def calibrate(
         controller=replay.controller,
         uncertainty=uncertainty,
     )
+
+
+def _candidate(
+    replay: Replay, base: Rig, base_model: dict[str, np.ndarray], name: str
+) -> Candidate:
+    """``name`` fitted on top of ``base`` with its held-out evidence against ``base``'s
+    channels (a module-level function, so a worker process can run it)."""
+    _, candidate = fit(replay, base, name)
+    evidence = held_out_evidence(replay, base_model, candidate.model)
+    return dataclasses.replace(candidate, evidence=evidence)
+
+
+class _Pool:
+    """The candidates of a round, fitted in this process or in ``workers`` processes
+    (spawned once per calibration and reused by every round)."""
+
+    def __init__(self, workers: int, candidates: int):
+        self.workers = max(1, min(workers, candidates))
+        self.executor = None
+
+    def __enter__(self) -> _Pool:
+        if self.workers > 1:
+            import multiprocessing as mp
+            from concurrent.futures import ProcessPoolExecutor
+
+            self.executor = ProcessPoolExecutor(self.workers, mp_context=mp.get_context("spawn"))
+        return self
+
+    def __exit__(self, *exc) -> None:
+        if self.executor is not None:
+            self.executor.shutdown(cancel_futures=True)
+
+    def map(
+        self,
+        task: Callable[..., Candidate],
+        replay: Replay,
+        base: Rig,
+        base_model: dict[str, np.ndarray],
+        names: Sequence[str],
+        progress: Callable[[str], None] | None,
+    ) -> list[Candidate]:
+        """``task`` on every name; the results in the order of ``names``."""
+        if self.executor is None:
+            out = []
+            for name in names:
+                if progress:
+                    progress(name)
+                out.append(task(replay, base, base_model, name))
+            return out
+        from concurrent.futures import as_completed
+
+        futures = {
+            self.executor.submit(task, replay, base, base_model, name): name for name in names
+        }
+        done: dict[str, Candidate] = {}
+        for future in as_completed(futures):
+            done[futures[future]] = future.result()
+            if progress:
+                progress(futures[future])
+        return [done[name] for name in names]
 
 
 def _uncertainty(

@@ -22,8 +22,10 @@ Toolbox users split estimation and validation data.
 from __future__ import annotations
 
 import dataclasses
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from functools import cached_property
+from types import MappingProxyType
 
 import numpy as np
 
@@ -44,8 +46,47 @@ ALIASES = {"force": "f_loads"}  # data signal -> the model signal it is compared
 DIVERGED_COST = 1e12  # cost of a run that failed (noise-variance units)
 
 
+class Scored:
+    """Costs of model channels against measured ones, shared by a replay of one record
+    and of several (joint.py). Needs ``channels``, ``measured``, ``sigma`` and ``split``
+    (first held-out sample)."""
+
+    per_record: Mapping[str, tuple[float, float]] = MappingProxyType({})  # joint.py
+    values: Mapping[str, tuple[float, ...]] = MappingProxyType({})
+
+    def costs(self, model: dict[str, np.ndarray]) -> tuple[float, float]:
+        """:meth:`cost` on (training, held-out)."""
+        return self.cost(model, slice(0, self.split)), self.cost(model, slice(self.split, None))
+
+    def cost(self, model: dict[str, np.ndarray], part: slice) -> float:
+        """Mean squared residual in units of each channel's noise variance, averaged over
+        channels: the maximum-likelihood criterion for white Gaussian measurement noise,
+        so a channel weighs by how precisely it was measured. A perfect model scores 1."""
+        total = 0.0
+        for channel in self.channels:
+            e = (self.measured(channel)[part] - model[channel][part]) / self.sigma[channel]
+            if not np.isfinite(e).all():
+                return DIVERGED_COST
+            total += float(e @ e) / e.size
+        return total / len(self.channels)
+
+    def residual_vector(self, model: dict[str, np.ndarray]) -> np.ndarray:
+        """Training residuals scaled so that their sum of squares is the training cost."""
+        part = slice(0, self.split)
+        parts = []
+        for channel in self.channels:
+            e = self.measured(channel)[part] - model[channel][part]
+            e = e / (self.sigma[channel] * np.sqrt(e.size * len(self.channels)))
+            parts.append(np.where(np.isfinite(e), e, np.sqrt(DIVERGED_COST / e.size)))
+        return np.concatenate(parts)
+
+    def noise_cost(self) -> float:
+        """The cost a perfect model leaves: 1 (white noise of the estimated level)."""
+        return 1.0
+
+
 @dataclass(frozen=True, eq=False)
-class Replay:
+class Replay(Scored):
     """A measured run ready to be replayed on variants of one rig.
 
     ``channels``: data signal -> model signal compared; ``drive``: the data signal that
@@ -107,35 +148,17 @@ class Replay:
             sigma[channel] = max(noise_floor(y), 1e-6 * float(np.std(y)), 1e-300)
         return sigma
 
-    def costs(self, model: dict[str, np.ndarray]) -> tuple[float, float]:
-        """:meth:`cost` on (training, held-out)."""
-        return self.cost(model, slice(0, self.split)), self.cost(model, slice(self.split, None))
+    def recorded(self, name: str) -> np.ndarray:
+        """A recorded signal (an input too) on the data grid."""
+        return np.asarray(self.data.signals[name], dtype=float)
 
-    def cost(self, model: dict[str, np.ndarray], part: slice) -> float:
-        """Mean squared residual in units of each channel's noise variance, averaged over
-        channels: the maximum-likelihood criterion for white Gaussian measurement noise,
-        so a channel weighs by how precisely it was measured. A perfect model scores 1."""
-        total = 0.0
-        for channel in self.channels:
-            e = (self.measured(channel)[part] - model[channel][part]) / self.sigma[channel]
-            if not np.isfinite(e).all():
-                return DIVERGED_COST
-            total += float(e @ e) / e.size
-        return total / len(self.channels)
+    def with_controller(self, controller: Controller) -> Replay:
+        """This replay through ``controller`` (e.g. with fitted gains)."""
+        return dataclasses.replace(self, controller=controller)
 
-    def residual_vector(self, model: dict[str, np.ndarray]) -> np.ndarray:
-        """Training residuals scaled so that their sum of squares is the training cost."""
-        part = slice(0, self.split)
-        parts = []
-        for channel in self.channels:
-            e = self.measured(channel)[part] - model[channel][part]
-            e = e / (self.sigma[channel] * np.sqrt(e.size * len(self.channels)))
-            parts.append(np.where(np.isfinite(e), e, np.sqrt(DIVERGED_COST / e.size)))
-        return np.concatenate(parts)
-
-    def noise_cost(self) -> float:
-        """The cost a perfect model leaves: 1 (white noise of the estimated level)."""
-        return 1.0
+    def with_values(self, fitted: Mapping[str, float]) -> Replay:
+        """A single record has no per-record values (joint.py): itself."""
+        return self
 
 
 def make_replay(rig: Rig, data: Measured, controller: Controller | None = None) -> Replay:

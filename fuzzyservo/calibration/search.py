@@ -33,6 +33,7 @@ from fuzzyservo.calibration.decision import (
     threshold,
 )
 from fuzzyservo.calibration.identifiability import Separation, separating_experiments
+from fuzzyservo.calibration.joint import record_field, split_field
 from fuzzyservo.calibration.replay import DIVERGED_COST, Replay
 from fuzzyservo.calibration.residuals import fit_percent
 from fuzzyservo.calibration.uncertainty import Estimate, effective_samples, estimates
@@ -97,6 +98,8 @@ class Outcome:
     seconds: float = 0.0
     controller: Controller | None = None  # the replay's controller, with fitted gains
     uncertainty: dict[str, Estimate] = field(default_factory=dict)  # field -> 95 % interval
+    # several records (joint.py): field -> its fitted value in each record
+    per_record: dict[str, tuple[float, ...]] = field(default_factory=dict)
 
 
 @dataclass
@@ -145,9 +148,23 @@ class _Objective:
         values = {
             f: self.space.value(j, z[j])
             for j, (_, f) in enumerate(self.space.names)
-            if not _gains.is_gain(f)
+            if not _gains.is_gain(f) and split_field(f) is None
         }
         return self.base.with_params(**values) if values else self.base
+
+    def record_values(self, z: Sequence[float]) -> dict[str, list[float]]:
+        """Per-record values (joint.py) at ``z``: field -> one value per record."""
+        values = {f: list(v) for f, v in self.replay.values.items()}
+        for j, (_, name) in enumerate(self.space.names):
+            parsed = split_field(name)
+            if parsed:
+                values[parsed[0]][parsed[1]] = self.space.value(j, z[j])
+        return values
+
+    def run(self, z: Sequence[float]) -> tuple[dict[str, np.ndarray], str]:
+        if self.replay.per_record:
+            return self.replay.run(self.rig(z), self.controller(z), self.record_values(z))
+        return self.replay.run(self.rig(z), self.controller(z))
 
     def controller(self, z: Sequence[float]) -> Controller:
         values = {f: self.space.value(j, z[j]) for j, (_, f) in enumerate(self.space.names)}
@@ -157,7 +174,7 @@ class _Objective:
         key = tuple(round(float(v), 12) for v in z)
         if key not in self.cache:
             try:
-                self.cache[key] = self.replay.run(self.rig(z), self.controller(z))
+                self.cache[key] = self.run(z)
             except ValueError:  # a parameter set the plant rejects (e.g. geometry)
                 nan = np.full(self.replay.t.size, np.nan)
                 self.cache[key] = ({c: nan for c in self.replay.channels}, "rejected")
@@ -180,12 +197,18 @@ def _space(rig: Rig, effect: str | None, replay: Replay | None = None) -> _Space
             names.append((effect, param.field))
             bounds.append(_bounds(rig, param, scales))
             log.append(param.log)
+    per_record = replay.per_record if replay is not None else {}
     for fieldname, (lo, hi) in rig.unknowns.items():
-        if any(f == fieldname for _, f in names):
+        if any(f == fieldname for _, f in names) or fieldname in per_record:
             continue
         names.append((owner(fieldname) or "", fieldname))
         bounds.append((lo, hi))
         log.append(False)
+    for fieldname, (lo, hi) in per_record.items():  # one value per record (joint.py)
+        for k in range(len(replay.values[fieldname])):
+            names.append(("", record_field(fieldname, k)))
+            bounds.append((lo, hi))
+            log.append(False)
     if replay is not None:  # controller gains declared unknown (calibration/gains.py)
         for name, (lo, hi) in _gains.gain_unknowns(
             replay.controller, replay.drive == "ref"
@@ -212,11 +235,7 @@ def fit(
     n_effect = sum(1 for owner, _ in space.names if owner == effect) if effect else 0
     z0 = np.array(
         [
-            START
-            if owner and owner == effect
-            else space.unit(j, _gains.gain_value(replay.controller, f))
-            if _gains.is_gain(f)
-            else space.unit(j, getattr(base.params, f))
+            START if owner and owner == effect else space.unit(j, _start(replay, base, f))
             for j, (owner, f) in enumerate(space.names)
         ]
     )
@@ -244,6 +263,17 @@ def fit(
         rig=rig,
     )
     return rig, candidate
+
+
+def _start(replay: Replay, rig: Rig, name: str) -> float:
+    """The current value of a fitted quantity: a controller gain, a per-record value
+    (joint.py) or a rig parameter."""
+    if _gains.is_gain(name):
+        return _gains.gain_value(replay.controller, name)
+    parsed = split_field(name)
+    if parsed:
+        return replay.values[parsed[0]][parsed[1]]
+    return float(getattr(rig.params, name))
 
 
 def _minimise(objective: _Objective, z0: np.ndarray, n_effect: int, budget: int) -> np.ndarray:
@@ -353,9 +383,9 @@ def calibrate(
         nominal, fitted = fit(replay, rig, None, max_evaluations=120)
         current_model, cost_nominal = fitted.model, fitted.cost_val
         # the effects are then fitted from the fitted gains on
-        replay = dataclasses.replace(
-            replay, controller=_gains.with_gains(replay.controller, fitted.unknowns)
-        )
+        replay = replay.with_controller(
+            _gains.with_gains(replay.controller, fitted.unknowns)
+        ).with_values(fitted.unknowns)
     current = nominal
     cost = cost_nominal
     models = {"declared": declared_model, "nominal": current_model}
@@ -383,7 +413,8 @@ def calibrate(
             experiments: tuple[Separation, ...] = ()
             if ambiguous:
                 tied = {c.name: c.rig for c in results if c.name in (best.name, *ambiguous)}
-                experiments = tuple(separating_experiments(replay, tied))
+                first = getattr(replay, "records", (replay,))[0]
+                experiments = tuple(separating_experiments(first, tied))
             rounds.append(
                 Round(
                     cost,
@@ -398,10 +429,12 @@ def calibrate(
                 break
             added.append(best)
             current, current_model, cost = best.rig, best.model, best.cost_val
+            replay = replay.with_values(best.unknowns)
     if len(added) > 1:
-        current, added, current_model, cost = _refit_jointly(
+        current, added, current_model, cost, refitted = _refit_jointly(
             replay, current, added, current_model, cost
         )
+        replay = replay.with_values(refitted)
     models["calibrated"] = current_model
     uncertainty = _uncertainty(replay, current, added, current_model)
     return Outcome(
@@ -418,6 +451,7 @@ def calibrate(
         seconds=time.perf_counter() - start,
         controller=replay.controller,
         uncertainty=uncertainty,
+        per_record=dict(replay.values),
     )
 
 
@@ -495,8 +529,16 @@ def _uncertainty(
         return {}
     joint = dataclasses.replace(rig, unknowns=unknowns)
     space = _space(joint, None)
+    for name in replay.per_record:  # a per-record value (joint.py) in each record
+        j = next(j for j, (_, f) in enumerate(space.names) if f == name)
+        lo_hi, is_log = space.bounds.pop(j), space.log.pop(j)
+        space.names.pop(j)
+        for k in range(len(replay.values[name])):
+            space.names.append(("", record_field(name, k)))
+            space.bounds.append(lo_hi)
+            space.log.append(is_log)
     objective = _Objective(replay, joint, None, space)
-    values = [float(getattr(rig.params, f)) for _, f in space.names]
+    values = [_start(replay, rig, f) for _, f in space.names]
     z = np.array([space.unit(j, v) for j, v in enumerate(values)])
     jac = _jacobian(objective.residuals, z)
     samples, effective = effective_samples(replay, model)
@@ -531,7 +573,7 @@ def _refit_jointly(
     added: list[Candidate],
     model: dict[str, np.ndarray],
     cost: float,
-) -> tuple[Rig, list[Candidate], dict[str, np.ndarray], float]:
+) -> tuple[Rig, list[Candidate], dict[str, np.ndarray], float, dict[str, float]]:
     """Refit the parameters of all added effects together, starting where each was found.
 
     Kept only if the held-out cost (``cost`` for ``rig``, whose channels are ``model``)
@@ -545,7 +587,7 @@ def _refit_jointly(
     joint = dataclasses.replace(rig, unknowns=unknowns)
     refit, joint_fit = fit(replay, joint, None, max_evaluations=80)
     if joint_fit.cost_val > cost:
-        return rig, added, model, cost
+        return rig, added, model, cost, {}
     refit = dataclasses.replace(refit, unknowns=rig.unknowns)
     updated = [dataclasses.replace(c, params=refit.effect_values(c.name)) for c in added]
-    return refit, updated, joint_fit.model, joint_fit.cost_val
+    return refit, updated, joint_fit.model, joint_fit.cost_val, joint_fit.unknowns

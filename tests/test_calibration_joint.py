@@ -43,6 +43,7 @@ def records(tmp_path_factory):
     return unknown, ctl, [make_replay(unknown, d, ctl) for d in data]
 
 
+@pytest.mark.slow  # 3-7 s here
 def test_shared_effect_and_per_record_null_from_two_records(records) -> None:
     rig, _, replays = records
     joint = joint_replay(replays, rig, per_record=["bias_current_a"])
@@ -72,3 +73,37 @@ def test_records_with_other_channels_are_refused(records, tmp_path: Path) -> Non
     )
     with pytest.raises(DataError, match="same channels"):
         joint_replay([replays[0], make_replay(rig, fewer, ctl)], rig)
+
+
+@pytest.mark.slow
+def test_cli_calibrates_two_files_with_a_per_record_null(records, tmp_path: Path) -> None:
+    """``fuzzyservo calibrate RIG a.csv b.csv --per-record bias_current``: one run, one
+    report; a key that is not an unknown is refused on one line."""
+    import json
+
+    import yaml
+    from test_calibration import HEADER_UNITS
+
+    from fuzzyservo.cli import main
+    from fuzzyservo.io.measured import write_measured
+
+    rig, _, replays = records
+    text = yaml.safe_load(old_loop(tmp_path / "rig").read_text(encoding="utf-8"))
+    text["plant"]["parameters"]["bias_current"]["fit"] = [1.83, 3.83]  # mA
+    rig_file = tmp_path / "rig" / "drifting_null.yaml"
+    rig_file.write_text(yaml.safe_dump(text, sort_keys=False), encoding="utf-8")
+    files = [
+        write_measured(tmp_path / f"{k}.csv", r.data, HEADER_UNITS) for k, r in enumerate(replays)
+    ]
+    args = ["calibrate", str(rig_file), *map(str, files), "--controller", "p_k10"]
+    args += ["--effects", "coulomb_friction", "--max-effects", "1", "--workers", "1"]
+    code = main([*args, "--per-record", "bias_current", "--out", str(tmp_path / "o")])
+    assert code == 0
+    summary = json.loads((tmp_path / "o" / "summary.json").read_text(encoding="utf-8"))
+    assert summary["decision"] == "coulomb_friction"
+    fitted = np.array(summary["per_record"]["bias_current"]) - rig.params.bias_current_a
+    assert fitted == pytest.approx(DRIFT, abs=2e-5)
+    assert "2 records calibrated together" in (tmp_path / "o" / "report.md").read_text(
+        encoding="utf-8"
+    )
+    assert main([*args, "--per-record", "closing_current", "--out", str(tmp_path / "p")]) == 2

@@ -29,7 +29,7 @@ import numpy as np
 
 from fuzzyservo.calibration.replay import Replay, Scored
 from fuzzyservo.controllers.base import Controller
-from fuzzyservo.errors import DataError
+from fuzzyservo.errors import ConfigError, DataError
 from fuzzyservo.rig import Rig
 
 SEP = "@"  # "<field>@<record index>": a parameter fitted once per record
@@ -171,6 +171,26 @@ class JointReplay(Scored):
             if parsed and parsed[0] in values:
                 values[parsed[0]][parsed[1]] = float(value)
         return dataclasses.replace(self, values={f: tuple(v) for f, v in values.items()})
+
+
+def per_record_fields(rig: Rig, keys: Sequence[str]) -> list[str]:
+    """The fields of the rig-file ``keys`` (e.g. ``bias_current``) that the rig declares
+    unknown (``fit: [lower, upper]``), to be fitted per record."""
+    fields = type(rig.params).__dataclass_fields__
+    by_key = {f.metadata.get("key"): name for name, f in fields.items()}
+    out = []
+    for key in (k.strip() for k in keys):
+        if not key:
+            continue
+        name = by_key.get(key)
+        if name is None or name not in rig.unknowns:
+            declared = ", ".join(fields[f].metadata["key"] for f in rig.unknowns) or "none"
+            raise ConfigError(
+                f"--per-record: {key!r} is not an unknown of rig {rig.name} (declared "
+                f"unknowns: {declared}); give it fit: [lower, upper] in the rig file"
+            )
+        out.append(name)
+    return out
 
 
 def joint_replay(

@@ -4,8 +4,9 @@ from __future__ import annotations
 
 import dataclasses
 import datetime as _dt
+from collections.abc import Iterable
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -15,6 +16,8 @@ from fuzzyservo.calibration.residuals import (
     autocorrelation,
     confidence_band,
     cross_correlation,
+    noise_floor,
+    quantisation_step,
     signature_regression,
     whiteness,
 )
@@ -22,6 +25,9 @@ from fuzzyservo.calibration.search import Outcome, fit_table
 from fuzzyservo.calibration.signatures import mean_share, signatures
 from fuzzyservo.components.effects import LIBRARY, owner
 from fuzzyservo.rig import Rig
+
+if TYPE_CHECKING:
+    from fuzzyservo.io.measured import Measured
 
 ZOOM_S = 5.0  # the detail overlay shows this much of the held-out part [s]
 # SI unit -> (display unit, factor) for plots and tables
@@ -167,7 +173,10 @@ def summary_data(outcome: Outcome, replay: Replay) -> dict[str, Any]:
         }
         for f, e in outcome.uncertainty.items()
     }
-    data["warnings"] = warnings(outcome)
+    records = getattr(replay, "records", (replay,))
+    data["warnings"] = warnings(outcome) + [
+        w for r in records for w in data_warnings(r.data, r.channels)
+    ]
     data["noise_cost"] = outcome.noise_cost
     data["noise_floor"] = {c: replay.sigma[c] for c in replay.channels}
     data["cost_val"] = {
@@ -206,6 +215,31 @@ def warnings(outcome: Outcome) -> list[str]:
                 f"{_key(outcome, f)} = {e.value:.4g} sits on its bound [{lo:.4g}, "
                 f"{hi:.4g}]: the data want it further out; widen the bound (fit: [...]) or "
                 "look for another effect"
+            )
+    return out
+
+
+def data_warnings(data: Measured, channels: Iterable[str]) -> list[str]:
+    """Logger habits that weaken every score (residuals.noise_floor handles them, the
+    user should still know): held samples and a quantisation that sets the noise level."""
+    out = []
+    for channel in channels:
+        y = np.asarray(data.signals[channel], dtype=float)
+        dy = np.diff(y)
+        held = float(np.mean(dy == 0.0)) if dy.size else 0.0
+        q = quantisation_step(dy)
+        if held > 0.5 and q == 0.0:  # a quantised signal repeats for another reason
+            out.append(
+                f"{data.source}: {100 * held:.0f} % of the {channel} samples repeat the previous one "
+                "(a logger holding its last value between sensor updates): the noise level "
+                "is estimated on the updates alone; log at the sensor's rate if you can"
+            )
+        sigma = noise_floor(y)
+        if q > 0.0 and q / np.sqrt(12.0) >= 0.5 * sigma:
+            out.append(
+                f"{data.source}: {channel} is quantised in steps of {q:.3g} "
+                f"({data.units.get(channel, '')}), as large as its noise: residuals below "
+                "one step cannot be resolved"
             )
     return out
 

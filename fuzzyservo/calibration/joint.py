@@ -150,10 +150,13 @@ class JointReplay(Scored):
         rig: Rig,
         controller: Controller | None = None,
         values: Mapping[str, Sequence[float]] | None = None,
+        *,
+        training: bool = False,
     ) -> tuple[dict[str, np.ndarray], str]:
-        """Every record replayed on ``rig`` (with each record's ``values``), joined."""
+        """Every record replayed on ``rig`` (with each record's ``values``), joined;
+        ``training``: as far as each record's training part (replay.py)."""
         runs = [
-            r.run(rig_k, controller)
+            r.run(rig_k, controller, training=training)
             for r, rig_k in zip(self.records, self.record_rigs(rig, values), strict=True)
         ]
         status = next((s for _, s in runs if s != "ok"), runs[0][1])

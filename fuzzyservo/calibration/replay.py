@@ -117,25 +117,38 @@ class Replay(Scored):
     def measured(self, channel: str) -> np.ndarray:
         return self.data.signals[channel]
 
-    def simulate(self, rig: Rig, controller: Controller | None = None) -> SimResult:
+    def simulate(
+        self, rig: Rig, controller: Controller | None = None, duration_s: float | None = None
+    ) -> SimResult:
         """The replayed run on ``rig``: the data's input, sample time and initial state;
         through ``controller`` (e.g. with fitted gains) instead of the replay's own."""
         replay_rig = dataclasses.replace(rig, sample_time_s=self.sample_time_s, initial={})
-        return simulate(replay_rig, controller or self.controller, self.scenario)
+        return simulate(
+            replay_rig, controller or self.controller, self.scenario, duration_s=duration_s
+        )
+
+    @cached_property
+    def training_s(self) -> float:
+        """How far a replay must run to cover the training part [s]: the last training
+        sample and one controller period past it."""
+        end = float(self.t[self.split - 1]) + 2.0 * self.sample_time_s
+        return min(end, self.scenario.duration_s)
 
     def run(
-        self, rig: Rig, controller: Controller | None = None
+        self, rig: Rig, controller: Controller | None = None, *, training: bool = False
     ) -> tuple[dict[str, np.ndarray], str]:
-        """Model channels on the data grid (NaN where the run failed) and the run's status."""
-        result = self.simulate(rig, controller)
-        t = self.t
+        """Model channels on the data grid (NaN where the run failed) and the run's status.
+        ``training``: run only as far as the training part (fits look at nothing else);
+        the held-out samples are then NaN."""
+        result = self.simulate(rig, controller, self.training_s if training else None)
+        t = self.t[: self.split] if training else self.t
         out = {}
         for channel, signal in self.channels.items():
             values = result.signal(signal)
+            full = np.full(self.t.size, np.nan)
             if np.isfinite(values).all():
-                out[channel] = np.interp(t, result.t, values)
-            else:
-                out[channel] = np.full(t.size, np.nan)
+                full[: t.size] = np.interp(t, result.t, values)
+            out[channel] = full
         return out, result.status
 
     @cached_property

@@ -135,14 +135,17 @@ class _Space:
 
 
 class _Objective:
-    """Replays of one candidate family with a cache (least squares revisits points)."""
+    """Replays of one candidate family with a cache (least squares revisits points).
+
+    The search looks only at the training part, so its replays stop there (a third less
+    simulation); the chosen point is then replayed in full."""
 
     def __init__(self, replay: Replay, base: Rig, effect: str | None, space: _Space):
         self.replay = replay
         self.base = base.with_effect(effect) if effect else base
         self.effect = effect
         self.space = space
-        self.cache: dict[tuple[float, ...], tuple[dict[str, np.ndarray], str]] = {}
+        self.cache: dict[tuple[tuple[float, ...], bool], tuple[dict[str, np.ndarray], str]] = {}
 
     def rig(self, z: Sequence[float]) -> Rig:
         values = {
@@ -161,30 +164,39 @@ class _Objective:
                 values[parsed[0]][parsed[1]] = self.space.value(j, z[j])
         return values
 
-    def run(self, z: Sequence[float]) -> tuple[dict[str, np.ndarray], str]:
+    def run(self, z: Sequence[float], training: bool) -> tuple[dict[str, np.ndarray], str]:
+        rig, controller = self.rig(z), self.controller(z)
         if self.replay.per_record:
-            return self.replay.run(self.rig(z), self.controller(z), self.record_values(z))
-        return self.replay.run(self.rig(z), self.controller(z))
+            values = self.record_values(z)
+            return self.replay.run(rig, controller, values, training=training)
+        return self.replay.run(rig, controller, training=training)
 
     def controller(self, z: Sequence[float]) -> Controller:
         values = {f: self.space.value(j, z[j]) for j, (_, f) in enumerate(self.space.names)}
         return _gains.with_gains(self.replay.controller, values)
 
-    def model(self, z: Sequence[float]) -> tuple[dict[str, np.ndarray], str]:
-        key = tuple(round(float(v), 12) for v in z)
+    def model(
+        self, z: Sequence[float], training: bool = False
+    ) -> tuple[dict[str, np.ndarray], str]:
+        """Model channels at ``z``: all of them, or (``training``) the training part."""
+        point = tuple(round(float(v), 12) for v in z)
+        if (point, False) in self.cache:  # a full replay serves a training one too
+            return self.cache[point, False]
+        key = (point, training)
         if key not in self.cache:
             try:
-                self.cache[key] = self.run(z)
+                self.cache[key] = self.run(z, training)
             except ValueError:  # a parameter set the plant rejects (e.g. geometry)
                 nan = np.full(self.replay.t.size, np.nan)
                 self.cache[key] = ({c: nan for c in self.replay.channels}, "rejected")
         return self.cache[key]
 
     def residuals(self, z: np.ndarray) -> np.ndarray:
-        return self.replay.residual_vector(self.model(z)[0])
+        return self.replay.residual_vector(self.model(z, training=True)[0])
 
     def train_cost(self, z: Sequence[float]) -> float:
-        return self.replay.cost(self.model(z)[0], slice(0, self.replay.split))
+        model = self.model(z, training=True)[0]
+        return self.replay.cost(model, slice(0, self.replay.split))
 
 
 def _space(rig: Rig, effect: str | None, replay: Replay | None = None) -> _Space:

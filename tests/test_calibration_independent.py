@@ -22,9 +22,8 @@ from __future__ import annotations
 from pathlib import Path
 
 import pytest
-import yaml
 from independent_rig import MIDDLE, independent_run
-from support import DATA, controller_named
+from support import controller_named
 from test_calibration import NOISE, old_loop
 
 from fuzzyservo.calibration.replay import make_replay
@@ -40,23 +39,6 @@ MISSES = {
     "oscillation): the 10-point scan and Brent settle at 0.65 GPa (cost 1.81, z 2.2 < 2.6)",
 }
 _NAMES = {"p1": "p_s", "p2": "p_t", "p3": "p_a", "p4": "p_b"}  # seed 002 -> composed
-
-
-def composed_old_loop(folder: Path) -> Path:
-    """``dinca_cylinder_composed.yaml`` as :func:`test_calibration.old_loop` treats the
-    seed-002 file: no I/O delay, an exact reading, ±30 mA, no declared spool lag."""
-    text = (DATA / "rigs" / "dinca_cylinder_composed.yaml").read_text(encoding="utf-8")
-    data = yaml.safe_load(text)
-    data.pop("effects", None)
-    del data["controller"]["io_delay"]
-    for key in ("noise", "adc_bits", "adc_lower", "adc_upper"):
-        del data["feedback"][key]
-    data["actuator"]["lower"] = {"value": -30, "unit": "mA", "source": "before issue 11"}
-    data["actuator"]["upper"] = {"value": 30, "unit": "mA", "source": "before issue 11"}
-    folder.mkdir(parents=True, exist_ok=True)
-    path = folder / "dinca_cylinder_composed_old_loop.yaml"
-    path.write_text(yaml.safe_dump(data, sort_keys=False), encoding="utf-8")
-    return path
 
 
 def _composed(data: Measured) -> Measured:
@@ -84,7 +66,8 @@ def test_independent_formulation_is_named_first_and_added(tmp_path: Path, effect
     ctl = controller_named("p_k10")
     data = independent_run(effect, NOISE, seed=11)
     if effect in COMPOSED:
-        rig, data = load_rig(composed_old_loop(tmp_path)), _composed(data)
+        rig = load_rig(old_loop(tmp_path, "dinca_cylinder_composed"))
+        data = _composed(data)
     else:
         rig = load_rig(old_loop(tmp_path))
     outcome = calibrate(make_replay(rig, data, ctl), rig, max_effects=1)

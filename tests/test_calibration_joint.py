@@ -15,6 +15,7 @@ import pytest
 from support import controller_named
 from test_calibration import NOISE, old_loop
 
+from fuzzyservo.calibration import calibrate as api_calibrate
 from fuzzyservo.calibration.joint import joint_replay
 from fuzzyservo.calibration.replay import make_replay
 from fuzzyservo.calibration.report import summary_data
@@ -45,9 +46,13 @@ def records(tmp_path_factory):
 
 @pytest.mark.slow  # 3-7 s here
 def test_shared_effect_and_per_record_null_from_two_records(records) -> None:
-    rig, _, replays = records
+    rig, ctl, replays = records
+    data = [r.data for r in replays]  # the API: a list of records is calibrated together
+    effects = ["coulomb_friction", "valve_lag"]
+    outcome = api_calibrate(
+        rig, data, ctl, effects=effects, max_effects=1, per_record=["bias_current"]
+    )
     joint = joint_replay(replays, rig, per_record=["bias_current_a"])
-    outcome = calibrate(joint, rig, effects=["coulomb_friction", "valve_lag"], max_effects=1)
     assert [c.name for c in outcome.added] == ["coulomb_friction"]
     assert outcome.added[0].params["force"] == pytest.approx(150.0, rel=0.05)
     bias = rig.params.bias_current_a

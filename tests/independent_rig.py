@@ -1,8 +1,8 @@
 """An independent data generator for calibration tests (issue 12, item 5).
 
 Seed 002's open-centre valve and asymmetric cylinder under P K=10 (Dinca & Corcau,
-eq. 1-19), written again here in pressure form with scipy's ``solve_ivp`` (LSODA, rtol 1e-6,
-well below the noise) and none of the project's kernels, so that the effects follow formulations
+eq. 1-19), written again here in pressure form with scipy's ``solve_ivp`` (LSODA, tight
+tolerances) and none of the project's kernels, so that the effects follow formulations
 the library did not write:
 
 ==================  ==================================================================
@@ -208,7 +208,7 @@ def independent_run(
             pieces = [(t[k], t[k] + delay, i_prev), (t[k] + delay, t[k] + T_S, i_cmd)]
         for a, b, i_hold in pieces:
             sol = solve_ivp(
-                plant.rhs, (a, b), x, method="LSODA", args=(i_hold,), rtol=1e-6, atol=_atol(x)
+                plant.rhs, (a, b), x, method="LSODA", args=(i_hold,), rtol=1e-7, atol=_atol(x)
             )
             if not sol.success:
                 raise RuntimeError(f"independent run failed at {a:.3f} s: {sol.message}")
@@ -231,10 +231,8 @@ def independent_run(
 
 
 def _atol(x: np.ndarray) -> np.ndarray:
-    """Absolute tolerances; with rtol 1e-6 the records differ from rtol 1e-7 by at most
-    0.08 noise σ (p3, LuGre friction) and take a third less time."""
-    scale = np.full(x.size, 10.0)  # pressures [Pa]: 10 Pa
-    scale[0], scale[1] = 1e-7, 1e-6  # y [m], v [m/s]
+    scale = np.full(x.size, 1.0)  # pressures [Pa]: 1 Pa
+    scale[0], scale[1] = 1e-8, 1e-7  # y [m], v [m/s]
     if x.size > 6 and abs(x[6]) < 1.0:  # LuGre z [m] or spool [A]
-        scale[6:] = 1e-9
+        scale[6:] = 1e-10
     return scale

@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import argparse
 import math
+import os
 import sys
 from collections.abc import Sequence
 from pathlib import Path
@@ -737,6 +738,7 @@ def cmd_fit_valve(args: argparse.Namespace) -> int:
 
 
 def cmd_calibrate(args: argparse.Namespace) -> int:
+    from fuzzyservo.calibration.joint import joint_replay, per_record_fields
     from fuzzyservo.calibration.replay import make_replay
     from fuzzyservo.calibration.report import write_outputs
     from fuzzyservo.calibration.search import calibrate
@@ -749,11 +751,13 @@ def cmd_calibrate(args: argparse.Namespace) -> int:
     _out_file(args.json, "--json")
     if args.max_effects < 0:
         raise ConfigError(f"--max-effects must be >= 0, got {args.max_effects}")
+    _at_least_one(workers=args.workers)
     rig = load_rig(resolve(args.rig, "rigs", "rig"))
     controller = None
     if args.controller:
         controller = load_controller(resolve(args.controller, "studies/controllers", "controller"))
-    data = read_rig_data(args.data, rig.measured, resample=args.resample)
+    records = [read_rig_data(d, rig.measured, resample=args.resample) for d in args.data]
+    per_record = per_record_fields(rig, args.per_record.split(",") if args.per_record else [])
     effects = None
     if args.effects:
         effects = [e.strip() for e in args.effects.split(",") if e.strip()]
@@ -762,12 +766,15 @@ def cmd_calibrate(args: argparse.Namespace) -> int:
                 raise ConfigError(
                     f"--effects: unknown effect {e!r}; choose from {', '.join(LIBRARY)}"
                 )
-    replay = make_replay(rig, data, controller)
+    replays = [make_replay(rig, d, controller) for d in records]
+    replay = replays[0] if len(replays) == 1 and not per_record else None
+    replay = replay or joint_replay(replays, rig, per_record)
     candidates = [
         e for e in (effects or LIBRARY) if e in rig.plant.effects and e not in rig.effects
     ]
     print(
-        f"calibrate {rig.name} on {data.source}: {replay.mode}; {len(data)} samples, "
+        f"calibrate {rig.name} on {', '.join(d.source for d in records)}: {replay.mode}; "
+        f"{sum(len(d) for d in records)} samples, "
         f"channels {', '.join(replay.channels)}; {len(candidates)} candidate effects"
     )
     bar = _progress(len(candidates) * max(args.max_effects, 1), "candidates")
@@ -778,11 +785,14 @@ def cmd_calibrate(args: argparse.Namespace) -> int:
             effects=effects,
             max_effects=args.max_effects,
             progress=lambda name: (bar.set_postfix_str(name), bar.update(1)),
+            workers=args.workers,
         )
     finally:
         bar.close()
-    out = out or _out_dir(str(Path("out") / f"calibrate_{rig.name}_{Path(args.data).stem}"))
-    paths, summary = write_outputs(outcome, replay, args.data, out)
+    stem = Path(args.data[0]).stem + (f"+{len(args.data) - 1}" if len(args.data) > 1 else "")
+    out = out or _out_dir(str(Path("out") / f"calibrate_{rig.name}_{stem}"))
+    label = ", ".join(Path(d).name for d in args.data)
+    paths, summary = write_outputs(outcome, replay, label, out)
     summary = json_ready(summary)  # as in summary.json: non-finite numbers are null
     for warning in summary["warnings"]:
         print(f"warning: {warning}")
@@ -1172,7 +1182,17 @@ def build_parser() -> argparse.ArgumentParser:
         help="replay measured data on a rig, trace the residual to missing effects, add them",
     )
     p.add_argument("rig", help="rig file or name in rigs/")
-    p.add_argument("data", help="measured data: CSV with <signal>_<unit> columns, or .mat")
+    p.add_argument(
+        "data",
+        nargs="+",
+        help="measured data: CSV with <signal>_<unit> columns, or .mat; several files are "
+        "calibrated together (shared effects and unknowns)",
+    )
+    p.add_argument(
+        "--per-record",
+        help="comma-separated rig-file keys of unknowns (fit: [lower, upper]) fitted once per "
+        "data file, e.g. bias_current (default: every unknown is shared)",
+    )
     p.add_argument(
         "--controller",
         help="replay closed loop through this controller from the data's ref column "
@@ -1184,6 +1204,12 @@ def build_parser() -> argparse.ArgumentParser:
         "--effects", help="comma-separated candidate effects (default: the whole library)"
     )
     p.add_argument("--max-effects", type=int, default=2, help="effects to add at most (default 2)")
+    p.add_argument(
+        "--workers",
+        type=int,
+        default=os.cpu_count() or 1,
+        help="processes that fit a round's candidates in parallel (default: one per core)",
+    )
     p.add_argument(
         "--resample", action="store_true", help="resample uneven or repeated time stamps"
     )

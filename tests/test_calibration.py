@@ -54,14 +54,15 @@ HEADER_UNITS = {
 }
 
 
-def old_loop(folder: Path) -> Path:
-    """The seed-002 rig file as these tests were measured on it (before issue 11): no I/O
+def old_loop(folder: Path, rig: str = "dinca_cylinder") -> Path:
+    """The seed-002 rig file (or its composed twin, ``rig``) as these tests were measured
+    on it (before issue 11): no I/O
     delay, an exact reading, ±30 mA, no spool lag (the shipped file declares one, and
     ``valve_lag`` is one of the effects these tests hide in the data). The 20 ms delay
     leaves the P loop less damped, and the closed-loop replays from the data's noisy
     initial state then part from the data by more than the noise floor (declared cost
     2.8 against 1.2); these tests pin the calibration method, not the loop."""
-    data = yaml.safe_load((DATA / "rigs" / "dinca_cylinder.yaml").read_text(encoding="utf-8"))
+    data = yaml.safe_load((DATA / "rigs" / f"{rig}.yaml").read_text(encoding="utf-8"))
     data.pop("effects", None)
     del data["controller"]["io_delay"]
     for key in ("noise", "adc_bits", "adc_lower", "adc_upper"):
@@ -69,7 +70,7 @@ def old_loop(folder: Path) -> Path:
     data["actuator"]["lower"] = {"value": -30, "unit": "mA", "source": "before issue 11"}
     data["actuator"]["upper"] = {"value": 30, "unit": "mA", "source": "before issue 11"}
     folder.mkdir(parents=True, exist_ok=True)
-    path = folder / "dinca_cylinder_old_loop.yaml"
+    path = folder / f"{rig}_old_loop.yaml"
     path.write_text(yaml.safe_dump(data, sort_keys=False), encoding="utf-8")
     return path
 

@@ -6,8 +6,15 @@ turbulent line loss, a 4.3 ms delay that is not a whole number of samples, a
 second-order spool, a pump with a relief valve …) at the middle of docs/modelling.md's
 typical ranges. ``calibrate`` gets the nominal seed-002 rig and the CSV-like record.
 
-Measured (README, "Formulations the library did not write"): 8 of 10 named first and
-added. The two misses are marked xfail with what was seen.
+The generator's chambers follow the pressure form dp/dt = E/V·(Q − dV/dt) (Merritt);
+the seed-002 rig file (``plants/cylinder.py``) follows the seed's mass form, whose
+chamber pressure carries (1 + p/E): at 36 bar and 1.8 GPa a 0.2 % difference in flow
+gain, which leaves the null run at a held-out cost of 1.6 (position 4.2 noise variances
+at the transitions; pressures at the noise floor). The composed seed-002 rig
+(``dinca_cylinder_composed.yaml``, library components in pressure form) replays the
+same null run at 0.95. Effects whose signature is smaller than that mismatch are tested
+on the composed rig, a model right about the chambers (README, "Formulations the
+library did not write").
 """
 
 from __future__ import annotations
@@ -21,14 +28,28 @@ from test_calibration import NOISE, old_loop
 
 from fuzzyservo.calibration.replay import make_replay
 from fuzzyservo.calibration.search import calibrate
+from fuzzyservo.io.measured import Measured
 from fuzzyservo.io.rigs import load_rig
 
+# effects tested on the composed rig (pressure-form chambers, like the generator's)
+COMPOSED = ("internal_leakage", "bulk_modulus")
 MISSES = {
-    "internal_leakage": "1e-13 m³/(s·Pa) stays below what the 40 % formulation mismatch "
-    "(held-out cost 1.36 with nothing added) lets the test see",
-    "bulk_modulus": "the generator's pressure form differs from the library's mass form by "
-    "p/E (1.5 % at 0.45 GPa): a lower E fits the pressures but not the position",
+    "bulk_modulus": "with chambers right, E = 0.45 GPa replays at the noise floor (held-out "
+    "cost 0.95), but the cost in E has valleys a few % wide (the phase of the pressure "
+    "oscillation): the 10-point scan and Brent settle at 0.65 GPa (cost 1.81, z 2.2 < 2.6)",
 }
+_NAMES = {"p1": "p_s", "p2": "p_t", "p3": "p_a", "p4": "p_b"}  # seed 002 -> composed
+
+
+def _composed(data: Measured) -> Measured:
+    """The record with the composed rig's pressure names."""
+    return Measured(
+        t=data.t,
+        signals={_NAMES.get(k, k): v for k, v in data.signals.items()},
+        units={_NAMES.get(k, k): v for k, v in data.units.items()},
+        source=data.source,
+        sample_period_s=data.sample_period_s,
+    )
 
 
 @pytest.mark.slow
@@ -42,12 +63,16 @@ MISSES = {
     ],
 )
 def test_independent_formulation_is_named_first_and_added(tmp_path: Path, effect: str) -> None:
-    rig = load_rig(old_loop(tmp_path))
     ctl = controller_named("p_k10")
     data = independent_run(effect, NOISE, seed=11)
-    outcome = calibrate(make_replay(rig, data, ctl), rig)
+    if effect in COMPOSED:
+        rig = load_rig(old_loop(tmp_path, "dinca_cylinder_composed"))
+        data = _composed(data)
+    else:
+        rig = load_rig(old_loop(tmp_path))
+    outcome = calibrate(make_replay(rig, data, ctl), rig, max_effects=1)
     assert outcome.rounds[0].candidates[0].name == effect
-    assert [c.name for c in outcome.added][:1] == [effect]
+    assert [c.name for c in outcome.added] == [effect]
 
 
 @pytest.mark.slow

@@ -22,8 +22,10 @@ Toolbox users split estimation and validation data.
 from __future__ import annotations
 
 import dataclasses
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from functools import cached_property
+from types import MappingProxyType
 
 import numpy as np
 
@@ -44,68 +46,13 @@ ALIASES = {"force": "f_loads"}  # data signal -> the model signal it is compared
 DIVERGED_COST = 1e12  # cost of a run that failed (noise-variance units)
 
 
-@dataclass(frozen=True, eq=False)
-class Replay:
-    """A measured run ready to be replayed on variants of one rig.
+class Scored:
+    """Costs of model channels against measured ones, shared by a replay of one record
+    and of several (joint.py). Needs ``channels``, ``measured``, ``sigma`` and ``split``
+    (first held-out sample)."""
 
-    ``channels``: data signal -> model signal compared; ``drive``: the data signal that
-    drives the run (``ref``, ``i`` or ``u``); ``split``: first held-out sample.
-    """
-
-    data: Measured
-    controller: Controller
-    scenario: Scenario
-    sample_time_s: float
-    channels: dict[str, str]
-    drive: str
-    mode: str
-    split: int
-    # gains fitted on the logged command u: gain -> (value, lower, upper); its fit %
-    logged_gains: dict[str, tuple[float, float, float]] = field(default_factory=dict)
-    logged_fit: float = float("nan")
-
-    @property
-    def t(self) -> np.ndarray:
-        """Data time from the first sample [s]."""
-        return self.data.t - self.data.t[0]
-
-    @property
-    def split_s(self) -> float:
-        return float(self.t[self.split])
-
-    def measured(self, channel: str) -> np.ndarray:
-        return self.data.signals[channel]
-
-    def simulate(self, rig: Rig, controller: Controller | None = None) -> SimResult:
-        """The replayed run on ``rig``: the data's input, sample time and initial state;
-        through ``controller`` (e.g. with fitted gains) instead of the replay's own."""
-        replay_rig = dataclasses.replace(rig, sample_time_s=self.sample_time_s, initial={})
-        return simulate(replay_rig, controller or self.controller, self.scenario)
-
-    def run(
-        self, rig: Rig, controller: Controller | None = None
-    ) -> tuple[dict[str, np.ndarray], str]:
-        """Model channels on the data grid (NaN where the run failed) and the run's status."""
-        result = self.simulate(rig, controller)
-        t = self.t
-        out = {}
-        for channel, signal in self.channels.items():
-            values = result.signal(signal)
-            if np.isfinite(values).all():
-                out[channel] = np.interp(t, result.t, values)
-            else:
-                out[channel] = np.full(t.size, np.nan)
-        return out, result.status
-
-    @cached_property
-    def sigma(self) -> dict[str, float]:
-        """Noise level of each channel, estimated from the data (residuals.noise_floor)."""
-        sigma = {}
-        for channel in self.channels:
-            y = self.measured(channel)
-            # quantised or noise-free data: never weigh a channel infinitely
-            sigma[channel] = max(noise_floor(y), 1e-6 * float(np.std(y)), 1e-300)
-        return sigma
+    per_record: Mapping[str, tuple[float, float]] = MappingProxyType({})  # joint.py
+    values: Mapping[str, tuple[float, ...]] = MappingProxyType({})
 
     def costs(self, model: dict[str, np.ndarray]) -> tuple[float, float]:
         """:meth:`cost` on (training, held-out)."""
@@ -136,6 +83,95 @@ class Replay:
     def noise_cost(self) -> float:
         """The cost a perfect model leaves: 1 (white noise of the estimated level)."""
         return 1.0
+
+
+@dataclass(frozen=True, eq=False)
+class Replay(Scored):
+    """A measured run ready to be replayed on variants of one rig.
+
+    ``channels``: data signal -> model signal compared; ``drive``: the data signal that
+    drives the run (``ref``, ``i`` or ``u``); ``split``: first held-out sample.
+    """
+
+    data: Measured
+    controller: Controller
+    scenario: Scenario
+    sample_time_s: float
+    channels: dict[str, str]
+    drive: str
+    mode: str
+    split: int
+    # gains fitted on the logged command u: gain -> (value, lower, upper); its fit %
+    logged_gains: dict[str, tuple[float, float, float]] = field(default_factory=dict)
+    logged_fit: float = float("nan")
+
+    @property
+    def t(self) -> np.ndarray:
+        """Data time from the first sample [s]."""
+        return self.data.t - self.data.t[0]
+
+    @property
+    def split_s(self) -> float:
+        return float(self.t[self.split])
+
+    def measured(self, channel: str) -> np.ndarray:
+        return self.data.signals[channel]
+
+    def simulate(
+        self, rig: Rig, controller: Controller | None = None, duration_s: float | None = None
+    ) -> SimResult:
+        """The replayed run on ``rig``: the data's input, sample time and initial state;
+        through ``controller`` (e.g. with fitted gains) instead of the replay's own."""
+        replay_rig = dataclasses.replace(rig, sample_time_s=self.sample_time_s, initial={})
+        return simulate(
+            replay_rig, controller or self.controller, self.scenario, duration_s=duration_s
+        )
+
+    @cached_property
+    def training_s(self) -> float:
+        """How far a replay must run to cover the training part [s]: the last training
+        sample and one controller period past it."""
+        end = float(self.t[self.split - 1]) + 2.0 * self.sample_time_s
+        return min(end, self.scenario.duration_s)
+
+    def run(
+        self, rig: Rig, controller: Controller | None = None, *, training: bool = False
+    ) -> tuple[dict[str, np.ndarray], str]:
+        """Model channels on the data grid (NaN where the run failed) and the run's status.
+        ``training``: run only as far as the training part (fits look at nothing else);
+        the held-out samples are then NaN."""
+        result = self.simulate(rig, controller, self.training_s if training else None)
+        t = self.t[: self.split] if training else self.t
+        out = {}
+        for channel, signal in self.channels.items():
+            values = result.signal(signal)
+            full = np.full(self.t.size, np.nan)
+            if np.isfinite(values).all():
+                full[: t.size] = np.interp(t, result.t, values)
+            out[channel] = full
+        return out, result.status
+
+    @cached_property
+    def sigma(self) -> dict[str, float]:
+        """Noise level of each channel, estimated from the data (residuals.noise_floor)."""
+        sigma = {}
+        for channel in self.channels:
+            y = self.measured(channel)
+            # quantised or noise-free data: never weigh a channel infinitely
+            sigma[channel] = max(noise_floor(y), 1e-6 * float(np.std(y)), 1e-300)
+        return sigma
+
+    def recorded(self, name: str) -> np.ndarray:
+        """A recorded signal (an input too) on the data grid."""
+        return np.asarray(self.data.signals[name], dtype=float)
+
+    def with_controller(self, controller: Controller) -> Replay:
+        """This replay through ``controller`` (e.g. with fitted gains)."""
+        return dataclasses.replace(self, controller=controller)
+
+    def with_values(self, fitted: Mapping[str, float]) -> Replay:
+        """A single record has no per-record values (joint.py): itself."""
+        return self
 
 
 def make_replay(rig: Rig, data: Measured, controller: Controller | None = None) -> Replay:

@@ -4,16 +4,20 @@ from __future__ import annotations
 
 import dataclasses
 import datetime as _dt
+from collections.abc import Iterable
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from fuzzyservo.calibration.joint import split_field
 from fuzzyservo.calibration.replay import Replay
 from fuzzyservo.calibration.residuals import (
     autocorrelation,
     confidence_band,
     cross_correlation,
+    noise_floor,
+    quantisation_step,
     signature_regression,
     whiteness,
 )
@@ -21,6 +25,9 @@ from fuzzyservo.calibration.search import Outcome, fit_table
 from fuzzyservo.calibration.signatures import mean_share, signatures
 from fuzzyservo.components.effects import LIBRARY, owner
 from fuzzyservo.rig import Rig
+
+if TYPE_CHECKING:
+    from fuzzyservo.io.measured import Measured
 
 ZOOM_S = 5.0  # the detail overlay shows this much of the held-out part [s]
 # SI unit -> (display unit, factor) for plots and tables
@@ -36,7 +43,7 @@ def _input_signal(replay: Replay) -> tuple[str, np.ndarray]:
     recorded, else the reference."""
     for name in ("i", "u", "ref"):
         if name in replay.data.signals:
-            return name, np.asarray(replay.data.signals[name], dtype=float)
+            return name, replay.recorded(name)
     return "ref", np.zeros(replay.t.size)
 
 
@@ -74,6 +81,15 @@ def signature_table(
     return table
 
 
+def _key(outcome: Outcome, name: str) -> str:
+    """The rig-file key of a fitted field; ``(record k)`` for a per-record one (joint.py)."""
+    fields = type(outcome.calibrated.params).__dataclass_fields__
+    parsed = split_field(name)
+    if parsed:
+        return f"{fields[parsed[0]].metadata['key']} (record {parsed[1] + 1})"
+    return fields[name].metadata["key"]
+
+
 def summary_data(outcome: Outcome, replay: Replay) -> dict[str, Any]:
     """The ``--json`` payload: effects added, fit before/after, the ranking, and more."""
     models = outcome.models
@@ -100,7 +116,7 @@ def summary_data(outcome: Outcome, replay: Replay) -> dict[str, Any]:
         data["fitted_parameters"] = {
             f: float(getattr(outcome.calibrated.params, f))
             for f in outcome.declared.unknowns
-            if owner(f) is None
+            if owner(f) is None and f not in outcome.per_record
         }
     bounds = outcome.controller.gain_bounds() if outcome.controller is not None else {}
     if bounds:
@@ -143,8 +159,13 @@ def summary_data(outcome: Outcome, replay: Replay) -> dict[str, Any]:
         }
         for r in outcome.rounds
     ]
+    if outcome.per_record:
+        data["per_record"] = {
+            _key(outcome, f): list(v) for f, v in outcome.per_record.items()
+        }  # several records (joint.py): each record's fitted value
+        data["records"] = [str(r.data.source) for r in replay.records]
     data["uncertainty"] = {
-        type(outcome.calibrated.params).__dataclass_fields__[f].metadata["key"]: {
+        _key(outcome, f): {
             "value": e.value,
             "interval": list(e.interval),
             "bounds": list(e.bounds),
@@ -152,7 +173,10 @@ def summary_data(outcome: Outcome, replay: Replay) -> dict[str, Any]:
         }
         for f, e in outcome.uncertainty.items()
     }
-    data["warnings"] = warnings(outcome)
+    records = getattr(replay, "records", (replay,))
+    data["warnings"] = warnings(outcome) + [
+        w for r in records for w in data_warnings(r.data, r.channels)
+    ]
     data["noise_cost"] = outcome.noise_cost
     data["noise_floor"] = {c: replay.sigma[c] for c in replay.channels}
     data["cost_val"] = {
@@ -184,14 +208,38 @@ def warnings(outcome: Outcome) -> list[str]:
                 e = r.experiments[0]
                 line += f"; an experiment that separates them: {e.name}, {e.description}"
             out.append(line)
-    fields = type(outcome.calibrated.params).__dataclass_fields__
     for f, e in outcome.uncertainty.items():
         if e.at_bound:
             lo, hi = e.bounds
             out.append(
-                f"{fields[f].metadata['key']} = {e.value:.4g} sits on its bound [{lo:.4g}, "
+                f"{_key(outcome, f)} = {e.value:.4g} sits on its bound [{lo:.4g}, "
                 f"{hi:.4g}]: the data want it further out; widen the bound (fit: [...]) or "
                 "look for another effect"
+            )
+    return out
+
+
+def data_warnings(data: Measured, channels: Iterable[str]) -> list[str]:
+    """Logger habits that weaken every score (residuals.noise_floor handles them, the
+    user should still know): held samples and a quantisation that sets the noise level."""
+    out = []
+    for channel in channels:
+        y = np.asarray(data.signals[channel], dtype=float)
+        dy = np.diff(y)
+        held = float(np.mean(dy == 0.0)) if dy.size else 0.0
+        q = quantisation_step(dy)
+        if held > 0.5 and q == 0.0:  # a quantised signal repeats for another reason
+            out.append(
+                f"{data.source}: {100 * held:.0f} % of the {channel} samples repeat the previous one "
+                "(a logger holding its last value between sensor updates): the noise level "
+                "is estimated on the updates alone; log at the sensor's rate if you can"
+            )
+        sigma = noise_floor(y)
+        if q > 0.0 and q / np.sqrt(12.0) >= 0.5 * sigma:
+            out.append(
+                f"{data.source}: {channel} is quantised in steps of {q:.3g} "
+                f"({data.units.get(channel, '')}), as large as its noise: residuals below "
+                "one step cannot be resolved"
             )
     return out
 
@@ -218,8 +266,8 @@ def write_outputs(
     parameters = {}
     for f in outcome.declared.unknowns:
         meta = type(rig.params).__dataclass_fields__[f].metadata
-        if meta.get("effect"):
-            continue
+        if meta.get("effect") or f in outcome.per_record:
+            continue  # a per-record value is the record's, not the rig's
         parameters[meta["key"]] = (
             float(getattr(rig.params, f)),
             meta["unit"],
@@ -243,6 +291,8 @@ def write_outputs(
     )
     intervals = {}
     for f, est in outcome.uncertainty.items():
+        if split_field(f):
+            continue
         meta = type(rig.params).__dataclass_fields__[f].metadata
         key = meta["key"]  # "effect.key" for an effect's parameter
         intervals[key] = (*est.interval, est.at_bound)
@@ -302,8 +352,12 @@ def write_outputs(
         paths[f"residuals_{label}"] = save(fig, out_dir / f"residuals_{label}.png")
         analyses[label] = residual_analysis(replay, model)
     summary["residual_analysis"] = analyses
+    sig_replay, sig_model = replay, outcome.models["nominal"]
+    if hasattr(replay, "records"):  # several records: the signatures of the first
+        sig_replay = replay.records[0]
+        sig_model = {c: replay.unjoin(v)[0] for c, v in sig_model.items()}
     summary["signature_r2"] = signature_table(
-        replay, outcome.nominal, outcome.models["nominal"], outcome.controller
+        sig_replay, outcome.nominal, sig_model, outcome.controller
     )
     for k, r in enumerate(outcome.rounds, start=1):
         fig = candidates_figure(
@@ -365,6 +419,21 @@ def _report(
             f"| {channel} | {sigma} | " + " | ".join(_pct(t[channel]) for t in tables) + " |"
         )
     lines += ["", f"![overlay]({rel('overlay')})", f"![held-out detail]({rel('overlay_zoom')})", ""]
+    if "per_record" in summary:
+        records = summary["records"]
+        lines += [
+            f"## {len(records)} records calibrated together",
+            "",
+            "The figures show them end to end: every record's training part, then every "
+            "record's held-out part. Shared: every effect and the other unknowns; fitted "
+            "per record (SI):",
+            "",
+            "| parameter | " + " | ".join(f"record {k + 1}" for k in range(len(records))) + " |",
+            "|---|" + "---|" * len(records),
+        ]
+        for key, values in summary["per_record"].items():
+            lines.append(f"| {key} | " + " | ".join(f"{v:.6g}" for v in values) + " |")
+        lines += [""] + [f"{k + 1}. {src}" for k, src in enumerate(records)] + [""]
     if summary["uncertainty"]:
         lines += [
             "## Fitted values (SI) with 95 % intervals",

@@ -33,6 +33,7 @@ from fuzzyservo.calibration.decision import (
     threshold,
 )
 from fuzzyservo.calibration.identifiability import Separation, separating_experiments
+from fuzzyservo.calibration.joint import record_field, split_field
 from fuzzyservo.calibration.replay import DIVERGED_COST, Replay
 from fuzzyservo.calibration.residuals import fit_percent
 from fuzzyservo.calibration.uncertainty import Estimate, effective_samples, estimates
@@ -97,6 +98,8 @@ class Outcome:
     seconds: float = 0.0
     controller: Controller | None = None  # the replay's controller, with fitted gains
     uncertainty: dict[str, Estimate] = field(default_factory=dict)  # field -> 95 % interval
+    # several records (joint.py): field -> its fitted value in each record
+    per_record: dict[str, tuple[float, ...]] = field(default_factory=dict)
 
 
 @dataclass
@@ -132,42 +135,68 @@ class _Space:
 
 
 class _Objective:
-    """Replays of one candidate family with a cache (least squares revisits points)."""
+    """Replays of one candidate family with a cache (least squares revisits points).
+
+    The search looks only at the training part, so its replays stop there (a third less
+    simulation); the chosen point is then replayed in full."""
 
     def __init__(self, replay: Replay, base: Rig, effect: str | None, space: _Space):
         self.replay = replay
         self.base = base.with_effect(effect) if effect else base
         self.effect = effect
         self.space = space
-        self.cache: dict[tuple[float, ...], tuple[dict[str, np.ndarray], str]] = {}
+        self.cache: dict[tuple[tuple[float, ...], bool], tuple[dict[str, np.ndarray], str]] = {}
 
     def rig(self, z: Sequence[float]) -> Rig:
         values = {
             f: self.space.value(j, z[j])
             for j, (_, f) in enumerate(self.space.names)
-            if not _gains.is_gain(f)
+            if not _gains.is_gain(f) and split_field(f) is None
         }
         return self.base.with_params(**values) if values else self.base
+
+    def record_values(self, z: Sequence[float]) -> dict[str, list[float]]:
+        """Per-record values (joint.py) at ``z``: field -> one value per record."""
+        values = {f: list(v) for f, v in self.replay.values.items()}
+        for j, (_, name) in enumerate(self.space.names):
+            parsed = split_field(name)
+            if parsed:
+                values[parsed[0]][parsed[1]] = self.space.value(j, z[j])
+        return values
+
+    def run(self, z: Sequence[float], training: bool) -> tuple[dict[str, np.ndarray], str]:
+        rig, controller = self.rig(z), self.controller(z)
+        if self.replay.per_record:
+            values = self.record_values(z)
+            return self.replay.run(rig, controller, values, training=training)
+        return self.replay.run(rig, controller, training=training)
 
     def controller(self, z: Sequence[float]) -> Controller:
         values = {f: self.space.value(j, z[j]) for j, (_, f) in enumerate(self.space.names)}
         return _gains.with_gains(self.replay.controller, values)
 
-    def model(self, z: Sequence[float]) -> tuple[dict[str, np.ndarray], str]:
-        key = tuple(round(float(v), 12) for v in z)
+    def model(
+        self, z: Sequence[float], training: bool = False
+    ) -> tuple[dict[str, np.ndarray], str]:
+        """Model channels at ``z``: all of them, or (``training``) the training part."""
+        point = tuple(round(float(v), 12) for v in z)
+        if (point, False) in self.cache:  # a full replay serves a training one too
+            return self.cache[point, False]
+        key = (point, training)
         if key not in self.cache:
             try:
-                self.cache[key] = self.replay.run(self.rig(z), self.controller(z))
+                self.cache[key] = self.run(z, training)
             except ValueError:  # a parameter set the plant rejects (e.g. geometry)
                 nan = np.full(self.replay.t.size, np.nan)
                 self.cache[key] = ({c: nan for c in self.replay.channels}, "rejected")
         return self.cache[key]
 
     def residuals(self, z: np.ndarray) -> np.ndarray:
-        return self.replay.residual_vector(self.model(z)[0])
+        return self.replay.residual_vector(self.model(z, training=True)[0])
 
     def train_cost(self, z: Sequence[float]) -> float:
-        return self.replay.cost(self.model(z)[0], slice(0, self.replay.split))
+        model = self.model(z, training=True)[0]
+        return self.replay.cost(model, slice(0, self.replay.split))
 
 
 def _space(rig: Rig, effect: str | None, replay: Replay | None = None) -> _Space:
@@ -180,12 +209,18 @@ def _space(rig: Rig, effect: str | None, replay: Replay | None = None) -> _Space
             names.append((effect, param.field))
             bounds.append(_bounds(rig, param, scales))
             log.append(param.log)
+    per_record = replay.per_record if replay is not None else {}
     for fieldname, (lo, hi) in rig.unknowns.items():
-        if any(f == fieldname for _, f in names):
+        if any(f == fieldname for _, f in names) or fieldname in per_record:
             continue
         names.append((owner(fieldname) or "", fieldname))
         bounds.append((lo, hi))
         log.append(False)
+    for fieldname, (lo, hi) in per_record.items():  # one value per record (joint.py)
+        for k in range(len(replay.values[fieldname])):
+            names.append(("", record_field(fieldname, k)))
+            bounds.append((lo, hi))
+            log.append(False)
     if replay is not None:  # controller gains declared unknown (calibration/gains.py)
         for name, (lo, hi) in _gains.gain_unknowns(
             replay.controller, replay.drive == "ref"
@@ -212,11 +247,7 @@ def fit(
     n_effect = sum(1 for owner, _ in space.names if owner == effect) if effect else 0
     z0 = np.array(
         [
-            START
-            if owner and owner == effect
-            else space.unit(j, _gains.gain_value(replay.controller, f))
-            if _gains.is_gain(f)
-            else space.unit(j, getattr(base.params, f))
+            START if owner and owner == effect else space.unit(j, _start(replay, base, f))
             for j, (owner, f) in enumerate(space.names)
         ]
     )
@@ -244,6 +275,17 @@ def fit(
         rig=rig,
     )
     return rig, candidate
+
+
+def _start(replay: Replay, rig: Rig, name: str) -> float:
+    """The current value of a fitted quantity: a controller gain, a per-record value
+    (joint.py) or a rig parameter."""
+    if _gains.is_gain(name):
+        return _gains.gain_value(replay.controller, name)
+    parsed = split_field(name)
+    if parsed:
+        return replay.values[parsed[0]][parsed[1]]
+    return float(getattr(rig.params, name))
 
 
 def _minimise(objective: _Objective, z0: np.ndarray, n_effect: int, budget: int) -> np.ndarray:
@@ -330,8 +372,14 @@ def calibrate(
     effects: Sequence[str] | None = None,
     max_effects: int = 2,
     progress: Callable[[str], None] | None = None,
+    workers: int = 1,
 ) -> Outcome:
-    """Fit the rig's unknowns, then add up to ``max_effects`` effects from the library."""
+    """Fit the rig's unknowns, then add up to ``max_effects`` effects from the library.
+
+    ``workers`` > 1 fits a round's candidates in that many processes (each candidate is
+    independent of the others); ``progress`` gets each candidate's name as it starts
+    (one process) or as it ends (several).
+    """
     start = time.perf_counter()
     names = [
         e
@@ -347,61 +395,58 @@ def calibrate(
         nominal, fitted = fit(replay, rig, None, max_evaluations=120)
         current_model, cost_nominal = fitted.model, fitted.cost_val
         # the effects are then fitted from the fitted gains on
-        replay = dataclasses.replace(
-            replay, controller=_gains.with_gains(replay.controller, fitted.unknowns)
-        )
+        replay = replay.with_controller(
+            _gains.with_gains(replay.controller, fitted.unknowns)
+        ).with_values(fitted.unknowns)
     current = nominal
     cost = cost_nominal
     models = {"declared": declared_model, "nominal": current_model}
     added: list[Candidate] = []
     rounds: list[Round] = []
-    for _ in range(max_effects):
-        results: list[Candidate] = []
-        for name in names:
-            if name in current.effects:
-                continue
-            if progress:
-                progress(name)
-            _, candidate = fit(replay, current, name)
-            evidence = held_out_evidence(replay, current_model, candidate.model)
-            results.append(dataclasses.replace(candidate, evidence=evidence))
-        if not results:  # every allowed effect is in already
-            break
-        results.sort(key=lambda c: c.score)
-        z_min = threshold(len(results))
-        best = results[0] if results else None
-        accept = best is not None and _significant(best, z_min)
-        ambiguous = _ties(replay, results, z_min) if accept else ()
-        if ambiguous:  # parsimony: the simplest of the tied candidates goes first
-            tied = [c for c in results if c.name in (best.name, *ambiguous)]
-            simplest = min(tied, key=lambda c: (c.n_params, c.score))
-            if simplest is not best:
-                results.remove(simplest)
-                results.insert(0, simplest)
-                ambiguous = tuple(c.name for c in tied if c is not simplest)
-                best = simplest
-        experiments: tuple[Separation, ...] = ()
-        if ambiguous:
-            tied = {c.name: c.rig for c in results if c.name in (best.name, *ambiguous)}
-            experiments = tuple(separating_experiments(replay, tied))
-        rounds.append(
-            Round(
-                cost,
-                tuple(results),
-                best.name if accept else None,
-                threshold=z_min,
-                ambiguous_with=ambiguous,
-                experiments=experiments,
+    with _Pool(workers, len(names)) as pool:
+        for _ in range(max_effects):
+            todo = [name for name in names if name not in current.effects]
+            if not todo:  # every allowed effect is in already
+                break
+            results = pool.map(_candidate, replay, current, current_model, todo, progress)
+            results.sort(key=lambda c: c.score)
+            z_min = threshold(len(results))
+            best = results[0] if results else None
+            accept = best is not None and _significant(best, z_min)
+            ambiguous = _ties(replay, results, z_min) if accept else ()
+            if ambiguous:  # parsimony: the simplest of the tied candidates goes first
+                tied = [c for c in results if c.name in (best.name, *ambiguous)]
+                simplest = min(tied, key=lambda c: (c.n_params, c.score))
+                if simplest is not best:
+                    results.remove(simplest)
+                    results.insert(0, simplest)
+                    ambiguous = tuple(c.name for c in tied if c is not simplest)
+                    best = simplest
+            experiments: tuple[Separation, ...] = ()
+            if ambiguous:
+                tied = {c.name: c.rig for c in results if c.name in (best.name, *ambiguous)}
+                first = getattr(replay, "records", (replay,))[0]
+                experiments = tuple(separating_experiments(first, tied))
+            rounds.append(
+                Round(
+                    cost,
+                    tuple(results),
+                    best.name if accept else None,
+                    threshold=z_min,
+                    ambiguous_with=ambiguous,
+                    experiments=experiments,
+                )
             )
-        )
-        if not accept:
-            break
-        added.append(best)
-        current, current_model, cost = best.rig, best.model, best.cost_val
+            if not accept:
+                break
+            added.append(best)
+            current, current_model, cost = best.rig, best.model, best.cost_val
+            replay = replay.with_values(best.unknowns)
     if len(added) > 1:
-        current, added, current_model, cost = _refit_jointly(
+        current, added, current_model, cost, refitted = _refit_jointly(
             replay, current, added, current_model, cost
         )
+        replay = replay.with_values(refitted)
     models["calibrated"] = current_model
     uncertainty = _uncertainty(replay, current, added, current_model)
     return Outcome(
@@ -418,7 +463,68 @@ def calibrate(
         seconds=time.perf_counter() - start,
         controller=replay.controller,
         uncertainty=uncertainty,
+        per_record=dict(replay.values),
     )
+
+
+def _candidate(
+    replay: Replay, base: Rig, base_model: dict[str, np.ndarray], name: str
+) -> Candidate:
+    """``name`` fitted on top of ``base`` with its held-out evidence against ``base``'s
+    channels (a module-level function, so a worker process can run it)."""
+    _, candidate = fit(replay, base, name)
+    evidence = held_out_evidence(replay, base_model, candidate.model)
+    return dataclasses.replace(candidate, evidence=evidence)
+
+
+class _Pool:
+    """The candidates of a round, fitted in this process or in ``workers`` processes
+    (spawned once per calibration and reused by every round)."""
+
+    def __init__(self, workers: int, candidates: int):
+        self.workers = max(1, min(workers, candidates))
+        self.executor = None
+
+    def __enter__(self) -> _Pool:
+        if self.workers > 1:
+            import multiprocessing as mp
+            from concurrent.futures import ProcessPoolExecutor
+
+            self.executor = ProcessPoolExecutor(self.workers, mp_context=mp.get_context("spawn"))
+        return self
+
+    def __exit__(self, *exc) -> None:
+        if self.executor is not None:
+            self.executor.shutdown(cancel_futures=True)
+
+    def map(
+        self,
+        task: Callable[..., Candidate],
+        replay: Replay,
+        base: Rig,
+        base_model: dict[str, np.ndarray],
+        names: Sequence[str],
+        progress: Callable[[str], None] | None,
+    ) -> list[Candidate]:
+        """``task`` on every name; the results in the order of ``names``."""
+        if self.executor is None:
+            out = []
+            for name in names:
+                if progress:
+                    progress(name)
+                out.append(task(replay, base, base_model, name))
+            return out
+        from concurrent.futures import as_completed
+
+        futures = {
+            self.executor.submit(task, replay, base, base_model, name): name for name in names
+        }
+        done: dict[str, Candidate] = {}
+        for future in as_completed(futures):
+            done[futures[future]] = future.result()
+            if progress:
+                progress(futures[future])
+        return [done[name] for name in names]
 
 
 def _uncertainty(
@@ -435,8 +541,16 @@ def _uncertainty(
         return {}
     joint = dataclasses.replace(rig, unknowns=unknowns)
     space = _space(joint, None)
+    for name in replay.per_record:  # a per-record value (joint.py) in each record
+        j = next(j for j, (_, f) in enumerate(space.names) if f == name)
+        lo_hi, is_log = space.bounds.pop(j), space.log.pop(j)
+        space.names.pop(j)
+        for k in range(len(replay.values[name])):
+            space.names.append(("", record_field(name, k)))
+            space.bounds.append(lo_hi)
+            space.log.append(is_log)
     objective = _Objective(replay, joint, None, space)
-    values = [float(getattr(rig.params, f)) for _, f in space.names]
+    values = [_start(replay, rig, f) for _, f in space.names]
     z = np.array([space.unit(j, v) for j, v in enumerate(values)])
     jac = _jacobian(objective.residuals, z)
     samples, effective = effective_samples(replay, model)
@@ -471,7 +585,7 @@ def _refit_jointly(
     added: list[Candidate],
     model: dict[str, np.ndarray],
     cost: float,
-) -> tuple[Rig, list[Candidate], dict[str, np.ndarray], float]:
+) -> tuple[Rig, list[Candidate], dict[str, np.ndarray], float, dict[str, float]]:
     """Refit the parameters of all added effects together, starting where each was found.
 
     Kept only if the held-out cost (``cost`` for ``rig``, whose channels are ``model``)
@@ -485,7 +599,7 @@ def _refit_jointly(
     joint = dataclasses.replace(rig, unknowns=unknowns)
     refit, joint_fit = fit(replay, joint, None, max_evaluations=80)
     if joint_fit.cost_val > cost:
-        return rig, added, model, cost
+        return rig, added, model, cost, {}
     refit = dataclasses.replace(refit, unknowns=rig.unknowns)
     updated = [dataclasses.replace(c, params=refit.effect_values(c.name)) for c in added]
-    return refit, updated, joint_fit.model, joint_fit.cost_val
+    return refit, updated, joint_fit.model, joint_fit.cost_val, joint_fit.unknowns

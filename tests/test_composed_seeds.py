@@ -136,9 +136,12 @@ def test_seed001_composed_reproduces_the_compensator() -> None:
     for controller, scenario in [*runs, ("flc_ahc_motor", "heave")]:
         c = controller_named(controller)
         a, b = simulate(hand, c, scenario), simulate(composed, c, scenario)
+        # pressures within 1.5 kPa: two fast runs take their own steps through the 20 bar
+        # in 2 ms drop of steps_10mpa; there each is within 0.4 kPa of the rtol-1e-9
+        # reference, yet they part by 0.67 kPa at one sample (measured)
         _agree(a, b, {
-            "theta": ("theta", 0.05e-3), "w": ("w", 5e-3), "p_a": ("p_a", 500),
-            "p_b": ("p_b", 500), "q_a": ("q_a", 1e-6), "q_b": ("q_b", 1e-6),
+            "theta": ("theta", 0.05e-3), "w": ("w", 5e-3), "p_a": ("p_a", 1.5e3),
+            "p_b": ("p_b", 1.5e3), "q_a": ("q_a", 1e-6), "q_b": ("q_b", 1e-6),
             "q_supply": ("q_supply", 1e-6), "q_tank": ("q_return", 1e-6),
             "f_load_friction": ("t_loss", 1e-3), "payout_sensor": ("payout_sensor", 5e-6),
         })  # fmt: skip

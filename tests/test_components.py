@@ -11,6 +11,7 @@ from __future__ import annotations
 import dataclasses
 import json
 import math
+import pickle
 from pathlib import Path
 
 import numpy as np
@@ -38,6 +39,16 @@ def lift():
 @pytest.fixture(scope="module")
 def p4():
     return controller_named("p_servo_lift")
+
+
+def test_a_composed_rig_pickles_as_its_composition(lift) -> None:
+    """Calibration sends the rig to worker processes: the parameter class and the plant's
+    closures are made at load time, so they pickle as the composition and rebuild there."""
+    rig = lift.with_params(payload__mass=130.0).with_effect("coulomb_friction", force=200.0)
+    again = pickle.loads(pickle.dumps(rig))
+    assert again.params == rig.params
+    assert again.plant is rig.plant  # compose() is cached: the same plant object
+    assert again.params.payload__mass == 130.0
 
 
 def test_the_lift_starts_in_balance_holding_its_weight(lift) -> None:

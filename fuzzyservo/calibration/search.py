@@ -19,7 +19,6 @@ from __future__ import annotations
 import dataclasses
 import itertools
 import math
-import pickle
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
@@ -507,10 +506,8 @@ class _Pool:
         names: Sequence[str],
         progress: Callable[[str], None] | None,
     ) -> list[Candidate]:
-        """``task`` on every name; the results in the order of ``names``. A rig that
-        cannot travel to a worker process (a composed rig's parameters are a class made at
-        load time) is fitted here, one candidate after another."""
-        if self.executor is None or not _picklable(replay, base):
+        """``task`` on every name; the results in the order of ``names``."""
+        if self.executor is None:
             out = []
             for name in names:
                 if progress:
@@ -528,14 +525,6 @@ class _Pool:
             if progress:
                 progress(futures[future])
         return [done[name] for name in names]
-
-
-def _picklable(*objects: object) -> bool:
-    try:
-        pickle.dumps(objects)
-    except (pickle.PicklingError, TypeError, AttributeError):
-        return False
-    return True
 
 
 def _uncertainty(

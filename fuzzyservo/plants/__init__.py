@@ -67,6 +67,16 @@ class PlantModel:
             pressures=getattr(module, "PRESSURES", ()),
         )
 
+    def __reduce_ex__(self, protocol: int) -> Any:
+        """A composition pickles as its parts (its functions are closures made at load
+        time; :func:`~fuzzyservo.plants.composed.compose` rebuilds the same plant), a
+        hand-written plant as its fields."""
+        if self.components:
+            from fuzzyservo.plants.composed import compose
+
+            return compose, (self.components,)
+        return super().__reduce_ex__(protocol)
+
     @property
     def loop(self) -> ModuleType:
         """The closed loop compiled for this plant (``simulation/_plant_loop.py``)."""

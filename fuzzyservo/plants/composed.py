@@ -121,6 +121,12 @@ def compose(parts: tuple[tuple[str, str], ...]) -> Any:
         namespace={
             "__doc__": f"Parameters of the composition {label} (SI).",
             "__post_init__": _make_post_init(instances),
+            # pickled as its composition and values: the class is made here, at load time,
+            # so a worker process (calibration's candidate pool) rebuilds it with compose()
+            "__reduce__": lambda self: (
+                _composed_params,
+                (parts, {f.name: getattr(self, f.name) for f in dataclasses.fields(self)}),
+            ),
             **_stroke(instances),
         },
     )
@@ -235,6 +241,11 @@ def compose(parts: tuple[tuple[str, str], ...]) -> Any:
         pressures=tuple(name for name in signal_names if units[name] == "Pa"),
     )
     return model
+
+
+def _composed_params(parts: tuple[tuple[str, str], ...], values: dict[str, float]) -> Any:
+    """The parameters ``values`` of the composition ``parts`` (how they unpickle)."""
+    return compose(parts).params_cls(**values)
 
 
 def _stroke(instances: list[tuple[str, Component]]) -> dict[str, Any]:

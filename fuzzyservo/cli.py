@@ -597,7 +597,7 @@ def cmd_robustness(args: argparse.Namespace) -> int:
     """Monte Carlo of controllers on plants sampled from a study's ``uncertainty:``."""
     from fuzzyservo.analysis.robustness import monte_carlo
     from fuzzyservo.io.studies import load_study
-    from fuzzyservo.tuning.robust import sample_rigs
+    from fuzzyservo.tuning.robust import CHECK_SEED, sample_rigs
 
     _at_least_one(samples=args.samples)
     if args.gain_margin is not None and not args.gain_margin > 1:
@@ -615,7 +615,8 @@ def cmd_robustness(args: argparse.Namespace) -> int:
         )
     import dataclasses
 
-    u = dataclasses.replace(spec.uncertainty, samples=args.samples, seed=args.seed, draws=())
+    seed = CHECK_SEED if args.seed is None else args.seed
+    u = dataclasses.replace(spec.uncertainty, samples=args.samples, seed=seed, draws=())
     spec = dataclasses.replace(spec, uncertainty=u)
     scenarios = list(args.scenario or spec.scenarios)
     for s in scenarios:
@@ -1057,7 +1058,11 @@ def build_parser() -> argparse.ArgumentParser:
         help="study whose 'uncertainty:' section is sampled (default: dinca_robust)",
     )
     p.add_argument(
-        "--seed", type=int, default=2026, help="sampling seed (default 2026, not the study's)"
+        "--seed",
+        type=int,
+        default=None,
+        help="sampling seed (default: the one a study report's check uses, so both draw the "
+        "same plants; not the study's)",
     )
     p.add_argument(
         "--gain-margin",

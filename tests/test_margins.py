@@ -79,6 +79,37 @@ def test_detector_and_chatter_on_a_stable_run() -> None:
     assert command_tv(result.command, DT) > 0
 
 
+def _with_error(result, error: np.ndarray):
+    """``result`` with the tracking error after the reference step replaced by ``error``."""
+    import dataclasses
+
+    start = int(np.flatnonzero(np.diff(result.reference))[-1]) + 1
+    feedback = result.reference.copy()
+    feedback[start:] += error[: feedback.size - start]
+    return dataclasses.replace(result, feedback=feedback)
+
+
+def test_detector_measures_the_dominant_sinusoid_not_noise_driven_jitter() -> None:
+    """A sustained 8 Hz sinusoid twice the floor is an oscillation of its own amplitude;
+    broadband jitter (a resonance at 8 Hz, damping 0.3, driven by white noise) whose
+    half peak-to-peak swing is 1.5 times the floor, like noise through a stable loop, is
+    not (its dominant sinusoid: 0.5-0.7 of the floor over five noise seeds)."""
+    base = simulate(_rig(), P(name="p", gain=0.5))
+    floor = oscillation(base).floor
+    t = np.arange(base.t.size) * DT
+    tone = oscillation(_with_error(base, 2 * floor * np.sin(2 * np.pi * 8.0 * t)))
+    assert tone.sustained and tone.amplitude == pytest.approx(2 * floor, rel=0.03)
+    assert tone.frequency_hz == pytest.approx(8.0, rel=0.02)
+    w, z = 2 * np.pi * 8.0 * DT, 0.3  # AR(2) resonance, sampled
+    a1, a2 = 2 * math.exp(-z * w) * math.cos(w * math.sqrt(1 - z * z)), -math.exp(-2 * z * w)
+    x, e = np.zeros(t.size), np.random.default_rng(3).standard_normal(t.size)
+    for k in range(2, t.size):
+        x[k] = a1 * x[k - 1] + a2 * x[k - 2] + e[k]
+    jitter = _with_error(base, x * (1.5 * floor / (0.5 * np.ptp(x[-1000:]))))
+    osc = oscillation(jitter)
+    assert not osc.sustained and osc.reason == "below_floor" and osc.amplitude < floor
+
+
 def test_command_tv_is_the_total_variation_per_second() -> None:
     u = np.array([0.0, 1.0, -1.0, -1.0, 0.0])  # |Δu| sums to 4 over 5 samples of 0.1 s
     assert command_tv(u, 0.1) == pytest.approx(8.0)

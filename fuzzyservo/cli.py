@@ -15,9 +15,9 @@ from typing import NoReturn
 
 from fuzzyservo.errors import ConfigError, FuzzyservoError
 from fuzzyservo.io.jsonfile import json_ready, write_json
+from fuzzyservo.tuning import MAIN_STUDY as DEFAULT_STUDY
 
 DEFAULT_RIG = "dinca_cylinder"
-DEFAULT_STUDY = "dinca_robust"
 DEFAULT_CONTROLLER = "p_k10"
 DEFAULT_DESIGN = "flc2_reshaped"
 EXIT_USAGE = 2
@@ -1054,8 +1054,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--samples", type=int, default=200, help="sampled plants (default: 200)")
     p.add_argument(
         "--uncertainty",
-        default="dinca_robust",
-        help="study whose 'uncertainty:' section is sampled (default: dinca_robust)",
+        default=DEFAULT_STUDY,
+        help=f"study whose 'uncertainty:' section is sampled (default: {DEFAULT_STUDY})",
     )
     p.add_argument(
         "--seed",

@@ -250,6 +250,7 @@ def test_open_a_study_storage_and_compare_its_best_trials(page, server):
     _, out = server
     spec = load_study(DATA / "studies" / "dinca_flc.yaml")
     run_study(spec, out / "dinca_flc", trials=6, progress=False)
+    page.locator(".fs-study select").select_option("dinca_flc")  # the main job is preselected
     storage = page.locator(".fs-storage input")
     storage.fill(f"sqlite:///{out / 'dinca_flc' / 'dinca_flc.db'}")
     storage.press("Enter")

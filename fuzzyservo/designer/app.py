@@ -35,6 +35,7 @@ from fuzzyservo.errors import FuzzyservoError
 from fuzzyservo.metrics import METRIC_DOCS
 from fuzzyservo.plots._display import axis_label, controller_colour, to_display
 from fuzzyservo.plots._response import _PRESSURE_COLOURS, saturated_spans
+from fuzzyservo.tuning import MAIN_STUDY
 
 TERM_COLOURS = ("#1f77b4", "#ff7f0e", "#2ca02c", "#d62728", "#9467bd", "#8c564b", "#e377c2",
                 "#7f7f7f", "#bcbd22", "#17becf")  # fmt: skip
@@ -599,8 +600,10 @@ class Designer:
     def _study_widgets(self):
         s = self.s
         studies = s.study_files()
-        self.study_select = pn.widgets.Select(name="study", options=studies, width=250,
-                                              value="dinca_flc" if "dinca_flc" in studies else None)  # fmt: skip
+        self.study_select = pn.widgets.Select(
+            name="study", options=studies, width=250, css_classes=["fs-study"],
+            value=MAIN_STUDY if MAIN_STUDY in studies else None,
+        )  # fmt: skip
         self.storage_input = pn.widgets.TextInput(
             name="storage URL", width=330, css_classes=["fs-storage"]
         )

@@ -10,6 +10,10 @@ if TYPE_CHECKING:
     from fuzzyservo.tuning.runner import Outcome
     from fuzzyservo.tuning.spec import StudySpec
 
+#: the shipped study the README's first command runs: `tune`'s default, the one the
+#: designer opens first, and the uncertainty `robustness` samples by default
+MAIN_STUDY = "dinca_robust"
+
 
 def tune(
     study: StudySpec | str | Path,

@@ -291,7 +291,7 @@ def test_report_compares_best_baseline_and_template_nominal_and_monte_carlo(tmp_
     assert c.names == ["flc_dinca_robust", "p_k10", "flc2_reshaped"]
     assert (c.samples, c.seed, c.gain) == (2, CHECK_SEED, 2.0)  # gain from the constraint
     rows = {r["controller"]: r for r in c.rows()}
-    assert rows["p_k10"]["nominal"]["gain_margin_holds"] is False  # P K=10: margin 1.64
+    assert rows["p_k10"]["nominal"]["gain_margin_holds"] is False  # P K=10: margin 1.67
     assert rows["flc_dinca_robust"]["nominal"]["gain_margin_holds"] is True
     assert rows["flc_dinca_robust"]["failures"] == 0 and rows["p_k10"]["failures"] == 2
     assert rows["flc_dinca_robust"]["nominal"]["objective"] < rows["p_k10"]["nominal"]["objective"]
@@ -302,8 +302,9 @@ def test_report_compares_best_baseline_and_template_nominal_and_monte_carlo(tmp_
 
 def test_monte_carlo_in_batches_matches_one_by_one(tmp_path):
     """The batched, parallel Monte Carlo gives each sample exactly the runs and verdicts of
-    run_sample and holds, one by one."""
-    from fuzzyservo.analysis.robustness import holds, monte_carlo, run_sample
+    run_sample and stable_at, one by one."""
+    from fuzzyservo.analysis.margins import stable_at
+    from fuzzyservo.analysis.robustness import monte_carlo, run_sample
     from fuzzyservo.io.rigs import load_rig
     from fuzzyservo.tuning.robust import sample_rigs
 
@@ -320,7 +321,8 @@ def test_monte_carlo_in_batches_matches_one_by_one(tmp_path):
         for run, r, seed in zip(mc.runs, rigs, seeds, strict=True):
             alone = run_sample(run.index, r, controller, ["steps"], seed)
             assert (run.status, run.metrics) == (alone.status, alone.metrics)
-            assert run.gain_holds == holds(r, controller, "steps", gain=2.0, noise_seed=seed)
+            assert run.gain_holds == stable_at(r, controller, "steps", multiplier=2.0,
+                                              noise_seed=seed)  # fmt: skip
 
 
 @pytest.mark.slow  # a whole `tune` with its report and figures (about 10-35 s here)

@@ -342,15 +342,17 @@ def stable_at(
     duration_s: float | None = None,
     ratio: float = DEFAULT_RATIO,
     floor: float | None = None,
+    noise_seed: int = 0,
 ) -> bool:
     """One run: True when the loop does not oscillate with its output multiplied by
-    ``multiplier`` and ``extra_delay_s`` added to its delay. A constraint such as
-    ``gain_margin >= 2`` needs only this verdict at its bound (one simulation, where the
-    margin's value takes about ten)."""
+    ``multiplier`` and ``extra_delay_s`` added to its delay (sensor noise seeded
+    ``noise_seed``). A constraint such as ``gain_margin >= 2`` needs only this verdict at
+    its bound (one simulation, where the margin's value takes about ten); the robust
+    studies and the Monte Carlo ask it on every sampled plant."""
     r, c = scaled(rig, controller, multiplier) if multiplier != 1.0 else (rig, controller)
     if extra_delay_s > 0.0:
         r = delayed(r, extra_delay_s)
-    result = simulate(r, c, scenario, duration_s=duration_s)
+    result = simulate(r, c, scenario, duration_s=duration_s, noise_seed=noise_seed)
     return not oscillation(result, ratio=ratio, floor=floor).sustained
 
 

@@ -20,6 +20,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from fuzzyservo.analysis.margins import stable_at
 from fuzzyservo.controllers.base import Controller
 from fuzzyservo.metrics import METRIC_NAMES, result_metrics
 from fuzzyservo.rig import Rig
@@ -53,27 +54,6 @@ class SampleRun:
         if self.delay_holds is False:
             why.append("oscillates at the required delay margin")
         return "; ".join(why)
-
-
-def holds(
-    rig: Rig,
-    controller: Controller,
-    scenario: str,
-    *,
-    gain: float = 1.0,
-    extra_delay_s: float = 0.0,
-    noise_seed: int = 0,
-) -> bool:
-    """Does the loop stay free of sustained oscillation with the controller output times
-    ``gain`` and ``extra_delay_s`` more loop delay? One simulation."""
-    from fuzzyservo.analysis.margins import delayed, oscillation, scaled
-
-    if extra_delay_s > 0:
-        rig = delayed(rig, extra_delay_s)
-    if gain != 1.0:
-        rig, controller = scaled(rig, controller, gain)
-    result = simulate(rig, controller, scenario, noise_seed=noise_seed)
-    return not oscillation(result).sustained
 
 
 def run_sample(
@@ -114,9 +94,10 @@ def run_sample(
     where = margin_scenario or scenarios[0]
     gain_ok = delay_ok = None
     if status == "ok" and gain is not None:
-        gain_ok = holds(rig, controller, where, gain=gain, noise_seed=noise_seed)
+        gain_ok = stable_at(rig, controller, where, multiplier=gain, noise_seed=noise_seed)
     if status == "ok" and delay_s is not None:
-        delay_ok = holds(rig, controller, where, extra_delay_s=delay_s, noise_seed=noise_seed)
+        delay_ok = stable_at(rig, controller, where, extra_delay_s=delay_s,
+                             noise_seed=noise_seed)  # fmt: skip
     return SampleRun(index, status, message, metrics, per, gain_ok, delay_ok, results)
 
 
@@ -185,9 +166,10 @@ def monte_carlo(
 
     The samples go ``chunk`` at a time through one compiled call per scenario and per gain
     check (:func:`~fuzzyservo.simulation.closed_loop.simulate_batch`, parallel over the
-    cores); each sample's runs are the ones :func:`run_sample` and :func:`holds` make: a
-    sample whose run fails skips its later scenarios and the gain check, and the gain
-    check stops at the first scenario where the loop oscillates."""
+    cores); each sample's runs are the ones :func:`run_sample` and
+    :func:`~fuzzyservo.analysis.margins.stable_at` make: a sample whose run fails skips
+    its later scenarios and the gain check, and the gain check stops at the first scenario
+    where the loop oscillates."""
     from fuzzyservo.analysis.margins import oscillation, scaled
     from fuzzyservo.simulation.closed_loop import simulate_batch
 

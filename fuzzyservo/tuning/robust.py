@@ -6,7 +6,7 @@ mean or CVaR (:func:`~fuzzyservo.tuning.uncertainty.aggregate`). A trial where a
 diverges, fails a step or hits an end stop is infeasible with that sample as its reason
 (and the remaining samples are skipped); a constraint counts broken when it is broken on
 any sample; ``gain_margin >= g`` and ``delay_margin_s >= d`` are checked on every sample
-with one run each (:func:`~fuzzyservo.analysis.robustness.holds`).
+with one run each (:func:`~fuzzyservo.analysis.margins.stable_at`).
 """
 
 from __future__ import annotations
@@ -18,11 +18,11 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
+from fuzzyservo.analysis.margins import stable_at
 from fuzzyservo.analysis.robustness import (
     SUMMARY_METRICS,
     MonteCarlo,
     SampleRun,
-    holds,
     monte_carlo,
     run_sample,
     summary,
@@ -120,10 +120,11 @@ def evaluate_samples(
             where, seed = u.margin_scenario, sample.noise_seed
             runs[-1] = dataclasses.replace(
                 run,
-                gain_holds=None if gain is None else holds(rig, controller, where, gain=gain,
-                                                           noise_seed=seed),
-                delay_holds=None if delay is None else holds(rig, controller, where,
-                                                             extra_delay_s=delay, noise_seed=seed),
+                gain_holds=None if gain is None else stable_at(rig, controller, where,
+                                                               multiplier=gain, noise_seed=seed),
+                delay_holds=None if delay is None else stable_at(rig, controller, where,
+                                                                 extra_delay_s=delay,
+                                                                 noise_seed=seed),
             )  # fmt: skip
     results = {}
     if keep_results:  # the nominal plant, for the report's plots
@@ -247,7 +248,7 @@ def compare_controllers(
     for controller in controllers:
         run = run_sample(-1, evaluator.rig, controller, scenarios, 0, aggregate=spec.aggregate)
         if run.status == "ok":
-            ok = all(holds(evaluator.rig, controller, s, gain=gain) for s in scenarios)
+            ok = all(stable_at(evaluator.rig, controller, s, multiplier=gain) for s in scenarios)
             run = dataclasses.replace(run, gain_holds=ok)
         nominal.append(run)
         objective.append(evaluator._values(run.metrics)[0] if run.status == "ok" else math.nan)

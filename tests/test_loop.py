@@ -16,7 +16,7 @@ from fuzzyservo._jit import bind_plant
 from fuzzyservo.components.effects import EffectParams
 from fuzzyservo.params import pack
 from fuzzyservo.rig import Actuator
-from fuzzyservo.simulation import simulate
+from fuzzyservo.simulation import _loop, simulate
 from fuzzyservo.simulation._loop import workspace
 from fuzzyservo.simulation.reference import simulate_reference
 
@@ -115,6 +115,26 @@ def test_ros34pw2_is_third_order_on_a_linear_system() -> None:
     # W-method keeps its order with it; the observed order tends to 3 from above
     assert orders[-1] == pytest.approx(3.0, abs=0.25), (errors, orders)
     assert errors[-1] < 1e-5
+
+
+def test_transformed_stages_take_the_step_of_the_tableau() -> None:
+    # one step written straight from Rang & Angermann's tableau (k-form, exact J = _A):
+    # (I − hγJ)·k_i = h·J·(x + Σ a_ij k_j) + h·J·Σ γ_ij k_j, x1 = x + Σ b_i k_i
+    h, x0 = 0.05, np.array([1.0, 0.0, 0.5])
+    w = np.eye(3) - h * _loop._GAMMA * _A
+    k = np.zeros((_loop._STAGES, 3))
+    for i in range(_loop._STAGES):
+        stage = x0 + _loop._A[i, :i] @ k[:i]
+        k[i] = np.linalg.solve(w, h * _A @ stage + h * _A @ (_loop._G[i, :i] @ k[:i]))
+    x = x0.copy()
+    work, mats, piv = workspace(3)
+    ones = np.ones(3)
+    status, _, taken = bind_plant(_LINEAR).integrate_interval(
+        pack(_NoParams()), 0.0, x, 0.0, 0.0, h, h, 1e30, ones, ones, work, mats, piv
+    )
+    assert status == 0 and taken == 1
+    # the finite-difference J differs from _A by rounding (~1e-5 in its entries)
+    np.testing.assert_allclose(x, x0 + _loop._B @ k, rtol=0.0, atol=1e-6)
 
 
 # ------------------------------------------------------------------ controller kinds

@@ -10,7 +10,8 @@ valid module, so linters and readers see ordinary Python.
 The plant is integrated between samples by an adaptive linearly implicit
 Rosenbrock-W method, ROS34PW2 (order 3, embedded order 2), with a finite-difference
 Jacobian evaluated at the start of each control interval and refreshed when a step is
-rejected (tableau and linear algebra in :mod:`fuzzyservo.simulation._loop`). It is
+rejected (tableau, in transformed variables, and linear algebra in
+:mod:`fuzzyservo.simulation._loop`). It is
 L-stable, so the stiff valve-chamber modes of seed 002 (β/V·K/√p_lam up to ~1e6 1/s,
 docs/modelling.md "Stiffness") cost no step-size restriction. Nothing in here raises: a
 failure ends the run with a status code the caller turns into a result.
@@ -26,11 +27,11 @@ from numba import prange
 from fuzzyservo._jit import njit
 from fuzzyservo.components.effects import E_LAG
 from fuzzyservo.simulation._loop import (
-    _A,
-    _B,
-    _E,
-    _G,
+    _A_U,
+    _C_U,
+    _E_U,
     _GAMMA,
+    _M_U,
     _MAX_STEPS_PER_INTERVAL,
     _STAGES,
     STATUS_DIVERGED,
@@ -94,16 +95,16 @@ def integrate_interval(
     ``work``, ``mats`` and ``piv`` are scratch space from :func:`workspace`, allocated
     once per run rather than once per interval.
 
-    Stage equations (Hairer & Wanner, Solving ODEs II, §IV.7, autonomous form):
-    ``(I − hγJ)·k_i = h·f(x + Σ_j a_ij k_j) + h·J·Σ_j γ_ij k_j``, ``x1 = x + Σ b_i k_i``.
+    Stage equations in transformed variables ``u_i = Σ_j γ_ij·k_j`` (Hairer & Wanner,
+    Solving ODEs II, §IV.7, eq. 7.25, autonomous form; constants in :mod:`_loop`):
+    ``(I/(hγ) − J)·u_i = f(x + Σ_j a_ij·u_j) + Σ_j c_ij·u_j / h``, ``x1 = x + Σ m_i·u_i``.
     """
     n = x.size
-    k = work[:_STAGES]
+    u_st = work[:_STAGES]
     f0 = work[_STAGES]
     xs = work[_STAGES + 1]
     xn = work[_STAGES + 2]
     ftmp = work[_STAGES + 3]
-    gk = work[_STAGES + 4]
     jac = mats[0]
     w = mats[1]
 
@@ -130,43 +131,38 @@ def integrate_interval(
                     jac[i, j] = (ftmp[i] - f0[i]) / dj
             need_jac = False
             jac_fresh = True
-        hg = h_step * _GAMMA
+        h_inv = 1.0 / h_step
+        diag = h_inv / _GAMMA
         for i in range(n):
             for j in range(n):
-                w[i, j] = -hg * jac[i, j]
-            w[i, i] += 1.0
+                w[i, j] = -jac[i, j]
+            w[i, i] += diag
         if not _lu_factor(w, piv):
             return STATUS_DIVERGED, h, steps
-        for st in range(_STAGES):
-            # stage state and the J·Σγ_ij·k_j correction
+        for i in range(n):
+            u_st[0, i] = f0[i]
+        _lu_solve(w, piv, u_st[0])
+        for st in range(1, _STAGES):
             for i in range(n):
                 acc = x[i]
-                g = 0.0
                 for j in range(st):
-                    acc += _A[st, j] * k[j, i]
-                    g += _G[st, j] * k[j, i]
+                    acc += _A_U[st, j] * u_st[j, i]
                 xs[i] = acc
-                gk[i] = g
-            if st == 0:
-                for i in range(n):
-                    ftmp[i] = f0[i]
-            else:
-                loop_rhs(xs, u, load, p, null, ftmp)
+            loop_rhs(xs, u, load, p, null, ftmp)
             for i in range(n):
-                acc = ftmp[i]
-                if st > 0:
-                    for j in range(n):
-                        acc += jac[i, j] * gk[j]
-                k[st, i] = h_step * acc
-            _lu_solve(w, piv, k[st])
+                acc = 0.0
+                for j in range(st):
+                    acc += _C_U[st, j] * u_st[j, i]
+                u_st[st, i] = ftmp[i] + acc * h_inv
+            _lu_solve(w, piv, u_st[st])
         err = 0.0
         finite = True
         for i in range(n):
             acc = x[i]
             e = 0.0
             for st in range(_STAGES):
-                acc += _B[st] * k[st, i]
-                e += _E[st] * k[st, i]
+                acc += _M_U[st] * u_st[st, i]
+                e += _E_U[st] * u_st[st, i]
             xn[i] = acc
             e = abs(e) / (tol * scale[i])
             if not math.isfinite(acc) or not math.isfinite(e):

@@ -7,9 +7,11 @@ parameters (and the rig's declared unknowns) are fitted by bounded least squares
 (``scipy.optimize.least_squares``, dogleg in the box, finite differences with an
 absolute step on the unit box) on the training part of the replay. Candidates are
 ranked by held-out cost (among candidates the data cannot tell apart, the one with the
-fewest parameters first); the best is added when its held-out likelihood ratio over the
-current model passes :mod:`~fuzzyservo.calibration.decision`'s test (error rate
-``ALPHA`` split over the candidates). Candidates that pass too and that the best does
+fewest parameters first); a long record's candidates are fitted on the first
+``SCREEN_SAMPLES`` of its training part and the best refitted on all of it. The best
+is added when its held-out likelihood ratio over the current model passes
+:mod:`~fuzzyservo.calibration.decision`'s test (error rate ``ALPHA`` split over the
+candidates). Candidates that pass too and that the best does
 not beat on the held-out data are reported as ``ambiguous_with`` (the data cannot tell
 them apart). The decision never looks at how the data was made.
 """
@@ -340,11 +342,9 @@ def _minimise(
         return z
     grid = SCAN_FINE if n == 1 else SCAN
     step = (grid[1] - grid[0]) / 2**REFINE_LEVELS
-    if not scan:
-        pass
-    elif n_effect == 1:
+    if scan and n_effect == 1:
         z[0], step = _scan(lambda v: objective.train_cost([v, *z[1:]]), grid)
-    elif n_effect > 1:
+    elif scan and n_effect > 1:
         # a full grid over the effect's parameters: friction with stiction trades its
         # parameters against each other and a coordinate search stalls
         best_cost = objective.train_cost(z)

@@ -94,6 +94,40 @@ def test_search_leaves_zero_for_a_delay_and_a_dead_band(rig, tmp_path: Path) -> 
     assert fitted.params.valve_deadband_si == pytest.approx(0.2e-3, rel=0.15)
 
 
+def test_scan_refined_around_its_best_points_finds_a_valley_between_grid_points() -> None:
+    """A cost that oscillates in its parameter faster than the scan samples it (a bulk
+    modulus sets the phase of the pressure oscillation): refining only the best grid
+    point lands in the wrong valley, refining the best three finds the deepest."""
+    from scipy.optimize import minimize_scalar
+
+    from fuzzyservo.calibration.search import SCAN_FINE, _scan
+
+    def cost(z: float) -> float:
+        return 2 * (z - 0.62) ** 2 + 0.5 * (1 - math.cos(2 * math.pi * (z - 0.62) / 0.15))
+
+    def brent(z: float, step: float) -> float:
+        bounds = (max(z - step, 0.0), min(z + step, 1.0))
+        return minimize_scalar(cost, bounds=bounds, method="bounded").x
+
+    best_grid_point = min(SCAN_FINE, key=cost)
+    assert brent(best_grid_point, SCAN_FINE[1] - SCAN_FINE[0]) == pytest.approx(0.77, abs=0.01)
+    assert brent(*_scan(cost, SCAN_FINE)) == pytest.approx(0.62, abs=1e-4)
+
+
+def test_a_long_record_is_screened_on_its_first_samples_and_the_best_refitted(rig) -> None:
+    """Candidates fitted on the first 500 of 1540 training samples; the one added is
+    refitted on all of them, so its value is as precise as without screening."""
+    ctl = controller_named("p_k10")
+    data = synthetic_run(rig, ctl, "pulses", {"coulomb_friction": {"force": 300.0}}, NOISE, seed=4)
+    replay = make_replay(rig, data, ctl)
+    effects = ["coulomb_friction", "valve_bias"]
+    outcome = calibrate(replay, rig, effects=effects, max_effects=1, screen_samples=500)
+    assert [c.name for c in outcome.added] == ["coulomb_friction"]
+    # the screening fit alone gives 299.2 N; refitted on all: 300.0 as without screening
+    assert outcome.added[0].params["force"] == pytest.approx(300.0, rel=1e-3)
+    assert outcome.cost_final < 1.2
+
+
 # ------------------------------------------------------------------ error rate
 
 

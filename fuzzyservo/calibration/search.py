@@ -7,9 +7,11 @@ parameters (and the rig's declared unknowns) are fitted by bounded least squares
 (``scipy.optimize.least_squares``, dogleg in the box, finite differences with an
 absolute step on the unit box) on the training part of the replay. Candidates are
 ranked by held-out cost (among candidates the data cannot tell apart, the one with the
-fewest parameters first); the best is added when its held-out likelihood ratio over the
-current model passes :mod:`~fuzzyservo.calibration.decision`'s test (error rate
-``ALPHA`` split over the candidates). Candidates that pass too and that the best does
+fewest parameters first); a long record's candidates are fitted on the first
+``SCREEN_SAMPLES`` of its training part and the best refitted on all of it. The best
+is added when its held-out likelihood ratio over the current model passes
+:mod:`~fuzzyservo.calibration.decision`'s test (error rate ``ALPHA`` split over the
+candidates). Candidates that pass too and that the best does
 not beat on the held-out data are reported as ``ambiguous_with`` (the data cannot tell
 them apart). The decision never looks at how the data was made.
 """
@@ -17,6 +19,7 @@ them apart). The decision never looks at how the data was made.
 from __future__ import annotations
 
 import dataclasses
+import functools
 import itertools
 import math
 import time
@@ -43,8 +46,23 @@ from fuzzyservo.rig import Rig
 
 SCAN = (0.0, 0.25, 0.5, 0.75, 1.0)  # grid of each parameter (unit interval)
 SCAN_FINE = tuple(np.linspace(0.05, 0.95, 10))  # scan of a single parameter
+# A single parameter's scan is refined coarse-to-fine: at each level the spacing halves
+# around the REFINE_KEEP best points seen so far, REFINE_LEVELS times, before Brent. A
+# cost that oscillates in its parameter (a bulk modulus sets the phase of the pressure
+# oscillation) has valleys narrower than the scan's spacing; refining only the best
+# point follows whichever valley the coarse scan happened to land nearest.
+REFINE_KEEP = 3
+REFINE_LEVELS = 2
 START = 0.3  # start of the other parameters (unit interval)
 JACOBIAN_STEP = 0.01  # absolute finite-difference step on the unit box
+# Candidates of a long record are screened on the first SCREEN_SAMPLES of its training
+# part (a replay costs its length); the round's best is then refitted on all of it from
+# there, and its held-out test is made again, before it is added. Only a training part
+# at least SCREEN_RATIO times as long is screened: an effect that shows only after the
+# window is lost to the screening (the Festo record, 11 242 training samples whose last
+# ones start the lowering, loses its Stribeck friction when screened on 10 000).
+SCREEN_SAMPLES = 10_000
+SCREEN_RATIO = 3
 
 
 @dataclass(frozen=True)
@@ -238,20 +256,38 @@ def _bounds(rig: Rig, param: EffectParam, scales) -> tuple[float, float]:
 
 
 def fit(
-    replay: Replay, base: Rig, effect: str | None, *, max_evaluations: int = 60
+    replay: Replay,
+    base: Rig,
+    effect: str | None,
+    *,
+    max_evaluations: int = 60,
+    screen: int | None = None,
+    start_from: Candidate | None = None,
 ) -> tuple[Rig, Candidate]:
-    """Fit ``effect`` (None: only the rig's unknowns) on the training part; score it."""
+    """Fit ``effect`` (None: only the rig's unknowns) on the training part; score it.
+
+    ``screen``: fit on the first ``screen`` training samples only (the score still
+    takes the whole held-out part). ``start_from``: a fit of the same effect (e.g. a
+    screening one) to refine locally, without the global scan."""
     start = time.perf_counter()
     space = _space(base, effect, replay)
-    objective = _Objective(replay, base, effect, space)
+    fitted_on = _screened(replay, screen)
+    objective = _Objective(fitted_on, base, effect, space)
     n_effect = sum(1 for owner, _ in space.names if owner == effect) if effect else 0
-    z0 = np.array(
-        [
-            START if owner and owner == effect else space.unit(j, _start(replay, base, f))
-            for j, (owner, f) in enumerate(space.names)
-        ]
-    )
-    z = _minimise(objective, z0, n_effect, max_evaluations)
+    if start_from is not None:
+        known = dict(start_from.unknowns)
+        for param in LIBRARY[effect].fitted if effect else ():
+            known[param.field] = float(getattr(start_from.rig.params, param.field))
+        z0 = np.array([space.unit(j, known[f]) for j, (_, f) in enumerate(space.names)])
+        z = _minimise(objective, z0, n_effect, max_evaluations, scan=False)
+    else:
+        z0 = np.array(
+            [
+                START if owner and owner == effect else space.unit(j, _start(replay, base, f))
+                for j, (owner, f) in enumerate(space.names)
+            ]
+        )
+        z = _minimise(objective, z0, n_effect, max_evaluations)
     rig = objective.rig(z)
     model, status = objective.model(z)
     cost_train, cost_val = replay.costs(model)
@@ -288,23 +324,31 @@ def _start(replay: Replay, rig: Rig, name: str) -> float:
     return float(getattr(rig.params, name))
 
 
-def _minimise(objective: _Objective, z0: np.ndarray, n_effect: int, budget: int) -> np.ndarray:
+def _screened(replay: Replay, screen: int | None) -> Replay:
+    """``replay`` with its training part cut to its first ``screen`` samples (a single
+    record whose training part is SCREEN_RATIO times as long), else ``replay`` itself."""
+    if screen is None or replay.split < SCREEN_RATIO * screen or not isinstance(replay, Replay):
+        return replay
+    return dataclasses.replace(replay, split=screen)
+
+
+def _minimise(
+    objective: _Objective, z0: np.ndarray, n_effect: int, budget: int, *, scan: bool = True
+) -> np.ndarray:
     """Global-then-local search on the unit box: a scan of each effect parameter in turn
-    (least squares alone gets caught where friction makes the cost rough), then bounded
-    Brent for a single parameter or trust-region least squares for several."""
+    (least squares alone gets caught where friction makes the cost rough; a single one
+    refined coarse-to-fine around its best few points, :func:`_scan`), then bounded
+    Brent for a single parameter or trust-region least squares for several. Without
+    ``scan``, only the local search from ``z0`` (Brent within the finest scan spacing)."""
     n = z0.size
     z = z0.copy()
     if n == 0:
         return z
     grid = SCAN_FINE if n == 1 else SCAN
-    if n_effect == 1:
-        trial = z.copy()
-        costs = []
-        for g in grid:
-            trial[0] = g
-            costs.append(objective.train_cost(trial))
-        z[0] = grid[int(np.argmin(costs))]
-    elif n_effect > 1:
+    step = (grid[1] - grid[0]) / 2**REFINE_LEVELS
+    if scan and n_effect == 1:
+        z[0], step = _scan(lambda v: objective.train_cost([v, *z[1:]]), grid)
+    elif scan and n_effect > 1:
         # a full grid over the effect's parameters: friction with stiction trades its
         # parameters against each other and a coordinate search stalls
         best_cost = objective.train_cost(z)
@@ -317,7 +361,6 @@ def _minimise(objective: _Objective, z0: np.ndarray, n_effect: int, budget: int)
         if best_cost < objective.train_cost(z):
             z = best_point
     if n == 1:
-        step = grid[1] - grid[0]
         sol = minimize_scalar(
             lambda v: objective.train_cost([v]),
             bounds=(max(z[0] - step, 0.0), min(z[0] + step, 1.0)),
@@ -340,6 +383,28 @@ def _minimise(objective: _Objective, z0: np.ndarray, n_effect: int, budget: int)
         )
         best = sol.x
     return best if objective.train_cost(best) <= objective.train_cost(z) else z
+
+
+def _scan(cost: Callable[[float], float], grid: Sequence[float]) -> tuple[float, float]:
+    """The best point of a coarse-to-fine scan of one parameter on the unit interval and
+    the spacing around it: ``grid`` (evenly spaced), then REFINE_LEVELS times the
+    midpoints on either side of the REFINE_KEEP best points seen so far."""
+    seen: dict[float, float] = {}
+
+    def look(v: float) -> None:
+        v = round(float(v), 12)
+        if 0.0 <= v <= 1.0 and v not in seen:
+            seen[v] = cost(v)
+
+    for g in grid:
+        look(g)
+    step = grid[1] - grid[0]
+    for _ in range(REFINE_LEVELS):
+        step /= 2
+        for v in sorted(seen, key=seen.__getitem__)[:REFINE_KEEP]:
+            look(v - step)
+            look(v + step)
+    return min(seen, key=seen.__getitem__), step
 
 
 def _jacobian(
@@ -373,12 +438,15 @@ def calibrate(
     max_effects: int = 2,
     progress: Callable[[str], None] | None = None,
     workers: int = 1,
+    screen_samples: int | None = SCREEN_SAMPLES,
 ) -> Outcome:
     """Fit the rig's unknowns, then add up to ``max_effects`` effects from the library.
 
     ``workers`` > 1 fits a round's candidates in that many processes (each candidate is
     independent of the others); ``progress`` gets each candidate's name as it starts
-    (one process) or as it ends (several).
+    (one process) or as it ends (several). A training part SCREEN_RATIO times longer
+    than ``screen_samples`` (None: never) screens the candidates on its first
+    ``screen_samples`` and refits the best on all of it (:func:`_confirm`).
     """
     start = time.perf_counter()
     names = [
@@ -408,8 +476,11 @@ def calibrate(
             todo = [name for name in names if name not in current.effects]
             if not todo:  # every allowed effect is in already
                 break
-            results = pool.map(_candidate, replay, current, current_model, todo, progress)
+            task = functools.partial(_candidate, screen=screen_samples)
+            results = pool.map(task, replay, current, current_model, todo, progress)
             results.sort(key=lambda c: c.score)
+            if _screened(replay, screen_samples) is not replay:
+                results = _confirm(replay, current, current_model, results)
             z_min = threshold(len(results))
             best = results[0] if results else None
             accept = best is not None and _significant(best, z_min)
@@ -468,13 +539,39 @@ def calibrate(
 
 
 def _candidate(
-    replay: Replay, base: Rig, base_model: dict[str, np.ndarray], name: str
+    replay: Replay,
+    base: Rig,
+    base_model: dict[str, np.ndarray],
+    name: str,
+    screen: int | None = None,
+    start_from: Candidate | None = None,
 ) -> Candidate:
     """``name`` fitted on top of ``base`` with its held-out evidence against ``base``'s
     channels (a module-level function, so a worker process can run it)."""
-    _, candidate = fit(replay, base, name)
+    _, candidate = fit(replay, base, name, screen=screen, start_from=start_from)
     evidence = held_out_evidence(replay, base_model, candidate.model)
     return dataclasses.replace(candidate, evidence=evidence)
+
+
+def _confirm(
+    replay: Replay, base: Rig, base_model: dict[str, np.ndarray], ranked: list[Candidate]
+) -> list[Candidate]:
+    """Screened candidates (best first) with the best refitted on the whole training part,
+    from its screening fit; again while the refit moves another screened one first."""
+    ranked = list(ranked)
+    refitted: set[str] = set()
+    while ranked and ranked[0].name not in refitted and math.isfinite(ranked[0].score):
+        screened = ranked.pop(0)
+        refit = _candidate(replay, base, base_model, screened.name, start_from=screened)
+        refit = dataclasses.replace(
+            refit,
+            evaluations=screened.evaluations + refit.evaluations,
+            seconds=screened.seconds + refit.seconds,
+        )
+        refitted.add(refit.name)
+        ranked.append(refit)
+        ranked.sort(key=lambda c: c.score)
+    return ranked
 
 
 class _Pool:

@@ -63,6 +63,7 @@ def test_frequency_response_matches_the_sampled_transfer_function() -> None:
     assert np.all(np.abs(fr.phase_deg - phase) < 3.0), (fr.phase_deg, phase)
 
 
+@pytest.mark.filterwarnings("ignore:stability_margins:UserWarning")  # the analytic reference
 def test_gain_margin_of_a_sampled_third_order_loop() -> None:
     rig, k = _rig(), 0.5
     gd = control.c2d(_plant_tf(), DT, method="zoh")
@@ -153,6 +154,7 @@ def test_frequency_command_writes_json_and_bode_plot(tmp_path, capsys) -> None:
     assert "--amplitude" in capsys.readouterr().err
 
 
+@pytest.mark.filterwarnings("ignore:stability_margins:UserWarning")  # the analytic reference
 def test_a_margin_constraint_is_decided_at_its_bound() -> None:
     """A study's `gain_margin >= b` costs one run at b: met (recorded as b, a lower bound)
     below the analytic margin, violated (undefined) above it."""

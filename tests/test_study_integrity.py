@@ -90,6 +90,9 @@ def _ask(study, spec) -> dict[str, float]:
     return params
 
 
+# the test asks the study for trials directly, where `tune` runs Study.optimize; optuna
+# then warns that the storage heartbeat is meant for optimize
+@pytest.mark.filterwarnings("ignore:Heartbeat of storage:UserWarning")
 def test_two_processes_on_default_sqlite_propose_no_duplicates(tmp_path):
     """Two processes opening one default SQLite study: interleaved here, as two `tune`
     commands interleave (before: same seed in both, the same proposals)."""

@@ -91,14 +91,32 @@ def run_sample(
             status, message = "pruned", f"after {', '.join(per)}"
             break
     metrics = _over_scenarios(per, aggregate) if status in ("ok", "pruned") else {}
-    where = margin_scenario or scenarios[0]
     gain_ok = delay_ok = None
-    if status == "ok" and gain is not None:
-        gain_ok = stable_at(rig, controller, where, multiplier=gain, noise_seed=noise_seed)
-    if status == "ok" and delay_s is not None:
-        delay_ok = stable_at(rig, controller, where, extra_delay_s=delay_s,
-                             noise_seed=noise_seed)  # fmt: skip
+    if status == "ok":
+        gain_ok, delay_ok = margin_checks(
+            rig, controller, margin_scenario or scenarios[0], noise_seed, gain, delay_s
+        )
     return SampleRun(index, status, message, metrics, per, gain_ok, delay_ok, results)
+
+
+def margin_checks(
+    rig: Rig,
+    controller: Controller,
+    scenario: str,
+    noise_seed: int,
+    gain: float | None,
+    delay_s: float | None,
+) -> tuple[bool | None, bool | None]:
+    """The margin checks asked for, one run each on ``scenario``: does the loop stay free
+    of oscillation with the output times ``gain``, and with ``delay_s`` more delay?
+    ``None`` for a check not asked for."""
+    gain_ok = delay_ok = None
+    if gain is not None:
+        gain_ok = stable_at(rig, controller, scenario, multiplier=gain, noise_seed=noise_seed)
+    if delay_s is not None:
+        delay_ok = stable_at(rig, controller, scenario, extra_delay_s=delay_s,
+                             noise_seed=noise_seed)  # fmt: skip
+    return gain_ok, delay_ok
 
 
 def _over_scenarios(per: dict[str, dict[str, float]], how: str) -> dict[str, float]:

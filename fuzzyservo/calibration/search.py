@@ -279,7 +279,6 @@ def fit(
         for param in LIBRARY[effect].fitted if effect else ():
             known[param.field] = float(getattr(start_from.rig.params, param.field))
         z0 = np.array([space.unit(j, known[f]) for j, (_, f) in enumerate(space.names)])
-        z = _minimise(objective, z0, n_effect, max_evaluations, scan=False)
     else:
         z0 = np.array(
             [
@@ -287,7 +286,7 @@ def fit(
                 for j, (owner, f) in enumerate(space.names)
             ]
         )
-        z = _minimise(objective, z0, n_effect, max_evaluations)
+    z = _minimise(objective, z0, n_effect, max_evaluations, scan=start_from is None)
     rig = objective.rig(z)
     model, status = objective.model(z)
     cost_train, cost_val = replay.costs(model)
@@ -327,7 +326,7 @@ def _start(replay: Replay, rig: Rig, name: str) -> float:
 def _screened(replay: Replay, screen: int | None) -> Replay:
     """``replay`` with its training part cut to its first ``screen`` samples (a single
     record whose training part is SCREEN_RATIO times as long), else ``replay`` itself."""
-    if screen is None or replay.split < SCREEN_RATIO * screen or not isinstance(replay, Replay):
+    if screen is None or not isinstance(replay, Replay) or replay.split < SCREEN_RATIO * screen:
         return replay
     return dataclasses.replace(replay, split=screen)
 

@@ -6,7 +6,7 @@ mean or CVaR (:func:`~fuzzyservo.tuning.uncertainty.aggregate`). A trial where a
 diverges, fails a step or hits an end stop is infeasible with that sample as its reason
 (and the remaining samples are skipped); a constraint counts broken when it is broken on
 any sample; ``gain_margin >= g`` and ``delay_margin_s >= d`` are checked on every sample
-with one run each (:func:`~fuzzyservo.analysis.margins.stable_at`).
+with one run each (:func:`~fuzzyservo.analysis.robustness.margin_checks`).
 """
 
 from __future__ import annotations
@@ -23,6 +23,7 @@ from fuzzyservo.analysis.robustness import (
     SUMMARY_METRICS,
     MonteCarlo,
     SampleRun,
+    margin_checks,
     monte_carlo,
     run_sample,
     summary,
@@ -117,15 +118,9 @@ def evaluate_samples(
                 break
         # the margin checks last: a pruned trial does not pay for them
         if gain is not None or delay is not None:
-            where, seed = u.margin_scenario, sample.noise_seed
-            runs[-1] = dataclasses.replace(
-                run,
-                gain_holds=None if gain is None else stable_at(rig, controller, where,
-                                                               multiplier=gain, noise_seed=seed),
-                delay_holds=None if delay is None else stable_at(rig, controller, where,
-                                                                 extra_delay_s=delay,
-                                                                 noise_seed=seed),
-            )  # fmt: skip
+            checks = margin_checks(rig, controller, u.margin_scenario, sample.noise_seed,
+                                   gain, delay)  # fmt: skip
+            runs[-1] = dataclasses.replace(run, gain_holds=checks[0], delay_holds=checks[1])
     results = {}
     if keep_results:  # the nominal plant, for the report's plots
         for scenario in spec.scenarios:

@@ -17,7 +17,7 @@ from fuzzyservo.plants import PlantModel
 from fuzzyservo.signals import Constant, Signal
 
 if TYPE_CHECKING:
-    from fuzzyservo.io.measured import ColumnScaling
+    from fuzzyservo.measured import ColumnScaling
 
 
 @dataclass(frozen=True)

@@ -9,7 +9,7 @@ from typing import TYPE_CHECKING
 if TYPE_CHECKING:
     from fuzzyservo.calibration.search import Outcome
     from fuzzyservo.controllers.base import Controller
-    from fuzzyservo.io.measured import Measured
+    from fuzzyservo.measured import Measured
     from fuzzyservo.rig import Rig
 
 

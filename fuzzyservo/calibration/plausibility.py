@@ -11,7 +11,7 @@ from __future__ import annotations
 import numpy as np
 
 from fuzzyservo.errors import DataError
-from fuzzyservo.io.measured import Measured
+from fuzzyservo.measured import Measured
 from fuzzyservo.rig import Rig
 
 #: the data's sample period may lie within these factors of the rig's controller period

@@ -34,7 +34,7 @@ from fuzzyservo.calibration.residuals import noise_floor
 from fuzzyservo.controllers.base import Controller
 from fuzzyservo.controllers.classical import OpenLoop
 from fuzzyservo.errors import DataError
-from fuzzyservo.io.measured import Measured
+from fuzzyservo.measured import Measured
 from fuzzyservo.rig import Rig, Scenario
 from fuzzyservo.signals import Sampled
 from fuzzyservo.simulation import simulate

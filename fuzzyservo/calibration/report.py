@@ -27,7 +27,7 @@ from fuzzyservo.components.effects import LIBRARY, owner
 from fuzzyservo.rig import Rig
 
 if TYPE_CHECKING:
-    from fuzzyservo.io.measured import Measured
+    from fuzzyservo.measured import Measured
 
 ZOOM_S = 5.0  # the detail overlay shows this much of the held-out part [s]
 # SI unit -> (display unit, factor) for plots and tables

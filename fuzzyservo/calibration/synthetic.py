@@ -9,7 +9,7 @@ from collections.abc import Mapping
 import numpy as np
 
 from fuzzyservo.controllers.base import Controller
-from fuzzyservo.io.measured import Measured
+from fuzzyservo.measured import Measured
 from fuzzyservo.rig import Rig, Scenario
 from fuzzyservo.simulation import simulate
 

@@ -21,6 +21,7 @@ import numpy as np
 from fuzzyservo.controllers.fuzzy import FuzzyController
 from fuzzyservo.designer.files import Folders
 from fuzzyservo.errors import ConfigError
+from fuzzyservo.io.controllers import read_controller_data
 from fuzzyservo.metrics import METRIC_NAMES, result_metrics
 from fuzzyservo.simulation import SimResult, simulate
 
@@ -308,27 +309,10 @@ class Session:
 
     def open_upload(self, filename: str, content: bytes) -> None:
         """Open a controller file the browser sent (read from memory; nothing is written)."""
-        suffix = Path(filename).suffix.lower()
+        from fuzzyservo.io.controllers import controller_data_from_text
+
         text = content.decode("utf-8", errors="replace")
-        if suffix == ".fis":
-            from fuzzyservo.io.fis import parse_fis
-            from fuzzyservo.io.fuzzy import fuzzy_controller_data
-
-            system = parse_fis(text, filename)
-            data = fuzzy_controller_data(FuzzyController(system=system, name=system.name))
-        elif suffix in (".yaml", ".yml"):
-            import yaml
-
-            try:
-                data = yaml.safe_load(text)
-            except yaml.YAMLError as exc:
-                raise ConfigError(
-                    f"not valid YAML ({exc}); fix the syntax", file=filename
-                ) from None
-            if not isinstance(data, dict):
-                raise ConfigError("the top level must be a mapping", file=filename)
-        else:
-            raise ConfigError("a controller file ends in .yaml or .fis", file=filename)
+        data = controller_data_from_text(text, filename)
         controller = build(data, filename)
         self.data, self.controller, self.source = data, controller, filename
         self.designs = {}
@@ -353,11 +337,9 @@ class Session:
         return write_fis(self.controller.system, path)
 
     def yaml_text(self) -> str:
-        import yaml
+        from fuzzyservo.io.controllers import controller_yaml
 
-        from fuzzyservo.io.controllers import _plain
-
-        return yaml.safe_dump(_plain(self.data, ""), sort_keys=False, default_flow_style=None)
+        return controller_yaml(self.data)
 
     # ------------------------------------------------------------------ studies
     def study_files(self) -> list[str]:
@@ -444,18 +426,6 @@ class Session:
 
 
 # ---------------------------------------------------------------------- helpers
-def read_controller_data(path: Path) -> dict[str, Any]:
-    """The mapping of a controller file; a ``.fis`` becomes explicit terms and rule lines."""
-    if Path(path).suffix.lower() == ".fis":
-        from fuzzyservo.io.fis import controller_from_fis
-        from fuzzyservo.io.fuzzy import fuzzy_controller_data
-
-        return fuzzy_controller_data(controller_from_fis(path))
-    from fuzzyservo.io._yaml import read_yaml
-
-    return read_yaml(path)
-
-
 def build(data: dict[str, Any], source: str) -> FuzzyController:
     """The fuzzy controller a mapping describes (checked as a file would be)."""
     from fuzzyservo.io.controllers import controller_from_data

@@ -42,22 +42,25 @@ def read_yaml(path: str | Path) -> dict[str, Any]:
         raise ConfigError(
             f"cannot read the file ({exc.strerror or exc}); check its permissions", file=str(path)
         ) from None
+    return parse_yaml(text, str(path))
+
+
+def parse_yaml(text: str, file: str) -> dict[str, Any]:
+    """Parse YAML text whose top level is a mapping; ``file`` names it in messages."""
     try:
         data = yaml.load(text, Loader=_StrictLoader)  # a SafeLoader subclass
     except _DuplicateKey as exc:
-        raise ConfigError(str(exc), file=str(path), key=exc.key) from None
+        raise ConfigError(str(exc), file=file, key=exc.key) from None
     except yaml.YAMLError as exc:
         mark = getattr(exc, "problem_mark", None)
         where = f"line {mark.line + 1}, column {mark.column + 1}: " if mark else ""
         problem = getattr(exc, "problem", None) or str(exc).splitlines()[0]
-        raise ConfigError(
-            f"{where}not valid YAML ({problem}); fix the syntax", file=str(path)
-        ) from None
+        raise ConfigError(f"{where}not valid YAML ({problem}); fix the syntax", file=file) from None
     if not isinstance(data, dict):
         raise ConfigError(
             f"the top level must be a mapping (key: value lines), got {_describe(data)}; "
             "start the file with 'name: ...' and the other top-level keys",
-            file=str(path),
+            file=file,
         )
     return data
 

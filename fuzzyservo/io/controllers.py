@@ -24,7 +24,7 @@ from pathlib import Path
 from fuzzyservo.controllers.base import Controller
 from fuzzyservo.controllers.classical import PI, PID_FORMS, PIDF, OpenLoop, P
 from fuzzyservo.errors import ConfigError
-from fuzzyservo.io._yaml import Node, read_yaml
+from fuzzyservo.io._yaml import Node, parse_yaml, read_yaml
 from fuzzyservo.io.fuzzy import KEYS, fuzzy_from_node
 
 _COMMON = ("name", "kind", "description", "source", "output_limits")
@@ -139,6 +139,40 @@ def _gain(
     return value
 
 
+def read_controller_data(path: str | Path) -> dict:
+    """The mapping of a controller file; a ``.fis`` becomes explicit terms and rule lines."""
+    if Path(path).suffix.lower() == ".fis":
+        from fuzzyservo.io.fis import controller_from_fis
+        from fuzzyservo.io.fuzzy import fuzzy_controller_data
+
+        return fuzzy_controller_data(controller_from_fis(path))
+    return read_yaml(path)
+
+
+def controller_data_from_text(text: str, filename: str) -> dict:
+    """The mapping of a controller file's text (an upload): ``.yaml``/``.yml`` or ``.fis``."""
+    suffix = Path(filename).suffix.lower()
+    if suffix == ".fis":
+        from fuzzyservo.controllers.fuzzy import FuzzyController
+        from fuzzyservo.io.fis import parse_fis
+        from fuzzyservo.io.fuzzy import fuzzy_controller_data
+
+        system = parse_fis(text, filename)
+        return fuzzy_controller_data(FuzzyController(system=system, name=system.name))
+    if suffix in (".yaml", ".yml"):
+        return parse_yaml(text, filename)
+    raise ConfigError("a controller file ends in .yaml or .fis", file=filename)
+
+
+def controller_yaml(data: dict) -> str:
+    """A controller mapping as the YAML text :func:`write_controller_file` writes."""
+    import yaml
+
+    return yaml.safe_dump(
+        _plain(data, ""), sort_keys=False, allow_unicode=True, default_flow_style=None, width=88
+    )
+
+
 def write_controller_file(data: dict, path: str | Path) -> Path:
     """Write a controller mapping as a controller file (UTF-8 YAML, keys in their order).
 
@@ -146,14 +180,9 @@ def write_controller_file(data: dict, path: str | Path) -> Path:
     ``repr`` round-trips, so the file rebuilds the same controller bit for bit); a
     non-finite number is a ``ValueError`` naming its key, since no controller file takes one.
     """
-    import yaml
-
     p = Path(path)
     p.parent.mkdir(parents=True, exist_ok=True)
-    text = yaml.safe_dump(
-        _plain(data, ""), sort_keys=False, allow_unicode=True, default_flow_style=None, width=88
-    )
-    p.write_text(text, encoding="utf-8")
+    p.write_text(controller_yaml(data), encoding="utf-8")
     return p
 
 

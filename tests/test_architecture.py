@@ -1,0 +1,100 @@
+"""The architecture, checked rather than remembered.
+
+The layers and forbidden imports are an import-linter contract in ``pyproject.toml``
+(``lint-imports`` runs in ``.ci/run``); what import-linter cannot express is here:
+
+- no module imports a private module (``_name``) of another subpackage: what two packages
+  share is promoted to a public module or the package's ``__init__``. Private modules of
+  the root package itself (``fuzzyservo._jit``) are the whole package's internals.
+- YAML is parsed and written only in ``fuzzyservo.io``;
+- no import cycles between subpackages.
+"""
+
+from __future__ import annotations
+
+import ast
+from pathlib import Path
+
+import pytest
+
+PACKAGE = Path(__file__).resolve().parent.parent / "fuzzyservo"
+
+
+def _modules() -> list[tuple[str, Path]]:
+    out = []
+    for path in sorted(PACKAGE.rglob("*.py")):
+        parts = path.relative_to(PACKAGE.parent).with_suffix("").parts
+        if parts[-1] == "__init__":
+            parts = parts[:-1]
+        out.append((".".join(parts), path))
+    return out
+
+
+def _imports(path: Path) -> list[tuple[int, str]]:
+    """Every module an import statement names (function-level ones included)."""
+    tree = ast.parse(path.read_text(encoding="utf-8"))
+    found = []
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Import):
+            found += [(node.lineno, alias.name) for alias in node.names]
+        elif isinstance(node, ast.ImportFrom) and node.module and node.level == 0:
+            found.append((node.lineno, node.module))
+            found += [(node.lineno, f"{node.module}.{a.name}") for a in node.names]
+    return found
+
+
+def _package(module: str) -> str:
+    return ".".join(module.split(".")[:2])
+
+
+def test_no_module_imports_another_packages_private_module() -> None:
+    offenders = []
+    for module, path in _modules():
+        for line, name in _imports(path):
+            parts = name.split(".")
+            if parts[0] != "fuzzyservo" or len(parts) < 3:
+                continue
+            private = next((i for i, p in enumerate(parts[2:], 2) if p.startswith("_")), None)
+            if private is None or parts[private].startswith("__"):
+                continue
+            if _package(name) != _package(module):
+                offenders.append(f"{path.relative_to(PACKAGE.parent)}:{line} imports {name}")
+    assert not offenders, "promote what is shared:\n" + "\n".join(offenders)
+
+
+def test_yaml_is_read_and_written_only_in_io() -> None:
+    offenders = [
+        f"{path.relative_to(PACKAGE.parent)}:{line}"
+        for module, path in _modules()
+        if not module.startswith("fuzzyservo.io")
+        for line, name in _imports(path)
+        if name == "yaml" or name.startswith("yaml.")
+    ]
+    assert not offenders, offenders
+
+
+def test_no_import_cycles_between_subpackages() -> None:
+    grimp = pytest.importorskip("grimp")  # comes with import-linter (the test extra)
+    graph = grimp.build_graph("fuzzyservo", exclude_type_checking_imports=True)
+    packages = sorted({_package(m) for m in graph.modules} - {"fuzzyservo"})
+    cycles = [
+        (a, b)
+        for i, a in enumerate(packages)
+        for b in packages[i + 1 :]
+        if graph.chain_exists(a, b, as_packages=True) and graph.chain_exists(b, a, as_packages=True)
+    ]
+    assert not cycles, cycles
+
+
+def test_no_import_cycles_between_modules() -> None:
+    """Module-level cycles (a package's ``__init__`` re-exporting its modules aside)."""
+    grimp = pytest.importorskip("grimp")
+    nx = pytest.importorskip("networkx")
+    graph = grimp.build_graph("fuzzyservo", exclude_type_checking_imports=True)
+    packages = {m for m in graph.modules if graph.find_children(m)}
+    edges = nx.DiGraph()
+    for module in graph.modules - packages:
+        for imported in graph.find_modules_directly_imported_by(module) - packages:
+            edges.add_edge(module, imported)
+    cycles = [sorted(c) for c in nx.strongly_connected_components(edges) if len(c) > 1]
+    assert not cycles, cycles

@@ -40,8 +40,6 @@ _LAZY = {
     "FuzzyDesign": ("fuzzyservo.controllers.fuzzy.design", "FuzzyDesign"),
     "Study": ("fuzzyservo.tuning.spec", "Study"),
     "Parameter": ("fuzzyservo.tuning.spec", "Parameter"),
-    "StudySpec": ("fuzzyservo.tuning.spec", "StudySpec"),
-    "ParamSpec": ("fuzzyservo.tuning.spec", "ParamSpec"),
     "Objective": ("fuzzyservo.tuning.spec", "Objective"),
     "simulate": ("fuzzyservo.simulation", "simulate"),
     "compare": ("fuzzyservo.simulation", "compare"),

@@ -67,10 +67,6 @@ class Parameter:
         return round(value) if self.integer else value
 
 
-#: the name this class had before studies were typed objects
-ParamSpec = Parameter
-
-
 #: constraint-only metrics computed by bisection on extra simulations (opt-in, costly)
 MARGIN_METRICS: tuple[str, ...] = ("gain_margin", "delay_margin_s")
 
@@ -235,10 +231,6 @@ class Study:
             given = ", ".join(f"{k} = {v:g}{where.get(k, '')}" for k, v in values.items())
             raise ValueError(f"with {given} the template is invalid: {exc}") from None
         return controller.renamed(name) if name else controller
-
-
-#: the name this class had before studies were typed objects
-StudySpec = Study
 
 
 STORAGE_SCHEMES = ("sqlite:///", "postgresql://", "postgres://", "postgresql+psycopg2://")

@@ -198,7 +198,7 @@ def _objective(spec: Study, evaluator: Evaluator):
             else:
                 params[p.path] = trial.suggest_float(p.path, p.low, p.high, log=p.log)
         try:
-            controller = evaluator.controller(params, name=f"trial{trial.number}")
+            controller = evaluator.controller(params)  # the template's name: no second build
         except ValueError as exc:  # a combination the template rejects: penalised, reason kept
             trial.set_user_attr("status", "invalid")
             trial.set_user_attr("message", str(exc))

@@ -101,13 +101,17 @@ def test_a_study_written_in_python_runs_resumes_and_reports(tmp_path: Path) -> N
         parameters=(Parameter("kp", 0.5, 8.0, log=True), Parameter("ki", 0.01, 20.0, log=True)),
         objective=Objective(weights={"settling_time_s": 1.0, "sse_abs": 1000.0}),
         baseline=P(gain=4.0, u_min=-10.0, u_max=10.0, name="p4"),
-        warm_start=({"kp": 4.0},),
+        warm_start=(PI(kp=4.0, ki=30.0).params(),),  # ki clipped to 20
         trials=3,
         seed=3,
     )
     storage = f"sqlite:///{tmp_path / 'lift.db'}"
     first = tune(study, tmp_path / "out", storage=storage, progress=False)
     assert first.trials_complete == 3 and first.best.status == "ok"
+    import optuna
+
+    stored = optuna.load_study(study_name="lift_in_code", storage=storage)
+    assert stored.trials[0].params == {"kp": 4.0, "ki": 20.0}  # the warm start, clipped
     assert first.storage_url == storage and not list((tmp_path / "out").iterdir())
     again = tune(study, tmp_path / "out", trials=5, storage=storage, progress=False)
     assert again.trials_complete == 5

@@ -133,8 +133,9 @@ class Study:
     it) or in Python; :func:`fuzzyservo.tuning.tune` runs and resumes either. Building
     one checks it: the scenarios exist in the rig and both bounds of every parameter
     make a valid controller (a :class:`ConfigError` naming the parameter otherwise).
-    ``warm_start``: first trials, each the searched numbers by name (clipped into their
-    ranges; a number left out is sampled).
+    ``warm_start``: first trials, each the searched numbers by name, e.g. a controller's
+    :meth:`~fuzzyservo.controllers.base.Controller.params` (clipped into their ranges; a
+    number not searched is ignored, one left out is sampled).
     """
 
     name: str
@@ -214,11 +215,10 @@ class Study:
                         file=file, key=f"parameters.{p.path}",
                     ) from None  # fmt: skip
         for n, start in enumerate(self.warm_start):
-            unknown = [k for k in start if k not in paths]
-            if unknown:
+            if not any(k in paths for k in start):
                 raise ValueError(
-                    f"warm_start[{n}]: {unknown[0]!r} is not searched; give numbers of "
-                    f"{', '.join(paths)}"
+                    f"warm_start[{n}]: none of the searched numbers ({', '.join(paths)}); "
+                    "give a point of this search space, e.g. a controller's params()"
                 )
 
     def trial_controller(self, values: Mapping[str, float], name: str = "") -> Controller:

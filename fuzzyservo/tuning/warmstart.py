@@ -33,7 +33,7 @@ def start_points(spec: Study) -> list[dict[str, float]]:
     """The study's warm-start points, each number clipped into its parameter's range."""
     by_name = {p.path: p for p in spec.parameters}
     return [
-        {name: by_name[name].clip(float(value)) for name, value in point.items()}
+        {name: by_name[name].clip(float(value)) for name, value in point.items() if name in by_name}
         for point in spec.warm_start
     ]
 

@@ -11,7 +11,7 @@ YAML, matplotlib nor optuna::
     result = simulate(rig, p_k10, "pulses")
 
 Rigs, controllers and studies can also be built in code (``compose_rig``, ``P``,
-``PI``, ``StudySpec``), then simulated, compared, tuned and calibrated
+``PI``, ``FuzzyDesign``, ``Study``), then simulated, compared, tuned and calibrated
 (``simulate``, ``compare``, ``tune``, ``calibrate``).
 """
 
@@ -37,8 +37,9 @@ _LAZY = {
     "PI": ("fuzzyservo.controllers.classical", "PI"),
     "PIDF": ("fuzzyservo.controllers.classical", "PIDF"),
     "FuzzyController": ("fuzzyservo.controllers.fuzzy", "FuzzyController"),
-    "StudySpec": ("fuzzyservo.tuning.spec", "StudySpec"),
-    "ParamSpec": ("fuzzyservo.tuning.spec", "ParamSpec"),
+    "FuzzyDesign": ("fuzzyservo.controllers.fuzzy.design", "FuzzyDesign"),
+    "Study": ("fuzzyservo.tuning.spec", "Study"),
+    "Parameter": ("fuzzyservo.tuning.spec", "Parameter"),
     "Objective": ("fuzzyservo.tuning.spec", "Objective"),
     "simulate": ("fuzzyservo.simulation", "simulate"),
     "compare": ("fuzzyservo.simulation", "compare"),

@@ -490,14 +490,14 @@ def cmd_tune(args: argparse.Namespace) -> int:
     if args.patience is not None or args.warm_start:
         import dataclasses
 
+        from fuzzyservo.io.studies import with_warm_start
+
         if args.patience is not None and args.patience < 1:
             raise ConfigError(f"--patience must be >= 1, got {args.patience}")
         warm = [str(resolve(w, "studies/controllers", "controller")) for w in args.warm_start]
-        spec = dataclasses.replace(
-            spec,
-            patience=args.patience if args.patience is not None else spec.patience,
-            warm_start=(*spec.warm_start, *warm),
-        )
+        spec = with_warm_start(spec, warm)
+        if args.patience is not None:
+            spec = dataclasses.replace(spec, patience=args.patience)
     out = _out_dir(args.out) or Path("out") / spec.name
     _out_dir(str(out))
     total = args.trials or spec.trials
@@ -515,14 +515,14 @@ def cmd_tune(args: argparse.Namespace) -> int:
         )
         return 130
     print(f"storage: {outcome.storage_url}")
-    from fuzzyservo.tuning.report import write_outputs
+    from fuzzyservo.io.study_report import write_outputs
 
     check = args.check_samples
     progress = None
     if spec.uncertainty is not None and check != 0:
         n = spec.uncertainty.samples if check is None else check
         print(f"checking the best against the baseline and the template on {n} fresh samples")
-        same = Path(spec.controller_file).resolve() == Path(spec.baseline_file).resolve()
+        same = spec.template == spec.baseline
         progress = _progress((2 if same else 3) * n, "check")  # best, baseline, template
     paths = write_outputs(
         outcome, out, check_samples=check, progress=progress.update if progress else None
@@ -608,9 +608,9 @@ def cmd_robustness(args: argparse.Namespace) -> int:
     spec = load_study(resolve(args.uncertainty, "studies", "study"))
     if spec.uncertainty is None:
         raise ConfigError("has no 'uncertainty:' section; name a robust study", file=spec.path)
-    if Path(spec.rig_file).resolve() != Path(rig.path).resolve():
+    if Path(spec.rig.path).resolve() != Path(rig.path).resolve():
         raise ConfigError(
-            f"samples {Path(spec.rig_file).stem}, not {rig.name}; name a study of this rig",
+            f"samples {spec.rig.name}, not {rig.name}; name a study of this rig",
             file=spec.path,
         )
     import dataclasses

@@ -8,13 +8,14 @@ import sys
 from pathlib import Path
 
 import numpy as np
+import pytest
 from support import DATA
 
 import fuzzyservo
 
 PUBLIC = (
     "Rig", "compose_rig", "load_rig", "P", "PI", "FuzzyController", "load_controller",
-    "StudySpec", "ParamSpec", "Objective", "load_study", "simulate", "compare", "tune",
+    "Study", "Parameter", "FuzzyDesign", "Objective", "load_study", "simulate", "compare", "tune",
     "calibrate", "read_measured", "result_metrics", "Scenario", "LinearSensor", "Actuator",
 )  # fmt: skip
 
@@ -85,19 +86,41 @@ def test_a_rig_built_in_code_runs_like_its_file(tmp_path: Path) -> None:
     assert list(runs) == ["p4", "p2"] and all(r.ok for r in runs.values())
 
 
-def test_a_study_built_in_code_tunes_a_rig_built_in_code(tmp_path: Path) -> None:
-    from fuzzyservo import Objective, ParamSpec, StudySpec, tune
+def test_a_study_written_in_python_runs_resumes_and_reports(tmp_path: Path) -> None:
+    """Issue 25: a study built from Python objects alone (no rig, controller or study
+    file; only the SQLite storage the user names) runs, resumes with its finished trials
+    kept, and reports like one read from a file."""
+    from fuzzyservo import PI, Objective, P, Parameter, Study, tune
+    from fuzzyservo.io.study_report import write_outputs
 
-    spec = StudySpec(
+    study = Study(
         name="lift_in_code",
-        rig_file=str(DATA / "rigs" / "servo_lift.yaml"),
+        rig=_lift_in_code(),
         scenarios=("steps",),
-        controller_file=str(DATA / "studies" / "controllers" / "pi_servo_lift.yaml"),
-        parameters=(ParamSpec("kp", 0.5, 8.0, log=True), ParamSpec("ki", 0.01, 20.0, log=True)),
+        template=PI(kp=1.0, ki=0.5, u_min=-10.0, u_max=10.0, name="pi_lift"),
+        parameters=(Parameter("kp", 0.5, 8.0, log=True), Parameter("ki", 0.01, 20.0, log=True)),
         objective=Objective(weights={"settling_time_s": 1.0, "sse_abs": 1000.0}),
-        baseline_file=str(DATA / "studies" / "controllers" / "p_servo_lift.yaml"),
-        trials=4,
+        baseline=P(gain=4.0, u_min=-10.0, u_max=10.0, name="p4"),
+        warm_start=(PI(kp=4.0, ki=30.0).params(),),  # ki clipped to 20
+        trials=3,
         seed=3,
     )
-    outcome = tune(spec, tmp_path / "out", rig=_lift_in_code(), progress=False)
-    assert outcome.best is not None
+    storage = f"sqlite:///{tmp_path / 'lift.db'}"
+    first = tune(study, tmp_path / "out", storage=storage, progress=False)
+    assert first.trials_complete == 3 and first.best.status == "ok"
+    import optuna
+
+    stored = optuna.load_study(study_name="lift_in_code", storage=storage)
+    assert stored.trials[0].params == {"kp": 4.0, "ki": 20.0}  # the warm start, clipped
+    assert first.storage_url == storage and not list((tmp_path / "out").iterdir())
+    again = tune(study, tmp_path / "out", trials=5, storage=storage, progress=False)
+    assert again.trials_complete == 5
+    before = {h["number"]: h["values"] for h in first.history}
+    assert all(h["values"] == before[h["number"]] for h in again.history if h["number"] in before)
+    assert len(before) == 3
+    paths = write_outputs(again, tmp_path / "report")
+    from fuzzyservo import load_controller
+
+    best = load_controller(paths["controller"])
+    assert best.params() == pytest.approx(again.best_params)
+    assert "lift_in_code" in paths["report"].read_text(encoding="utf-8")

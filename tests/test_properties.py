@@ -117,10 +117,10 @@ def test_study_loader_gives_a_study_or_one_line(mutation):
     import copy
 
     from fuzzyservo.io.studies import load_study
-    from fuzzyservo.tuning.spec import StudySpec
+    from fuzzyservo.tuning.spec import Study
 
     spec = _check_loader(load_study, _dump(_mutate(copy.deepcopy(STUDY), *mutation)))
-    assert spec is None or isinstance(spec, StudySpec)
+    assert spec is None or isinstance(spec, Study)
 
 
 CONTROLLERS = {

@@ -12,13 +12,11 @@ import yaml
 from support import DATA
 
 from fuzzyservo.errors import ConfigError
-from fuzzyservo.io._yaml import read_yaml
 from fuzzyservo.io.controllers import load_controller
 from fuzzyservo.io.studies import load_study
 from fuzzyservo.tuning.integrity import fingerprint
 from fuzzyservo.tuning.runner import build_evaluator
 from fuzzyservo.tuning.uncertainty import Distribution, Uncertainty, aggregate
-from fuzzyservo.tuning.warmstart import params_from
 
 ROBUST = DATA / "studies" / "dinca_robust.yaml"
 
@@ -147,7 +145,7 @@ def test_robust_value_is_the_worst_sample_and_margin_checks_count(tmp_path):
     asked = []
     pruned = evaluator.evaluate(flc2, report=lambda step, value: asked.append(value) or True)
     assert pruned.status == "pruned" and pruned.simulations == 1  # no margin check paid
-    steps_worst = evaluator._values(ev.scenario_metrics["steps"])[0]  # over both samples
+    steps_worst = evaluator.objective_values(ev.scenario_metrics["steps"])[0]  # over both samples
     assert len(asked) == 1 and 0 < asked[0] <= steps_worst <= ev.values[0]
     # not stopped: asked after each scenario and each sample, and never above the result
     asked.clear()
@@ -166,15 +164,21 @@ def test_fingerprint_covers_the_uncertainty(tmp_path):
     assert {k for k in a if a[k] != b[k]} == {"uncertainty"}
 
 
-def test_warm_start_reads_the_searched_numbers_of_a_controller():
+def test_warm_start_reads_the_searched_numbers_of_a_controller(tmp_path):
+    from fuzzyservo.io.studies import with_warm_start
+    from fuzzyservo.tuning.warmstart import start_points
+
     spec = load_study(ROBUST)
     file = DATA / "studies" / "controllers" / "flc2_reshaped.yaml"
-    params = params_from(spec, read_yaml(file), str(file))
+    spec = with_warm_start(spec, [str(file)])
+    (params,) = start_points(spec)
     assert set(params) == {p.path for p in spec.parameters} - {"gains.output"}  # left default
     for p in spec.parameters:
         assert p.path not in params or p.low <= params[p.path] <= p.high
+    other = tmp_path / "p.yaml"
+    other.write_text("kind: P\ngain: 10\n")
     with pytest.raises(ConfigError, match="has none of the searched numbers"):
-        params_from(spec, {"kind": "p", "gain": 10}, "p.yaml")
+        with_warm_start(spec, [str(other)])
 
 
 def test_robustness_command_table_json_and_bad_input(tmp_path, capsys):
@@ -229,10 +233,9 @@ def test_uncertainty_reads_fitted_intervals_from_a_calibrated_rig(tmp_path):
     for s in spec.uncertainty.draws:
         assert 1.4e9 <= s.values["bulk_modulus"] <= 1.6e9
         assert 20.0 <= s.values["coulomb_friction.force"] <= 40.0
-    from fuzzyservo.io.rigs import load_rig
     from fuzzyservo.tuning.robust import sample_rigs
 
-    drawn = sample_rigs(load_rig(spec.rig_file), spec)[0]
+    drawn = sample_rigs(spec.rig, spec)[0]
     assert drawn.effect_values("coulomb_friction")["force"] == pytest.approx(
         spec.uncertainty.draws[0].values["coulomb_friction.force"]
     )
@@ -281,7 +284,7 @@ def test_cold_cache_means_no_compiled_closed_loop(tmp_path, monkeypatch):
 def test_report_compares_best_baseline_and_template_nominal_and_monte_carlo(tmp_path):
     """A robust study's report: the tuned controller beside P K=10 and the template (FLC2)
     on the nominal plant and on fresh samples, each with its gain check."""
-    from fuzzyservo.tuning.report import _comparison_lines, comparison_controllers
+    from fuzzyservo.io.study_report import _comparison_lines, comparison_controllers
     from fuzzyservo.tuning.robust import CHECK_SEED, compare_controllers
 
     spec = dataclasses.replace(_small(tmp_path, samples=1), scenarios=("steps",))
@@ -305,11 +308,10 @@ def test_monte_carlo_in_batches_matches_one_by_one(tmp_path):
     run_sample and stable_at, one by one."""
     from fuzzyservo.analysis.margins import stable_at
     from fuzzyservo.analysis.robustness import monte_carlo, run_sample
-    from fuzzyservo.io.rigs import load_rig
     from fuzzyservo.tuning.robust import sample_rigs
 
     spec = _small(tmp_path, samples=3)
-    rig = load_rig(spec.rig_file)
+    rig = spec.rig
     rigs = sample_rigs(rig, spec)
     seeds = [d.noise_seed for d in spec.uncertainty.draws]
     names = ("p_k10", "flc2_reshaped")

@@ -30,7 +30,7 @@ from fuzzyservo.cli import main
 from fuzzyservo.errors import ConfigError
 from fuzzyservo.io.studies import load_study
 from fuzzyservo.tuning.runner import open_study
-from fuzzyservo.tuning.spec import ParamSpec
+from fuzzyservo.tuning.spec import Parameter
 
 
 def cheap_copy(tmp_path: Path, tag: str) -> tuple[Path, str]:
@@ -48,7 +48,7 @@ def cheap_copy(tmp_path: Path, tag: str) -> tuple[Path, str]:
 
 # --------------------------------------------------------------------------- fingerprint
 def _edited(spec, path: str, low: float, high: float):
-    params = tuple(ParamSpec(p.path, low, high) if p.path == path else p for p in spec.parameters)
+    params = tuple(Parameter(p.path, low, high) if p.path == path else p for p in spec.parameters)
     return dataclasses.replace(spec, parameters=params)
 
 
@@ -63,6 +63,30 @@ def test_edited_search_space_stops_naming_the_change(tmp_path):
     text = str(info.value)
     assert "search space (output.translate [0, 0.5] -> [2, 3])" in text, text
     assert "--out" in text and "\n" not in text
+
+
+def test_a_study_stored_before_typed_fingerprints_still_opens(tmp_path):
+    """Studies stored before the rig and template were hashed from their typed objects
+    (no scheme attribute) are checked on the parts hashed alike, then carry the new
+    fingerprint; a changed search space is still caught."""
+    from fuzzyservo.tuning.integrity import FINGERPRINT_ATTR, SCHEME, SCHEME_ATTR
+
+    study, _ = study_copy(tmp_path, "legacy")
+    spec = load_study(study)
+    url = sqlite_url(tmp_path, spec.name)
+
+    def make_legacy(stored) -> None:
+        old = dict(stored.user_attrs[FINGERPRINT_ATTR], rig="0" * 16, template="1" * 16)
+        stored.set_user_attr(FINGERPRINT_ATTR, old)
+        stored.set_user_attr(SCHEME_ATTR, None)
+
+    make_legacy(open_study(spec, url))
+    reopened = open_study(spec, url)  # adopts the new fingerprint
+    assert reopened.user_attrs[SCHEME_ATTR] == SCHEME
+    assert reopened.user_attrs[FINGERPRINT_ATTR]["rig"] != "0" * 16
+    make_legacy(reopened)
+    with pytest.raises(ConfigError, match="search space"):
+        open_study(_edited(spec, "output.translate", 2.0, 3.0), url)
 
 
 def test_edited_study_file_rerun_exits_2_with_one_line(tmp_path, capsys):

@@ -10,10 +10,9 @@ import yaml
 from support import DATA
 
 from fuzzyservo.errors import ConfigError
-from fuzzyservo.io.studies import load_study
+from fuzzyservo.io.studies import load_study, split_path
 from fuzzyservo.metrics import result_metrics
 from fuzzyservo.simulation import simulate
-from fuzzyservo.tuning.objective import set_path, split_path
 from fuzzyservo.tuning.runner import build_evaluator, run_study
 
 STUDIES = DATA / "studies"
@@ -57,12 +56,12 @@ def _bad_study(tmp_path: Path, **changes) -> Path:
         (
             {"parameters": {"input.increments[9]": {"low": 1, "high": 2}}},
             "parameters.input.increments[9]",
-            "no element",
+            "no searchable number",
         ),
         (
             {"parameters": {"kp": {"low": 1, "high": 2}}},
             "parameters.kp",
-            "key of kind PI, not fuzzy",
+            "no searchable number 'kp'",
         ),
         ({"objective": {"metric": "speed"}}, "objective", "unknown metric 'speed'"),
         ({"objective": {"metric": "iae", "weights": {"iae": 1}}}, "objective", "exactly one"),
@@ -93,15 +92,40 @@ def test_cli_rejects_a_bad_study_with_exit_2(tmp_path, capsys):
 
 def test_parameter_paths():
     assert split_path("input.increments[3]") == ["input", "increments", 3]
-    data = {"input": {"range": [-2, 2], "increments": [1, 1, 1]}, "gains": {}}
-    set_path(data, "input.increments[1]", 0.5)
-    set_path(data, "input.reshape", 2.0)  # a missing last key is added
-    set_path(data, "gains.output", 3.0)
-    assert data["input"]["increments"] == [1, 0.5, 1] and data["input"]["reshape"] == 2.0
-    with pytest.raises(ValueError, match="no list"):
-        set_path(data, "output.increments[2]", 1.0)
     with pytest.raises(ValueError, match="cannot read"):
         split_path("input..reshape")
+
+
+def test_a_trial_changes_the_design_through_its_own_api():
+    """A trial's numbers go through the template's ``with_params`` (no dict, no parse):
+    the template is untouched, the new design holds exactly the numbers given."""
+    from fuzzyservo.io.controllers import load_controller
+
+    flc = load_controller(STUDIES / "controllers" / "flc2_reshaped.yaml")
+    before = flc.params()
+    tuned = flc.with_params(**{"input.increments[1]": 0.5, "input.reshape": 2.0,
+                               "gains.output": 3.0})  # fmt: skip
+    assert flc.params() == before
+    after = tuned.params()
+    assert after["input.increments[1]"] == 0.5 and after["input.reshape"] == 2.0
+    assert tuned.output_gain == 3.0 and tuned.design.inputs[0].reshape == 2.0
+    assert {k for k in after if after[k] != before[k]} <= {
+        "input.increments[1]", "input.reshape", "gains.output"
+    }  # fmt: skip
+    with pytest.raises(ValueError, match=r"no searchable number 'output.increments\[9\]'"):
+        flc.with_params(**{"output.increments[9]": 1.0})
+    with pytest.raises(ValueError, match="increments must all be > 0"):
+        flc.with_params(**{"input.increments[2]": -1.0})
+    pi = load_controller(STUDIES / "controllers" / "pi_dinca.yaml")
+    assert pi.with_params(kp=2.5).kp == 2.5 and pi.params().keys() == {"kp", "ki"}
+
+
+def test_an_invalid_sampled_value_names_where_the_parameter_was_declared():
+    spec = load_study(STUDIES / "dinca_flc.yaml")
+    name = spec.parameters[0].path
+    with pytest.raises(ValueError) as info:
+        spec.trial_controller({name: -1.0})
+    assert f"dinca_flc.yaml: parameters.{name}" in str(info.value)
 
 
 def test_evaluator_scores_the_template_and_penalises_a_failed_run(dinca):

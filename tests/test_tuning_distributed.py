@@ -74,15 +74,15 @@ def _sqlalchemy(url: str) -> str:
 
 def study_copy(tmp_path: Path, tag: str) -> tuple[Path, str]:
     """studies/dinca_flc.yaml under a unique name in tmp_path, its files given as absolute paths."""
-    from fuzzyservo.io.studies import load_study
+    from fuzzyservo.io.paths import find_file
 
-    spec = load_study(STUDY)
     data = yaml.safe_load(STUDY.read_text(encoding="utf-8"))
     name = f"test_{tag}_{uuid.uuid4().hex[:10]}"
     data["name"] = name
-    data["rig"] = str(Path(spec.rig_file).resolve())
-    data["controller"] = str(Path(spec.controller_file).resolve())
-    data["baseline"] = str(Path(spec.baseline_file).resolve())
+    for key, folder, default in (("rig", "rigs", None), ("controller", "studies/controllers", None),
+                                 ("baseline", "studies/controllers", "p_k10")):  # fmt: skip
+        found = find_file(data.get(key, default), folder, key, relative_to=STUDY)
+        data[key] = str(Path(found).resolve())
     data.pop("storage", None)
     path = tmp_path / f"{name}.yaml"
     path.write_text(yaml.safe_dump(data, sort_keys=False), encoding="utf-8")

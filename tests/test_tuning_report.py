@@ -18,7 +18,7 @@ from support import DATA
 
 from fuzzyservo.io.controllers import load_controller, write_controller_file
 from fuzzyservo.io.studies import load_study
-from fuzzyservo.tuning.report import write_outputs
+from fuzzyservo.io.study_report import write_outputs
 from fuzzyservo.tuning.runner import build_evaluator, run_study
 
 SUMMARY_KEYS = {
@@ -176,7 +176,7 @@ def test_controller_file_writer_rejects_non_finite_numbers(tmp_path):
 
 
 def test_report_module_does_not_import_matplotlib():
-    code = "import sys, fuzzyservo.tuning.report; print('matplotlib' in sys.modules)"
+    code = "import sys, fuzzyservo.io.study_report; print('matplotlib' in sys.modules)"
     done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert done.stdout.strip() == "False"
 

@@ -25,6 +25,8 @@ class Controller:
     # (gain field, lower, upper): gains a controller file declares unknown (`fit: [lo, hi]`),
     # which calibration fits in a closed-loop replay; none by default
     unknowns: tuple[tuple[str, float, float], ...] = ()
+    #: the numbers a tuning study may search: name (as controller files write it) -> field
+    TUNABLE: ClassVar[dict[str, str]] = {}
 
     def pack(self, sample_time_s: float) -> tuple[np.ndarray, np.ndarray]:  # pragma: no cover
         raise NotImplementedError
@@ -42,6 +44,27 @@ class Controller:
     def with_gains(self, **gains: float) -> Controller:
         """The same controller with the named gain fields changed (e.g. ``kp=2.0``)."""
         return dataclasses.replace(self, **gains)
+
+    def params(self) -> dict[str, float]:
+        """The searchable numbers by name (:attr:`TUNABLE`), e.g. ``{"kp": 2.0, "ki": 0.5}``."""
+        return {name: float(getattr(self, f)) for name, f in self.TUNABLE.items()}
+
+    def with_params(self, **values: float) -> Controller:
+        """The same controller with the named searchable numbers changed (``kp=2.0``);
+        ``ValueError`` for a name it does not have or a value it cannot take."""
+        unknown = [name for name in values if name not in self.TUNABLE]
+        if unknown:
+            raise ValueError(
+                f"{self.name}: no searchable number {unknown[0]!r}; "
+                f"a {type(self).__name__} controller has {', '.join(self.TUNABLE) or 'none'}"
+            )
+        return dataclasses.replace(
+            self, **{self.TUNABLE[name]: float(v) for name, v in values.items()}
+        )
+
+    def renamed(self, name: str) -> Controller:
+        """The same controller under another name."""
+        return dataclasses.replace(self, name=name)
 
     def gain_bounds(self) -> dict[str, tuple[float, float]]:
         """Gain field -> (lower, upper) of the gains declared unknown."""

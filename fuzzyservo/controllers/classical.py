@@ -10,6 +10,7 @@ The error is ``e = r − y`` in the rig's feedback unit (volts on both seed rigs
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import ClassVar
 
 import numpy as np
 
@@ -103,6 +104,7 @@ class P(Controller):
     unknowns: tuple[tuple[str, float, float], ...] = ()
 
     kind = KIND_P
+    TUNABLE: ClassVar[dict[str, str]] = {"gain": "gain"}
     kernel = staticmethod(p_step)
 
     def pack(self, sample_time_s: float) -> tuple[np.ndarray, np.ndarray]:
@@ -131,6 +133,7 @@ class PI(Controller):
     unknowns: tuple[tuple[str, float, float], ...] = ()
 
     kind = KIND_PI
+    TUNABLE: ClassVar[dict[str, str]] = {"kp": "kp", "ki": "ki"}
     kernel = staticmethod(pi_step)
 
     def pack(self, sample_time_s: float) -> tuple[np.ndarray, np.ndarray]:
@@ -155,6 +158,12 @@ class PIDF(Controller):
     unknowns: tuple[tuple[str, float, float], ...] = ()
 
     kind = KIND_PIDF
+    TUNABLE: ClassVar[dict[str, str]] = {
+        "kp": "kp",
+        "ki": "ki",
+        "kd": "kd",
+        "filter_time": "filter_time_s",
+    }
     kernel = staticmethod(pidf_step)
 
     def __post_init__(self) -> None:

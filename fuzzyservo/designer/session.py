@@ -402,19 +402,17 @@ class Session:
 
     def trial_data(self, view: StudyView, trial: Trial) -> dict[str, Any]:
         """The controller mapping of a trial: the study's template with the trial's numbers."""
-        from fuzzyservo.io.studies import template_data
-        from fuzzyservo.tuning.objective import set_path
+        from fuzzyservo.io.controllers import controller_data
 
-        data = copy.deepcopy(template_data(view.spec))
-        for path, value in trial.params.items():
-            set_path(data, path, value)
-        data["name"] = f"{view.spec.name}_trial{trial.number}"
-        return data
+        name = f"{view.spec.name}_trial{trial.number}"
+        return controller_data(view.spec.trial_controller(trial.params, name))
 
     def compare_trials(self, view: StudyView, trials: list[Trial]) -> None:
         """Show these trials' controllers next to the edited one (replaces earlier ones)."""
         self.compared = {
-            f"#{t.number}": build(self.trial_data(view, t), view.spec.controller_file)
+            f"#{t.number}": view.spec.trial_controller(
+                t.params, f"{view.spec.name}_trial{t.number}"
+            )
             for t in trials
         }
 

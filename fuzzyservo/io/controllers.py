@@ -173,6 +173,36 @@ def controller_yaml(data: dict) -> str:
     )
 
 
+_KIND_OF = {OpenLoop: "open_loop", P: "P", PI: "PI", PIDF: "PIDF"}
+
+
+def controller_data(controller: Controller) -> dict:
+    """The mapping of a controller file that :func:`controller_from_data` turns back into
+    ``controller``: a fuzzy controller by its design when it has one (else term by term),
+    a classical one by its gains (an unknown gain as ``{value, fit}``)."""
+    from fuzzyservo.controllers.fuzzy.controller import FuzzyController
+    from fuzzyservo.io.fuzzy import design_data, fuzzy_controller_data
+
+    if isinstance(controller, FuzzyController):
+        if controller.design is not None:
+            return design_data(controller.design)
+        return fuzzy_controller_data(controller)
+    kind = _KIND_OF.get(type(controller))
+    if kind is None:
+        raise ValueError(f"no controller file holds a {type(controller).__name__}")
+    data: dict = {"name": controller.name, "kind": kind}
+    if isinstance(controller, PIDF):
+        data["form"] = controller.form
+    bounds = controller.gain_bounds()
+    tunable = {"gain": "gain"} if kind == "open_loop" else controller.TUNABLE
+    for key, field in tunable.items():
+        value = getattr(controller, field)
+        data[key] = {"value": value, "fit": list(bounds[field])} if field in bounds else value
+    if controller.has_limits:
+        data["output_limits"] = [controller.u_min, controller.u_max]
+    return data
+
+
 def write_controller_file(data: dict, path: str | Path) -> Path:
     """Write a controller mapping as a controller file (UTF-8 YAML, keys in their order).
 

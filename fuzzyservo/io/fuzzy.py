@@ -26,12 +26,14 @@ Rule lines: ``"NB -> NB"``, ``"NB and PS -> NM"``, ``"~Z or PB -> PS 0.5"`` (``~
 
 from __future__ import annotations
 
+import math
 import re
 
 from fuzzyservo.controllers.fuzzy.controller import FORMS, FuzzyController
 from fuzzyservo.controllers.fuzzy.design import (
     SEVEN_TERMS,
     UNIFORM_INCREMENTS,
+    FuzzyDesign,
     SevenTermDesign,
     identity_rules,
     macvicar_whelan,
@@ -87,7 +89,7 @@ def fuzzy_from_node(
     elif form == "pd":
         root.fail("form 'pd' needs a 'rate' input; add it")
     output = _variable(root.child("output"), "u", points)
-    rules = _rules(root, inputs, output)
+    rules = _rules(root, [_built(v) for v in inputs], _built(output))
     methods = root.child("methods", default={})
     methods.only(_METHODS)
     chosen = {}
@@ -110,36 +112,32 @@ def fuzzy_from_node(
     for k, v in gain_values.items():
         if v == 0:
             gains.fail("must not be zero; a zero gain disconnects the controller", key=k)
+    design = FuzzyDesign(
+        inputs=tuple(inputs),
+        output=output,
+        rules=rules,
+        form=form,
+        input_gain=gain_values["input"],
+        rate_gain=gain_values["rate"],
+        output_gain=gain_values["output"],
+        and_method=chosen["and"],
+        or_method=chosen["or"],
+        implication=chosen["implication"],
+        aggregation=chosen["aggregation"],
+        defuzzification=chosen["defuzzification"],
+        semantics=semantics,
+        sample_points=int(sample_points),
+        name=name,
+        description=description,
+        **limits,
+    )
     try:
-        system = FuzzySystem(
-            name=name,
-            inputs=tuple(inputs),
-            output=output,
-            rules=rules,
-            and_method=chosen["and"],
-            or_method=chosen["or"],
-            implication=chosen["implication"],
-            aggregation=chosen["aggregation"],
-            defuzzification=chosen["defuzzification"],
-            description=description,
-            semantics=semantics,
-            sample_points=int(sample_points),
-        )
-        return FuzzyController(
-            system=system,
-            form=form,
-            input_gain=gain_values["input"],
-            rate_gain=gain_values["rate"],
-            output_gain=gain_values["output"],
-            name=name,
-            description=description,
-            **limits,
-        )
+        return design.controller()
     except ValueError as exc:
         root.fail(f"{exc}")
 
 
-def _variable(node: Node, default_name: str, points: int) -> Variable:
+def _variable(node: Node, default_name: str, points: int) -> SevenTermDesign | Variable:
     node.only(_VAR_KEYS)
     name = node.str("name", default=default_name)
     lo_hi = node.numbers("range")
@@ -166,17 +164,18 @@ def _variable(node: Node, default_name: str, points: int) -> Variable:
     if not reshape > 0:
         node.fail(f"must be > 0 (1 leaves the terms as they are), got {reshape}", key="reshape")
     try:
-        return SevenTermDesign(
-            name,
-            low,
-            high,
-            tuple(increments),
-            reshape,
-            node.number("translate", default=0.0),
+        design = SevenTermDesign(
+            name, low, high, tuple(increments), reshape, node.number("translate", default=0.0),
             points,
-        ).variable()
+        )  # fmt: skip
+        design.variable()  # a problem of the terms fails here, at this variable's key
+        return design
     except ValueError as exc:
         node.fail(str(exc))
+
+
+def _built(var: SevenTermDesign | Variable) -> Variable:
+    return var.variable() if isinstance(var, SevenTermDesign) else var
 
 
 def _explicit(node: Node, name: str, low: float, high: float, points: int) -> Variable:
@@ -343,4 +342,56 @@ def fuzzy_controller_data(controller: FuzzyController) -> dict:
     }
     if controller.has_limits:
         data["output_limits"] = [controller.u_min, controller.u_max]
+    return data
+
+
+def design_data(design: FuzzyDesign) -> dict:
+    """The ``kind: fuzzy`` mapping of a design: seven-term variables by their range,
+    increments, reshape and translation, explicit ones term by term, rule lines.
+    :func:`fuzzyservo.io.controllers.controller_from_data` rebuilds the same controller."""
+    system = design.controller().system
+
+    def variable(var: SevenTermDesign | Variable) -> dict:
+        if isinstance(var, Variable):
+            return {
+                "name": var.name,
+                "range": [var.low, var.high],
+                "terms": {t.name: [t.shape, list(t.params)] for t in var.terms},
+            }
+        return {
+            "name": var.name,
+            "range": [var.low, var.high],
+            "increments": list(var.increments),
+            "reshape": var.reshape,
+            "translate": var.translate,
+        }
+
+    data: dict = {"name": design.name, "kind": "fuzzy", "form": design.form}
+    if design.description:
+        data["description"] = design.description
+    data |= {slot: variable(var) for slot, var in design.slots().items()}
+    if len(design.inputs) == 1 and design.rules == identity_rules(len(system.output.terms)):
+        data["rules"] = "identity"
+    elif design.rules == table_rules(macvicar_whelan()):
+        data["rules"] = "macvicar_whelan"
+    else:
+        data["rules"] = [rule_text(system, r) for r in system.rules]
+    data["methods"] = {
+        "and": design.and_method,
+        "or": design.or_method,
+        "implication": design.implication,
+        "aggregation": design.aggregation,
+        "defuzzification": design.defuzzification,
+    }
+    data["points"] = design.output.points
+    data["semantics"] = design.semantics
+    if design.semantics == "matlab":
+        data["sample_points"] = design.sample_points
+    data["gains"] = {
+        "input": design.input_gain,
+        "rate": design.rate_gain,
+        "output": design.output_gain,
+    }
+    if math.isfinite(design.u_min) and math.isfinite(design.u_max):
+        data["output_limits"] = [design.u_min, design.u_max]
     return data

@@ -1,4 +1,9 @@
-"""Study files (YAML) to :class:`~fuzzyservo.tuning.spec.StudySpec`.
+"""Study files (YAML) to :class:`~fuzzyservo.tuning.spec.Study`, parsed once.
+
+The rig, the controller template, the baseline and the warm-start controllers are read
+here; the study then holds them as typed objects (nothing in ``tuning`` reads a file).
+Each searched parameter keeps where it was declared (``file: parameters.<name>``) for
+the messages of a trial whose sampled numbers make no controller.
 
 name: dinca_flc
 description: ...
@@ -40,12 +45,15 @@ uncertainty:                       # optional: tune on sampled plants (tuning/un
 from __future__ import annotations
 
 import math
+import re
 from pathlib import Path
 from typing import Any
 
 from fuzzyservo.errors import ConfigError
 from fuzzyservo.io._yaml import Node, read_yaml
+from fuzzyservo.io.controllers import load_controller
 from fuzzyservo.io.paths import find_file
+from fuzzyservo.io.rigs import load_rig
 from fuzzyservo.metrics import METRIC_NAMES
 from fuzzyservo.tuning.spec import (
     AGGREGATES,
@@ -53,8 +61,8 @@ from fuzzyservo.tuning.spec import (
     SAMPLERS,
     Constraint,
     Objective,
-    ParamSpec,
-    StudySpec,
+    Parameter,
+    Study,
 )
 
 _TOP = (
@@ -65,7 +73,7 @@ _TOP = (
 DEFAULT_BASELINE = "p_k10"
 
 
-def load_study(path: str | Path) -> StudySpec:
+def load_study(path: str | Path) -> Study:
     """Read and validate a study file; every problem is one :class:`ConfigError` line."""
     file = str(path)
     root = Node(read_yaml(path), file)
@@ -107,8 +115,9 @@ def load_study(path: str | Path) -> StudySpec:
             node.fail("'log' and 'int' must be true or false")
         try:
             params.append(
-                ParamSpec(str(path_key), node.number("low"), node.number("high"), log, integer)
-            )
+                Parameter(str(path_key), node.number("low"), node.number("high"), log, integer,
+                          where=f"{file}: {pnode.path(str(path_key))}")
+            )  # fmt: skip
         except ValueError as exc:
             node.fail(str(exc).split(": ", 1)[-1])
 
@@ -177,21 +186,18 @@ def load_study(path: str | Path) -> StudySpec:
         except ConfigError as exc:
             root.fail(f"{exc.detail} (looked beside the study and under studies/controllers/)",
                       key=f"warm_start[{n}]")  # fmt: skip
+    rig = load_rig(files["rig"])
     uncertainty = None
     if root.has("uncertainty"):
-        from fuzzyservo.io.rigs import load_rig
-
-        uncertainty = _uncertainty(
-            root.child("uncertainty"), load_rig(files["rig"]), tuple(scenarios)
-        )
+        uncertainty = _uncertainty(root.child("uncertainty"), rig, tuple(scenarios))
     try:
-        spec = StudySpec(
+        return Study(
             name=root.name("name", default=here.stem),
             description=root.str("description", default=""),
-            rig_file=files["rig"],
+            rig=rig,
             scenarios=tuple(scenarios),
-            controller_file=files["controller"],
-            baseline_file=files["baseline"],
+            template=load_controller(files["controller"]),
+            baseline=load_controller(files["baseline"]),
             parameters=tuple(params),
             objective=objective,
             constraints=tuple(constraints),
@@ -206,12 +212,65 @@ def load_study(path: str | Path) -> StudySpec:
             uncertainty=uncertainty,
             workers=int(workers),
             patience=patience,
-            warm_start=tuple(warm_files),
+            warm_start=tuple(warm_start_point(params, w) for w in warm_files),
         )
+    except ConfigError:
+        raise
     except ValueError as exc:
         raise ConfigError(str(exc), file=file) from None
-    check_against_files(spec)
-    return spec
+
+
+_STEP = re.compile(r"([^.\[\]]+)|\[(\d+)\]")
+
+
+def split_path(path: str) -> list[str | int]:
+    """``'input.increments[3]'`` → ``['input', 'increments', 3]``: where a searched number
+    sits in a controller file."""
+    parts: list[str | int] = []
+    for name, index in _STEP.findall(path):
+        parts.append(int(index) if index else name)
+    rebuilt = "".join(f"[{p}]" if isinstance(p, int) else f".{p}" for p in parts).lstrip(".")
+    if not parts or rebuilt != path:
+        raise ValueError(
+            f"cannot read parameter path {path!r}; write it like 'input.reshape' or 'input.increments[3]'"
+        )
+    return parts
+
+
+def _number_at(data: Any, path: str) -> float | None:
+    """The number a controller file writes at ``path``, or None when it writes none."""
+    node = data
+    for part in split_path(path):
+        try:
+            node = node[part]
+        except (KeyError, IndexError, TypeError):
+            return None
+    if isinstance(node, bool) or not isinstance(node, int | float):
+        return None
+    return float(node)
+
+
+def warm_start_point(parameters: tuple[Parameter, ...] | list[Parameter], file: str) -> dict:
+    """The searched numbers a controller file writes (a warm start of the study): one it
+    leaves at its default (e.g. no ``gains:``) is left to the sampler; a file with none
+    of them is no warm start of this study (:class:`ConfigError`)."""
+    data = read_yaml(file)
+    point = {p.path: v for p in parameters if (v := _number_at(data, p.path)) is not None}
+    if not point:
+        raise ConfigError(
+            f"has none of the searched numbers ({', '.join(p.path for p in parameters)}); "
+            "warm-start from a controller of the study's template's kind",
+            file=file,
+        )
+    return point
+
+
+def with_warm_start(study: Study, files: list[str]) -> Study:
+    """``study`` with the controller ``files`` as further warm-start points."""
+    import dataclasses
+
+    points = tuple(warm_start_point(study.parameters, f) for f in files)
+    return dataclasses.replace(study, warm_start=(*study.warm_start, *points))
 
 
 _DIST_KEYS = ("uniform", "normal", "log-uniform", "interval")
@@ -419,40 +478,3 @@ def _objective(node: Node) -> Objective:
         if m not in METRIC_NAMES:
             node.fail(f"unknown metric {m!r}; choose one of {', '.join(METRIC_NAMES)}")
     return Objective(weights=weights, pareto=pareto, normalize=normalize)
-
-
-def check_against_files(spec: StudySpec) -> None:
-    """Scenarios exist in the rig; every parameter path exists in the template and its bounds
-    build a valid controller (so a typo fails now, not at trial 1)."""
-    from fuzzyservo.io.controllers import controller_from_data
-    from fuzzyservo.io.rigs import load_rig
-    from fuzzyservo.tuning.objective import set_path
-
-    rig = load_rig(spec.rig_file)
-    for n, name in enumerate(spec.scenarios):
-        if name not in rig.scenarios:
-            raise ConfigError(
-                f"unknown scenario {name!r}; {Path(spec.rig_file).name} has {', '.join(rig.scenarios)}",
-                file=spec.path, key=f"scenarios[{n}]",
-            )  # fmt: skip
-    template = template_data(spec)
-    import copy
-
-    for param in spec.parameters:
-        for value in (param.low, param.high):
-            data = copy.deepcopy(template)
-            try:
-                set_path(data, param.path, value)
-                controller_from_data(data, spec.controller_file)
-            except (ValueError, ConfigError) as exc:
-                detail = exc.detail if isinstance(exc, ConfigError) else str(exc)
-                where = f" ({exc.key})" if isinstance(exc, ConfigError) and exc.key else ""
-                raise ConfigError(
-                    f"with {param.path} = {value:g} the template is invalid{where}: {detail}",
-                    file=spec.path, key=f"parameters.{param.path}",
-                ) from None  # fmt: skip
-
-
-def template_data(spec: StudySpec) -> dict[str, Any]:
-    """The controller template's mapping (the file's YAML)."""
-    return read_yaml(spec.controller_file)

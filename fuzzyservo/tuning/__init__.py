@@ -1,4 +1,9 @@
-"""Tuning studies: a study spec, the trial objective, and the Optuna runner (the only optuna user)."""
+"""Tuning studies: a typed study, the trial objective, and the Optuna runner (the only optuna user).
+
+A study is a :class:`~fuzzyservo.tuning.spec.Study`, built in Python or read from a study
+file by :func:`fuzzyservo.io.studies.load_study`; :func:`tune` runs or resumes it and
+:func:`fuzzyservo.io.study_report.write_outputs` writes its report.
+"""
 
 from __future__ import annotations
 
@@ -8,7 +13,7 @@ from typing import TYPE_CHECKING
 if TYPE_CHECKING:
     from fuzzyservo.rig import Rig
     from fuzzyservo.tuning.runner import Outcome
-    from fuzzyservo.tuning.spec import StudySpec
+    from fuzzyservo.tuning.spec import Study
 
 #: the shipped study the README's first command runs: `tune`'s default, the one the
 #: designer opens first, and the uncertainty `robustness` samples by default
@@ -16,28 +21,28 @@ MAIN_STUDY = "dinca_robust"
 
 
 def tune(
-    study: StudySpec | str | Path,
+    study: Study,
     out_dir: str | Path | None = None,
     *,
     trials: int | None = None,
     workers: int = 1,
     rig: Rig | None = None,
+    storage: str | None = None,
     progress: bool = True,
 ) -> Outcome:
-    """Run (or resume) a study: a :class:`StudySpec` built in code or a study file.
+    """Run (or resume: finished trials are kept, only the rest run) a :class:`Study`.
 
-    Results and the Optuna storage go to ``out_dir`` (default ``out/<study name>``);
-    ``rig`` tunes on a rig built in code instead of the study's rig file (one worker).
-    Write the report with :func:`fuzzyservo.tuning.report.write_outputs`.
+    The Optuna storage is ``storage`` (an SQLAlchemy URL: ``sqlite:///path.db``,
+    ``postgresql://…``), else the study's ``storage``, else SQLite in ``out_dir`` (default
+    ``out/<study name>``); ``rig`` tunes on another rig than the study's own. Write the
+    report with :func:`fuzzyservo.io.study_report.write_outputs`.
     """
     from fuzzyservo.tuning.runner import run_study
 
-    if not hasattr(study, "parameters"):
-        from fuzzyservo.io.studies import load_study
-
-        study = load_study(study)
     out = Path(out_dir) if out_dir is not None else Path("out") / study.name
-    return run_study(study, out, trials=trials, workers=workers, progress=progress, rig=rig)
+    return run_study(
+        study, out, trials=trials, storage=storage, workers=workers, progress=progress, rig=rig
+    )
 
 
 __all__ = ["tune"]

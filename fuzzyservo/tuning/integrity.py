@@ -2,7 +2,7 @@
 
 * **Fingerprint**: what decides a trial's value (the rig, the scenarios, the controller
   template, the search space, the objective with its constraints and aggregation, the
-  uncertainty) is stored in the Optuna study's user attributes when it is created. Opening
+  uncertainty; rig and controllers by the numbers their typed objects hold) is stored in the Optuna study's user attributes when it is created. Opening
   the study with an edited definition stops with one line naming what changed, instead of
   mixing old and new trials (a reported best outside the new search range).
 * **Unique proposals**: each trial's sampler is seeded from the study seed and the
@@ -25,14 +25,14 @@ import signal
 import sys
 import threading
 import time
-from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from fuzzyservo.errors import ConfigError
 
 if TYPE_CHECKING:
+    from fuzzyservo.controllers.base import Controller
     from fuzzyservo.rig import Rig
-    from fuzzyservo.tuning.spec import StudySpec
+    from fuzzyservo.tuning.spec import Study
 
 FINGERPRINT_ATTR = "fingerprint"
 DEFINITION_ATTR = "definition"
@@ -40,26 +40,29 @@ PARTS = ("rig", "scenarios", "template", "search space", "objective", "uncertain
 
 
 # --------------------------------------------------------------------------- fingerprint
-def _file_data(path: str) -> Any:
-    """A YAML file's content (comments and layout do not count); the bytes otherwise."""
-    from fuzzyservo.io._yaml import read_yaml
-
-    try:
-        return read_yaml(path)
-    except (ConfigError, ValueError, OSError):
-        try:
-            return hashlib.sha256(Path(path).read_bytes()).hexdigest()
-        except OSError:
-            return str(path)
+#: how the definition's parts are written: 2 from the study's typed objects (rig,
+#: template and baseline by their numbers); studies stored before carry no scheme and
+#: had the rig, template and baseline hashed from their files' content
+SCHEME = 2
+SCHEME_ATTR = "fingerprint_scheme"
+#: the parts whose writing scheme 2 kept: what an older study is still checked on
+_KEPT = ("scenarios", "search space", "uncertainty")
 
 
 def _rig_data(rig: Rig) -> str:
-    """A rig built in code: the numbers that make it (its parameters, sensor, actuator, timing)."""
+    """The numbers that make a rig: parameters, sensor, actuator, timing, scenarios."""
+    scenarios = [repr(rig.scenarios[name]) for name in sorted(rig.scenarios)]
     return repr((rig.params, rig.feedback, rig.actuator, rig.sample_time_s, rig.io_delay_s,
-                 sorted(rig.scenarios)))  # fmt: skip
+                 rig.output, sorted(rig.initial.items()), rig.effects, scenarios))  # fmt: skip
 
 
-def definition(spec: StudySpec, rig: Rig | None = None) -> dict[str, Any]:
+def _controller_data(controller: Controller) -> str:
+    """The numbers that make a controller (a fuzzy one's design when it has one)."""
+    design = getattr(controller, "design", None)
+    return repr(design if design is not None else controller)
+
+
+def definition(spec: Study) -> dict[str, Any]:
     """The study's definition, part by part, as plain JSON-able data."""
     objective = {
         "weights": dict(spec.objective.weights),
@@ -70,12 +73,12 @@ def definition(spec: StudySpec, rig: Rig | None = None) -> dict[str, Any]:
         "penalty": spec.penalty,
     }
     if spec.objective.normalize == "baseline":
-        objective["baseline"] = _digest(_file_data(spec.baseline_file))
-    uncertainty = getattr(spec, "uncertainty", None)
+        objective["baseline"] = _digest(_controller_data(spec.baseline))
+    uncertainty = spec.uncertainty
     return {
-        "rig": _digest(_rig_data(rig) if rig is not None else _file_data(spec.rig_file)),
+        "rig": _digest(_rig_data(spec.rig)),
         "scenarios": list(spec.scenarios),
-        "template": _digest(_file_data(spec.controller_file)),
+        "template": _digest(_controller_data(spec.template)),
         "search space": {
             p.path: [p.low, p.high, "log" if p.log else "linear", "int" if p.integer else "float"]
             for p in spec.parameters
@@ -90,9 +93,9 @@ def _digest(data: Any) -> str:
     return hashlib.sha256(text.encode()).hexdigest()[:16]
 
 
-def fingerprint(spec: StudySpec, rig: Rig | None = None) -> dict[str, str]:
+def fingerprint(spec: Study) -> dict[str, str]:
     """A short hash per part of the definition (:data:`PARTS`)."""
-    return {part: _digest(value) for part, value in definition(spec, rig).items()}
+    return {part: _digest(value) for part, value in definition(spec).items()}
 
 
 def _changes(old: dict[str, Any], new: dict[str, Any], stored: dict[str, str]) -> list[str]:
@@ -130,18 +133,26 @@ def _short(value: Any) -> str:
     return text if len(text) <= 40 else text[:37] + "..."
 
 
-def check_definition(study: Any, spec: StudySpec, url: str, rig: Rig | None = None) -> None:
+def check_definition(study: Any, spec: Study, url: str) -> None:
     """Store the definition's fingerprint in a study that has none; raise :class:`ConfigError`
-    (one line: what changed, how to start anew) when the stored one differs."""
-    current = fingerprint(spec, rig)
+    (one line: what changed, how to start anew) when the stored one differs. A study
+    stored before :data:`SCHEME` is checked on the parts written alike (:data:`_KEPT`)
+    and then carries the new fingerprint."""
+    current = fingerprint(spec)
     stored = study.user_attrs.get(FINGERPRINT_ATTR)
+    if stored is not None and study.user_attrs.get(SCHEME_ATTR) != SCHEME:
+        if all(stored.get(part) == current[part] for part in _KEPT):
+            stored = None  # nothing comparable changed: adopt the new fingerprint
+        else:
+            stored = {**current, **{part: stored.get(part) for part in _KEPT}}
     if stored is None:
         study.set_user_attr(FINGERPRINT_ATTR, current)
-        study.set_user_attr(DEFINITION_ATTR, definition(spec, rig))
+        study.set_user_attr(DEFINITION_ATTR, definition(spec))
+        study.set_user_attr(SCHEME_ATTR, SCHEME)
         return
     if stored == current:
         return
-    changed = _changes(study.user_attrs.get(DEFINITION_ATTR, {}), definition(spec, rig), stored)
+    changed = _changes(study.user_attrs.get(DEFINITION_ATTR, {}), definition(spec), stored)
     where = url
     fix = "give another --out folder (a new study), or delete the old study's folder"
     if url.startswith("sqlite:///"):

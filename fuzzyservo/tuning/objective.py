@@ -1,146 +1,50 @@
-"""A trial's work: put the proposed numbers into the template, simulate every scenario, score.
+"""A trial's work: turn the proposed numbers into a controller, simulate every scenario, score.
 
 Pure of Optuna: :class:`Evaluator` maps a parameter dictionary to an :class:`Evaluation`,
-so a study, a test and the report all score a controller the same way.
+so a study, a test and the report all score a controller the same way. The controller
+comes from the study's template through its own ``with_params``
+(:meth:`~fuzzyservo.tuning.spec.Study.trial_controller`): no dictionaries, no re-parsing.
 """
 
 from __future__ import annotations
 
-import copy
 import dataclasses
 import math
-import re
 import time
-from dataclasses import dataclass, field
-from typing import Any
 
 from fuzzyservo.controllers.base import Controller
 from fuzzyservo.metrics import METRIC_NAMES, result_metrics
 from fuzzyservo.rig import Rig
 from fuzzyservo.simulation import SimResult, simulate
-from fuzzyservo.tuning.spec import MARGIN_METRICS, Constraint, StudySpec
-
-_STEP = re.compile(r"([^.\[\]]+)|\[(\d+)\]")
-
-
-def split_path(path: str) -> list[str | int]:
-    """``'input.increments[3]'`` → ``['input', 'increments', 3]``."""
-    parts: list[str | int] = []
-    for name, index in _STEP.findall(path):
-        parts.append(int(index) if index else name)
-    rebuilt = "".join(f"[{p}]" if isinstance(p, int) else f".{p}" for p in parts).lstrip(".")
-    if not parts or rebuilt != path:
-        raise ValueError(
-            f"cannot read parameter path {path!r}; write it like 'input.reshape' or 'input.increments[3]'"
-        )
-    return parts
-
-
-def set_path(data: dict[str, Any], path: str, value: float) -> None:
-    """Set a number inside a template mapping; a missing last key is added, anything else must exist."""
-    parts = split_path(path)
-    node: Any = data
-    for depth, part in enumerate(parts[:-1]):
-        nxt = parts[depth + 1]
-        where = path_text(parts[: depth + 1])
-        if isinstance(part, int):
-            if not isinstance(node, list) or part >= len(node):
-                raise ValueError(f"{path}: the template has no element {where}")
-            node = node[part]
-            continue
-        if not isinstance(node, dict):
-            raise ValueError(f"{path}: {where} is not a mapping in the template")
-        if part not in node:
-            if isinstance(nxt, int):
-                raise ValueError(
-                    f"{path}: the template has no list {where}; write the whole list in the template"
-                )
-            node[part] = {}
-        node = node[part]
-    last = parts[-1]
-    if isinstance(last, int):
-        if not isinstance(node, list) or last >= len(node):
-            raise ValueError(f"{path}: the template's list has no element [{last}]")
-        if not isinstance(node[last], int | float):
-            raise ValueError(f"{path}: the template holds {node[last]!r} there, not a number")
-        node[last] = value
-        return
-    if not isinstance(node, dict):
-        raise ValueError(f"{path}: the parent of {last!r} is not a mapping in the template")
-    if last in node and (isinstance(node[last], bool) or not isinstance(node[last], int | float)):
-        raise ValueError(f"{path}: the template holds {node[last]!r} there, not a number")
-    node[last] = value
-
-
-def path_text(parts: list[str | int]) -> str:
-    return "".join(f"[{p}]" if isinstance(p, int) else f".{p}" for p in parts).lstrip(".")
-
-
-@dataclass(frozen=True)
-class Evaluation:
-    """A controller scored on the study's scenarios."""
-
-    values: tuple[float, ...]
-    metrics: dict[str, float]
-    scenario_metrics: dict[str, dict[str, float]]
-    violations: tuple[float, ...]
-    status: str
-    message: str = ""
-    sim_time_s: float = 0.0
-    results: dict[str, SimResult] = field(default_factory=dict, repr=False)
-    simulations: int = 0  # runs it took (robust studies count them; 0: not counted)
-
-    @property
-    def feasible(self) -> bool:
-        return self.status == "ok" and all(v <= 0 for v in self.violations)
+from fuzzyservo.tuning.evaluation import Evaluation
+from fuzzyservo.tuning.robust import evaluate_samples, sample_rigs
+from fuzzyservo.tuning.spec import MARGIN_METRICS, Constraint, Study
 
 
 class Evaluator:
-    """Scores controllers built from the template for one study."""
+    """Scores controllers built from the template for one study (``spec``)."""
 
-    def __init__(
-        self,
-        spec: StudySpec,
-        rig: Rig,
-        template: dict[str, Any],
-        baseline: Controller,
-    ):
-        from fuzzyservo.io.controllers import controller_from_data
-
+    def __init__(self, spec: Study):
         self.spec = spec
-        self.rig = rig
-        self.template = template
-        self._build = controller_from_data
-        self.baseline = baseline
+        self.rig: Rig = spec.rig
+        self.baseline: Controller = spec.baseline
         self.scale: dict[str, float] = {m: 1.0 for m in spec.objective.metrics}
         self.sample_rigs: list[Rig] = []
         if spec.uncertainty is not None:  # a robust study: every trial on the same samples
-            from fuzzyservo.tuning.robust import sample_rigs
-
-            self.sample_rigs = sample_rigs(rig, spec)
-        self.baseline_evaluation = self.evaluate(baseline, keep_results=True)
+            self.sample_rigs = sample_rigs(self.rig, spec)
+        self.baseline_evaluation = self.evaluate(self.baseline, keep_results=True)
         if spec.objective.normalize == "baseline":
             base = self.baseline_evaluation
             for m in spec.objective.metrics:
                 v = base.metrics.get(m, math.nan)
                 self.scale[m] = v if math.isfinite(v) and v > 0 else 1.0
-            self.baseline_evaluation = dataclasses.replace(base, values=self._values(base.metrics))
-
-    def data(self, params: dict[str, float]) -> dict[str, Any]:
-        """The template mapping with the parameters filled in."""
-        data = copy.deepcopy(self.template)
-        for path, value in params.items():
-            set_path(data, path, value)
-        data["name"] = f"{self.spec.name}_best"
-        return data
+            self.baseline_evaluation = dataclasses.replace(
+                base, values=self.objective_values(base.metrics)
+            )
 
     def controller(self, params: dict[str, float], name: str | None = None) -> Controller:
-        data = self.data(params)
-        if name:
-            data["name"] = name
-        return self._build(
-            data, f"{self.spec.controller_file} (with {', '.join(params) or 'no changes'})"
-        )
+        """The template with the trial's ``params`` (``ValueError`` when they make none)."""
+        return self.spec.trial_controller(params, name or "")
 
     def evaluate(
         self, controller: Controller, *, keep_results: bool = False, report=None
@@ -149,8 +53,6 @@ class Evaluator:
         (on every sampled plant for a study with ``uncertainty``: tuning/robust.py)."""
         spec = self.spec
         if spec.uncertainty is not None:
-            from fuzzyservo.tuning.robust import evaluate_samples
-
             return evaluate_samples(self, controller, keep_results=keep_results, report=report)
         t0 = time.perf_counter()
         per: dict[str, dict[str, float]] = {}
@@ -173,7 +75,7 @@ class Evaluator:
                 metrics[m] = max(vals)
             else:
                 metrics[m] = sum(vals) / len(vals)
-        values = self._values(metrics)
+        values = self.objective_values(metrics)
         margin_constraints = [c for c in spec.constraints if c.metric in MARGIN_METRICS]
         if status == "ok" and margin_constraints and self._worth_margins(metrics, values):
             metrics.update(
@@ -211,7 +113,8 @@ class Evaluator:
             return True
         return values[0] <= base.values[0]
 
-    def _values(self, metrics: dict[str, float]) -> tuple[float, ...]:
+    def objective_values(self, metrics: dict[str, float]) -> tuple[float, ...]:
+        """The study's objective value(s) of a set of metrics."""
         obj = self.spec.objective
         if obj.pareto:
             return tuple(metrics[m] for m in obj.pareto)

@@ -16,7 +16,6 @@ import math
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
 
 from fuzzyservo.analysis.margins import stable_at
 from fuzzyservo.analysis.robustness import (
@@ -32,13 +31,12 @@ from fuzzyservo.controllers.base import Controller
 from fuzzyservo.metrics import METRIC_NAMES
 from fuzzyservo.rig import Rig
 from fuzzyservo.simulation import simulate
+from fuzzyservo.tuning.evaluation import Evaluation, Scorer
+from fuzzyservo.tuning.spec import Study
 from fuzzyservo.tuning.uncertainty import aggregate, sample_rig
 
-if TYPE_CHECKING:
-    from fuzzyservo.tuning.objective import Evaluation, Evaluator
 
-
-def sample_rigs(rig: Rig, spec) -> list[Rig]:
+def sample_rigs(rig: Rig, spec: Study) -> list[Rig]:
     """The study's drawn plants (the same for every trial: common random numbers)."""
     u = spec.uncertainty
     return [sample_rig(rig, u.parameters, s) for s in u.draws]
@@ -63,7 +61,7 @@ def _margin_bounds(spec) -> tuple[float | None, float | None]:
 
 
 def evaluate_samples(
-    evaluator: Evaluator,
+    evaluator: Scorer,
     controller: Controller,
     *,
     keep_results: bool = False,
@@ -75,8 +73,6 @@ def evaluate_samples(
     the scenarios too are aggregated by their worst and no weight is negative, it is also
     asked after each scenario of a sample (shortest scenario first), so a lost trial stops
     after one run instead of one per scenario."""
-    from fuzzyservo.tuning.objective import Evaluation
-
     spec = evaluator.spec
     u = spec.uncertainty
     gain, delay = _margin_bounds(spec)
@@ -91,10 +87,12 @@ def evaluate_samples(
     for sample, rig in zip(u.draws, evaluator.sample_rigs, strict=True):
         stop = None
         if within:
-            before = max((evaluator._values(r.metrics)[0] for r in runs), default=-math.inf)
+            before = max(
+                (evaluator.objective_values(r.metrics)[0] for r in runs), default=-math.inf
+            )
 
             def stop(partial, k=sample.index, before=before) -> bool:
-                value = max(before, evaluator._values(partial)[0])
+                value = max(before, evaluator.objective_values(partial)[0])
                 return math.isfinite(value) and report(k, value)
 
         run = run_sample(
@@ -103,7 +101,7 @@ def evaluate_samples(
         )  # fmt: skip
         runs.append(run)
         if run.status == "pruned":
-            so_far = max(evaluator._values(r.metrics)[0] for r in runs)
+            so_far = max(evaluator.objective_values(r.metrics)[0] for r in runs)
             status = "pruned"
             message = f"worst after {len(runs)} sample(s) ({run.message}): {so_far:.4g}"
             break
@@ -112,7 +110,7 @@ def evaluate_samples(
             message = f"{sample.describe(u.parameters)}: {run.message}"
             break
         if prunable:
-            so_far = max(evaluator._values(r.metrics)[0] for r in runs)
+            so_far = max(evaluator.objective_values(r.metrics)[0] for r in runs)
             if math.isfinite(so_far) and report(sample.index, so_far):
                 status, message = "pruned", f"worst after {len(runs)} sample(s): {so_far:.4g}"
                 break
@@ -143,7 +141,7 @@ def evaluate_samples(
         )
     how, alpha = u.aggregate, u.alpha
     metrics = {m: aggregate([r.metrics[m] for r in runs], how, alpha) for m in METRIC_NAMES}
-    per_sample = [evaluator._values(r.metrics) for r in runs]
+    per_sample = [evaluator.objective_values(r.metrics) for r in runs]
     values = tuple(aggregate([v[k] for v in per_sample], how, alpha) for k in range(n_values))
     scenario_metrics = {
         s: {m: aggregate([r.scenario_metrics[s][m] for r in runs], "worst") for m in METRIC_NAMES}
@@ -223,7 +221,7 @@ class Comparison:
 
 
 def compare_controllers(
-    evaluator: Evaluator,
+    evaluator: Scorer,
     controllers: Sequence[Controller],
     *,
     samples: int,
@@ -246,7 +244,9 @@ def compare_controllers(
             ok = all(stable_at(evaluator.rig, controller, s, multiplier=gain) for s in scenarios)
             run = dataclasses.replace(run, gain_holds=ok)
         nominal.append(run)
-        objective.append(evaluator._values(run.metrics)[0] if run.status == "ok" else math.nan)
+        objective.append(
+            evaluator.objective_values(run.metrics)[0] if run.status == "ok" else math.nan
+        )
     mcs = monte_carlo(
         evaluator.rig, controllers, rigs, [d.noise_seed for d in u.draws], scenarios,
         gain=gain, progress=progress,

@@ -11,6 +11,7 @@ a killed process are failed by the storage heartbeat and do not count.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import multiprocessing as mp
 import sys
@@ -20,8 +21,16 @@ from pathlib import Path
 from typing import Any, NoReturn
 
 from fuzzyservo.rig import Rig
-from fuzzyservo.tuning.objective import Evaluation, Evaluator
-from fuzzyservo.tuning.spec import StudySpec
+from fuzzyservo.tuning.evaluation import Evaluation
+from fuzzyservo.tuning.integrity import check_definition, die_with_parent, per_trial_seeded
+from fuzzyservo.tuning.objective import Evaluator
+from fuzzyservo.tuning.spec import Study
+from fuzzyservo.tuning.warmstart import (
+    enqueue,
+    is_feasible,
+    patience_callback,
+    stored_violations,
+)
 
 HEARTBEAT_S = 5
 GRACE_S = 15
@@ -31,7 +40,7 @@ GRACE_S = 15
 class Outcome:
     """What a finished (or stopped) study produced."""
 
-    spec: StudySpec
+    spec: Study
     storage_url: str
     trials_complete: int
     best_params: dict[str, float]
@@ -47,7 +56,7 @@ class Outcome:
     trials_pruned: int = 0
 
 
-def storage_url(spec: StudySpec, out_dir: Path, override: str | None = None) -> str:
+def storage_url(spec: Study, out_dir: Path, override: str | None = None) -> str:
     """``--storage`` wins, then the study file's ``storage``, then SQLite in the output folder."""
     if override:
         return override
@@ -107,11 +116,7 @@ def _cannot_open(url: str, exc: BaseException | None) -> NoReturn:
     ) from None
 
 
-def _constraints(trial) -> list[float]:
-    return list(trial.user_attrs.get("constraints", [math.inf]))
-
-
-def _record_constraints(trial, spec: StudySpec, violations: list[float]) -> None:
+def _record_constraints(trial, spec: Study, violations: list[float]) -> None:
     """Store violations where the samplers look (``set_constraint``, optuna >= 5) and in user_attrs."""
     trial.set_user_attr("constraints", violations)
     if hasattr(trial, "set_constraint"):
@@ -119,13 +124,13 @@ def _record_constraints(trial, spec: StudySpec, violations: list[float]) -> None
             trial.set_constraint(str(c), v)
 
 
-def make_sampler(spec: StudySpec, seed: int | None):
+def make_sampler(spec: Study, seed: int | None):
     import optuna
 
     # optuna >= 5 reads the constraints stored by Trial.set_constraint; older ones need constraints_func
     legacy = {}
     if spec.constraints and not hasattr(optuna.trial.Trial, "set_constraint"):
-        legacy = {"constraints_func": _constraints}
+        legacy = {"constraints_func": stored_violations}
     if spec.sampler == "tpe":
         return optuna.samplers.TPESampler(seed=seed, multivariate=True, **legacy)
     if spec.sampler == "nsga2":
@@ -135,9 +140,7 @@ def make_sampler(spec: StudySpec, seed: int | None):
     return optuna.samplers.RandomSampler(seed=seed)
 
 
-def open_study(
-    spec: StudySpec, url: str, worker: int = 0, *, shared: bool = False, rig: Rig | None = None
-):
+def open_study(spec: Study, url: str, worker: int = 0, *, shared: bool = False):
     """Create or load the study, check that it was made by this definition
     (:func:`~fuzzyservo.tuning.integrity.check_definition`: a :class:`ConfigError` naming
     what changed otherwise), and give it a sampler seeded per trial
@@ -176,28 +179,17 @@ def open_study(
             time.sleep(0.2 + random.random())
         except (SQLAlchemyError, ImportError) as exc:  # a driver or URL we cannot use
             _cannot_open(url, exc)
-    from fuzzyservo.tuning.integrity import check_definition, per_trial_seeded
-
-    check_definition(study, spec, url, rig)
+    check_definition(study, spec, url)
     study.sampler = per_trial_seeded(make_sampler(spec, spec.seed), spec.seed)
     return study
 
 
-def build_evaluator(spec: StudySpec, rig: Rig | None = None) -> Evaluator:
-    """The trial evaluator: the study's rig (``rig`` when given, else ``spec.rig_file``)."""
-    from fuzzyservo.io.controllers import load_controller
-    from fuzzyservo.io.rigs import load_rig
-    from fuzzyservo.io.studies import template_data
-
-    return Evaluator(
-        spec,
-        rig if rig is not None else load_rig(spec.rig_file),
-        template_data(spec),
-        load_controller(spec.baseline_file),
-    )
+def build_evaluator(spec: Study) -> Evaluator:
+    """The trial evaluator of a study (it scores the baseline first)."""
+    return Evaluator(spec)
 
 
-def _objective(spec: StudySpec, evaluator: Evaluator):
+def _objective(spec: Study, evaluator: Evaluator):
     def objective(trial) -> float | tuple[float, ...]:
         params = {}
         for p in spec.parameters:
@@ -206,7 +198,7 @@ def _objective(spec: StudySpec, evaluator: Evaluator):
             else:
                 params[p.path] = trial.suggest_float(p.path, p.low, p.high, log=p.log)
         try:
-            controller = evaluator.controller(params, name=f"trial{trial.number}")
+            controller = evaluator.controller(params)  # the template's name: no second build
         except ValueError as exc:  # a combination the template rejects: penalised, reason kept
             trial.set_user_attr("status", "invalid")
             trial.set_user_attr("message", str(exc))
@@ -264,14 +256,12 @@ def _best_feasible_value(study) -> float | None:
     values = [
         t.value
         for t in study.get_trials(deepcopy=False, states=(TrialState.COMPLETE,))
-        if t.user_attrs.get("status") == "ok" and all(v <= 0 for v in _constraints(t))
+        if is_feasible(t)
     ]
     return min(values) if values else None
 
 
-def _optimize(
-    spec: StudySpec, study, total: int, extra_callbacks: list, rig: Rig | None = None
-) -> None:
+def _optimize(spec: Study, study, total: int, extra_callbacks: list) -> None:
     """``study.optimize`` until ``total`` complete trials; Ctrl-C finishes the running trial
     and stops (a second Ctrl-C stops at once), then raises KeyboardInterrupt."""
     import signal
@@ -281,10 +271,8 @@ def _optimize(
     if count_complete(study) >= total:
         return
     if spec.patience and spec.objective.n_values == 1:
-        from fuzzyservo.tuning.warmstart import patience_callback
-
         extra_callbacks = [*extra_callbacks, patience_callback(spec.patience)]
-    evaluator = build_evaluator(spec, rig)
+    evaluator = build_evaluator(spec)
     interrupted = False
 
     def on_sigint(signum, frame) -> None:
@@ -308,14 +296,10 @@ def _optimize(
         raise KeyboardInterrupt
 
 
-def _worker(
-    spec: StudySpec, url: str, total: int, worker: int, shared: bool, parent: int = 0
-) -> None:
+def _worker(spec: Study, url: str, total: int, worker: int, shared: bool, parent: int = 0) -> None:
     """A local worker process: optimise until the study holds ``total`` complete trials;
     it ends when its parent ``parent`` does (:func:`~fuzzyservo.tuning.integrity.die_with_parent`)."""
     if parent:
-        from fuzzyservo.tuning.integrity import die_with_parent
-
         die_with_parent(parent)
     try:
         _optimize(spec, open_study(spec, url, worker, shared=shared), total, [])
@@ -324,7 +308,7 @@ def _worker(
 
 
 def run_study(
-    spec: StudySpec,
+    spec: Study,
     out_dir: Path,
     *,
     trials: int | None = None,
@@ -335,53 +319,44 @@ def run_study(
 ) -> Outcome:
     """Run (or resume) the study until it holds ``trials`` complete trials; return the outcome.
 
-    ``rig``: a rig built in code to tune on instead of ``spec.rig_file`` (one worker:
-    worker processes read the rig file themselves)."""
-    if rig is not None and workers > 1:
-        raise ValueError(
-            f"workers: a rig built in code runs in this process only, got workers={workers}; "
-            "write it to a rig file for worker processes, or use workers=1"
-        )
+    ``rig``: tune on this rig instead of the study's own (the same as
+    ``dataclasses.replace(spec, rig=rig)``)."""
+    if rig is not None:
+        spec = dataclasses.replace(spec, rig=rig)
     out_dir.mkdir(parents=True, exist_ok=True)
     url = storage_url(spec, out_dir, storage)
     # a storage named by the user may be shared with other processes or machines
     shared = bool(storage or spec.storage)
     total = trials or spec.trials
-    study = open_study(spec, url, rig=rig)  # creates it (and its tables) before any worker starts
-    from fuzzyservo.tuning.warmstart import enqueue
-
-    enqueue(study, spec, list(spec.warm_start))
+    study = open_study(spec, url)  # creates it (and its tables) before any worker starts
+    enqueue(study, spec)
     done_before = count_complete(study)
     t0 = time.perf_counter()
-    if rig is None:
-        _warm_kernels(spec)  # before the bar: its rate (and ETA) should not count compiling
+    _warm_kernels(spec)  # before the bar: its rate (and ETA) should not count compiling
     bar = _bar(total, done_before, spec.name, progress)
     try:
         if workers <= 1:
-            _run_inline(spec, url, total, bar, shared, rig)
+            _run_inline(spec, url, total, bar, shared)
         else:
             _run_processes(spec, url, total, workers, bar, shared)
     finally:
         bar.close()
     wall = time.perf_counter() - t0
-    return collect(spec, url, wall_s=wall, rig=rig)
+    return collect(spec, url, wall_s=wall)
 
 
-def _run_inline(
-    spec: StudySpec, url: str, total: int, bar, shared: bool, rig: Rig | None = None
-) -> None:
-
-    study = open_study(spec, url, shared=shared, rig=rig)
+def _run_inline(spec: Study, url: str, total: int, bar, shared: bool) -> None:
+    study = open_study(spec, url, shared=shared)
 
     def update(study, trial) -> None:
         if trial.state in _finished():
             bar.update(1)
             _postfix(bar, study)
 
-    _optimize(spec, study, total, [update], rig)
+    _optimize(spec, study, total, [update])
 
 
-def _run_processes(spec: StudySpec, url: str, total: int, workers: int, bar, shared: bool) -> None:
+def _run_processes(spec: Study, url: str, total: int, workers: int, bar, shared: bool) -> None:
     import os
     import signal
 
@@ -428,20 +403,16 @@ def _run_processes(spec: StudySpec, url: str, total: int, workers: int, bar, sha
         )
 
 
-def _warm_kernels(spec: StudySpec) -> None:
+def _warm_kernels(spec: Study) -> None:
     """Compile the kernels here, once, before the workers start (else each compiles them)."""
     from fuzzyservo._jit import cache_is_cold
 
     if not cache_is_cold():
         return
-    from fuzzyservo.io.controllers import controller_from_data
-    from fuzzyservo.io.rigs import load_rig
-    from fuzzyservo.io.studies import template_data
     from fuzzyservo.simulation import simulate
 
-    rig = load_rig(spec.rig_file)
-    controller = controller_from_data(template_data(spec), spec.controller_file)
-    simulate(rig, controller, spec.scenarios[0], duration_s=10 * rig.sample_time_s)
+    rig = spec.rig
+    simulate(rig, spec.template, spec.scenarios[0], duration_s=10 * rig.sample_time_s)
 
 
 def _refresh(bar, study) -> None:
@@ -499,26 +470,22 @@ def _bar(total: int, initial: int, name: str, enabled: bool):
     )
 
 
-def collect(spec: StudySpec, url: str, *, wall_s: float = 0.0, rig: Rig | None = None) -> Outcome:
-    """Read the study back: best (feasible) trial or Pareto front, history, importances
-    (the baseline evaluated on ``rig`` when given, as the trials were)."""
+def collect(spec: Study, url: str, *, wall_s: float = 0.0) -> Outcome:
+    """Read the study back: best (feasible) trial or Pareto front, history, importances."""
     import optuna
     from optuna.trial import TrialState
 
-    study = open_study(spec, url, rig=rig)
+    study = open_study(spec, url)
     trials = study.get_trials(deepcopy=False, states=(TrialState.COMPLETE,))
     if not trials:
         raise RuntimeError(f"study {spec.name!r} has no complete trial yet in {url}")
 
-    def feasible(t) -> bool:
-        return t.user_attrs.get("status") == "ok" and all(v <= 0 for v in _constraints(t))
-
     pool = (
-        [t for t in trials if feasible(t)]
+        [t for t in trials if is_feasible(t)]
         or [t for t in trials if t.user_attrs.get("status") == "ok"]
         or trials
     )
-    evaluator = build_evaluator(spec, rig)
+    evaluator = build_evaluator(spec)
     pareto = []
     if spec.objective.pareto:
         front = [t for t in study.best_trials if t in pool] or study.best_trials
@@ -542,7 +509,7 @@ def collect(spec: StudySpec, url: str, *, wall_s: float = 0.0, rig: Rig | None =
     )
     history = [
         {"number": t.number, "values": list(t.values), "status": t.user_attrs.get("status", "?"),
-         "feasible": feasible(t)}
+         "feasible": is_feasible(t)}
         for t in trials
     ]  # fmt: skip
     importances: dict[str, float] = {}

@@ -1,19 +1,34 @@
-"""What a tuning study is: typed and frozen, built from a study file by :mod:`fuzzyservo.io.studies`.
+"""What a tuning study is: typed and frozen, built in Python or from a study file (``io``).
 
-A study searches some numbers of a controller template (addressed by a dotted path
-into the template file, e.g. ``input.reshape``, ``input.increments[3]``,
-``gains.output``, ``kp``) against time-domain metrics on one or more scenarios of
-a rig; the controller must hold up on all of them (the worst scenario counts,
-or their mean).
+A :class:`Study` searches some numbers of a controller ``template`` (its searchable
+numbers, by the names controller files use: ``input.reshape``, ``input.increments[3]``,
+``gains.output``, ``kp``; see :meth:`Controller.params`) against time-domain metrics on
+one or more scenarios of a rig; the controller must hold up on all of them (the worst
+scenario counts, or their mean). A trial turns its sampled numbers into a controller
+through the template's own :meth:`~fuzzyservo.controllers.base.Controller.with_params`::
+
+    study = Study(
+        name="lift_pi", rig=rig, scenarios=("steps",), template=PI(kp=1.0, ki=0.5),
+        parameters=(Parameter("kp", 0.5, 8.0, log=True), Parameter("ki", 0.01, 20.0, log=True)),
+        objective=Objective(weights={"settling_time_s": 1.0, "sse_abs": 1000.0}),
+        baseline=P(gain=4.0), trials=40, seed=1,
+    )
 """
 
 from __future__ import annotations
 
 import math
 import re
+from collections.abc import Mapping
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
 
+from fuzzyservo.errors import ConfigError
 from fuzzyservo.tuning.uncertainty import Uncertainty
+
+if TYPE_CHECKING:
+    from fuzzyservo.controllers.base import Controller
+    from fuzzyservo.rig import Rig
 
 SAMPLERS = ("tpe", "cmaes", "nsga2", "random")
 AGGREGATES = ("worst", "mean")
@@ -21,14 +36,16 @@ _CONSTRAINT = re.compile(r"^\s*(?P<metric>\w+)\s*(?P<op><=|>=)\s*(?P<bound>[-+0-
 
 
 @dataclass(frozen=True)
-class ParamSpec:
-    """A searched number: its path in the template, bounds, scale, and integer or not."""
+class Parameter:
+    """A searched number: its name in the template (:meth:`Controller.params`), bounds,
+    scale, integer or not, and ``where`` it was declared (``file: key``, for messages)."""
 
     path: str
     low: float
     high: float
     log: bool = False
     integer: bool = False
+    where: str = field(default="", compare=False)
 
     def __post_init__(self) -> None:
         if not (math.isfinite(self.low) and math.isfinite(self.high)):
@@ -39,6 +56,15 @@ class ParamSpec:
             )
         if self.log and self.low <= 0:
             raise ValueError(f"{self.path}: a log scale needs low > 0, got low={self.low}")
+
+    @property
+    def name(self) -> str:
+        return self.path
+
+    def clip(self, value: float) -> float:
+        """``value`` moved into ``[low, high]`` (rounded for an integer parameter)."""
+        value = min(max(value, self.low), self.high)
+        return round(value) if self.integer else value
 
 
 #: constraint-only metrics computed by bisection on extra simulations (opt-in, costly)
@@ -98,16 +124,27 @@ class Objective:
 
 
 @dataclass(frozen=True)
-class StudySpec:
-    """A tuning study, ready to run."""
+class Study:
+    """A tuning study, ready to run: the rig and its scenarios, the controller template
+    and its search space, the objective and constraints, the baseline it is measured
+    against, and how it runs (sampler, seed, trials, storage, workers).
+
+    Built from a study file by :func:`fuzzyservo.io.studies.load_study` (``path`` names
+    it) or in Python; :func:`fuzzyservo.tuning.tune` runs and resumes either. Building
+    one checks it: the scenarios exist in the rig and both bounds of every parameter
+    make a valid controller (a :class:`ConfigError` naming the parameter otherwise).
+    ``warm_start``: first trials, each the searched numbers by name, e.g. a controller's
+    :meth:`~fuzzyservo.controllers.base.Controller.params` (clipped into their ranges; a
+    number not searched is ignored, one left out is sampled).
+    """
 
     name: str
-    rig_file: str
+    rig: Rig
     scenarios: tuple[str, ...]
-    controller_file: str
-    parameters: tuple[ParamSpec, ...]
+    template: Controller
+    parameters: tuple[Parameter, ...]
     objective: Objective
-    baseline_file: str
+    baseline: Controller
     constraints: tuple[Constraint, ...] = ()
     aggregate: str = "worst"
     sampler: str = "tpe"
@@ -121,7 +158,7 @@ class StudySpec:
     uncertainty: Uncertainty | None = None
     workers: int = 1
     patience: int | None = None
-    warm_start: tuple[str, ...] = ()
+    warm_start: tuple[Mapping[str, float], ...] = ()
 
     def __post_init__(self) -> None:
         if self.sampler not in SAMPLERS:
@@ -140,9 +177,60 @@ class StudySpec:
             raise ValueError(
                 "sampler: cmaes optimises one objective; use nsga2 (or tpe) for a Pareto front"
             )
+        if not self.scenarios:
+            raise ValueError("scenarios: none given; name at least one scenario of the rig")
+        if not self.parameters:
+            raise ValueError("parameters: none to search; give at least one")
         paths = [p.path for p in self.parameters]
         if len(set(paths)) != len(paths):
             raise ValueError(f"parameters: each path once, got {paths}")
+        self._check_against_rig_and_template()
+
+    def _check_against_rig_and_template(self) -> None:
+        """Scenarios exist in the rig; every parameter is a number of the template and its
+        bounds build a valid controller (so a typo fails now, not at trial 1)."""
+        file = self.path or None
+        for n, name in enumerate(self.scenarios):
+            if name not in self.rig.scenarios:
+                raise ConfigError(
+                    f"unknown scenario {name!r}; rig {self.rig.name} has "
+                    f"{', '.join(self.rig.scenarios)}",
+                    file=file, key=f"scenarios[{n}]",
+                )  # fmt: skip
+        known = self.template.params()
+        paths = [p.path for p in self.parameters]
+        for p in self.parameters:
+            if p.path not in known:
+                raise ConfigError(
+                    f"the template {self.template.name} has no searchable number {p.path!r}; "
+                    f"it has {', '.join(known) or 'none'}",
+                    file=file, key=f"parameters.{p.path}",
+                )  # fmt: skip
+            for value in (p.low, p.high):
+                try:
+                    self.template.with_params(**{p.path: value})
+                except ValueError as exc:
+                    raise ConfigError(
+                        f"with {p.path} = {value:g} the template is invalid: {exc}",
+                        file=file, key=f"parameters.{p.path}",
+                    ) from None  # fmt: skip
+        for n, start in enumerate(self.warm_start):
+            if not any(k in paths for k in start):
+                raise ValueError(
+                    f"warm_start[{n}]: none of the searched numbers ({', '.join(paths)}); "
+                    "give a point of this search space, e.g. a controller's params()"
+                )
+
+    def trial_controller(self, values: Mapping[str, float], name: str = "") -> Controller:
+        """The template with the sampled ``values`` (by parameter name); a ``ValueError``
+        naming where the offending parameter was declared when they make no controller."""
+        try:
+            controller = self.template.with_params(**values)
+        except ValueError as exc:
+            where = {p.path: f" ({p.where})" if p.where else "" for p in self.parameters}
+            given = ", ".join(f"{k} = {v:g}{where.get(k, '')}" for k, v in values.items())
+            raise ValueError(f"with {given} the template is invalid: {exc}") from None
+        return controller.renamed(name) if name else controller
 
 
 STORAGE_SCHEMES = ("sqlite:///", "postgresql://", "postgres://", "postgresql+psycopg2://")

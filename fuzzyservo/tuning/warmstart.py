@@ -1,65 +1,52 @@
 """Start a study from what is known, and stop it when it stops improving.
 
-* **Warm start**: the searched numbers of a controller file of the template's kind (a
-  previous study's best, a named controller) are the study's first trials
-  (``enqueue_trial``); a number outside the search range is moved to its nearer bound.
+* **Warm start**: a study's ``warm_start`` points (searched numbers by name: a previous
+  study's best, a named controller's :meth:`~fuzzyservo.controllers.base.Controller.params`)
+  are its first trials (``enqueue_trial``); a number outside its search range is moved to
+  the nearer bound, one left out is sampled.
 * **Patience**: the study stops once its best trial has not improved for ``n`` finished
   trials (any process's; read from the storage).
+
+Also what a stored trial says about itself (its constraint violations, feasible or not),
+which the runner reads too.
 """
 
 from __future__ import annotations
 
+import math
 from typing import Any
 
-from fuzzyservo.errors import ConfigError
-from fuzzyservo.tuning.objective import split_path
-from fuzzyservo.tuning.spec import StudySpec
+from fuzzyservo.tuning.spec import Study
 
 
-def get_path(data: Any, path: str) -> float:
-    """The number at ``path`` (``input.increments[3]``) of a controller mapping."""
-    node = data
-    for part in split_path(path):
-        try:
-            node = node[part]
-        except (KeyError, IndexError, TypeError):
-            raise KeyError(path) from None
-    if isinstance(node, bool) or not isinstance(node, int | float):
-        raise KeyError(path)
-    return float(node)
+def stored_violations(trial: Any) -> list[float]:
+    """A stored trial's constraint violations (> 0: broken); none stored counts as broken."""
+    return list(trial.user_attrs.get("constraints", [math.inf]))
 
 
-def params_from(spec: StudySpec, data: dict[str, Any], source: str) -> dict[str, float]:
-    """The study's searched numbers as ``data`` holds them, clipped into their ranges; one
-    the controller leaves at its default (e.g. no ``gains:``) is left to the sampler. A
-    controller with none of them is no warm start of this study."""
-    params = {}
-    for p in spec.parameters:
-        try:
-            value = get_path(data, p.path)
-        except KeyError:
-            continue
-        value = min(max(value, p.low), p.high)
-        params[p.path] = round(value) if p.integer else value
-    if not params:
-        raise ConfigError(
-            f"has none of the searched numbers ({', '.join(p.path for p in spec.parameters)}); "
-            f"warm-start from a controller of the study's template ({spec.controller_file})",
-            file=source,
-        )
-    return params
+def is_feasible(trial: Any) -> bool:
+    """A stored trial that ran (status ``ok``) and meets every constraint."""
+    return trial.user_attrs.get("status") == "ok" and all(v <= 0 for v in stored_violations(trial))
 
 
-def enqueue(study: Any, spec: StudySpec, files: list[str]) -> int:
-    """Queue the controllers ``files`` as the first trials of a study that has none yet;
-    returns how many were queued."""
-    from fuzzyservo.io._yaml import read_yaml
+def start_points(spec: Study) -> list[dict[str, float]]:
+    """The study's warm-start points, each number clipped into its parameter's range."""
+    by_name = {p.path: p for p in spec.parameters}
+    return [
+        {name: by_name[name].clip(float(value)) for name, value in point.items() if name in by_name}
+        for point in spec.warm_start
+    ]
 
-    if not files or study.get_trials(deepcopy=False):
+
+def enqueue(study: Any, spec: Study) -> int:
+    """Queue the study's warm-start points as the first trials of a study that has none
+    yet; returns how many were queued."""
+    points = start_points(spec)
+    if not points or study.get_trials(deepcopy=False):
         return 0
-    for file in files:
-        study.enqueue_trial(params_from(spec, read_yaml(file), file), skip_if_exists=True)
-    return len(files)
+    for point in points:
+        study.enqueue_trial(point, skip_if_exists=True)
+    return len(points)
 
 
 def patience_callback(n: int):
@@ -69,16 +56,11 @@ def patience_callback(n: int):
     def callback(study, trial) -> None:
         from optuna.trial import TrialState
 
-        from fuzzyservo.tuning.runner import _constraints
-
         done = study.get_trials(deepcopy=False, states=(TrialState.COMPLETE, TrialState.PRUNED))
         complete = [t for t in done if t.state == TrialState.COMPLETE]
         if not complete:
             return
-        feasible = [
-            t for t in complete
-            if t.user_attrs.get("status") == "ok" and all(v <= 0 for v in _constraints(t))
-        ] or complete  # fmt: skip
+        feasible = [t for t in complete if is_feasible(t)] or complete
         best = min(feasible, key=lambda t: t.values[0])
         if sum(t.number > best.number for t in done) >= n:
             study.stop()

@@ -14,7 +14,9 @@ evaluator's scratch space, so the compiled loop allocates nothing.
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING, ClassVar
 
 import numpy as np
 
@@ -23,6 +25,9 @@ from fuzzyservo.controllers.base import Controller
 from fuzzyservo.controllers.fuzzy.evaluate import evaluate, pack_system
 from fuzzyservo.controllers.fuzzy.system import FuzzySystem
 from fuzzyservo.controllers.kinds import KIND_FUZZY
+
+if TYPE_CHECKING:
+    from fuzzyservo.controllers.fuzzy.design import FuzzyDesign
 
 FORMS = ("p", "pd", "pi")
 
@@ -65,9 +70,35 @@ class FuzzyController(Controller):
     u_max: float = np.inf
     name: str = "fuzzy"
     description: str = field(default="", compare=False)
+    #: the design it was built from (a controller file's seven-term variables), if any:
+    #: what :meth:`with_params` changes
+    design: FuzzyDesign | None = field(default=None, compare=False, repr=False)
 
     kind = KIND_FUZZY
     kernel = staticmethod(fuzzy_step)
+    TUNABLE: ClassVar[dict[str, str]] = {
+        "gains.input": "input_gain",
+        "gains.rate": "rate_gain",
+        "gains.output": "output_gain",
+    }
+
+    def params(self) -> dict[str, float]:
+        """The searchable numbers: its design's (:meth:`FuzzyDesign.params`), else the gains."""
+        return self.design.params() if self.design is not None else super().params()
+
+    def with_params(self, **values: float) -> FuzzyController:
+        """The controller rebuilt from its design with the named numbers changed (a
+        controller with no design, e.g. read from a ``.fis``, has only its gains)."""
+        if self.design is None:
+            return super().with_params(**values)
+        return self.design.with_params(**values).controller()
+
+    def renamed(self, name: str) -> FuzzyController:
+        if self.design is not None:
+            return self.design.renamed(name).controller()
+        return dataclasses.replace(
+            self, name=name, system=dataclasses.replace(self.system, name=name)
+        )
 
     def __post_init__(self) -> None:
         super().__post_init__()

@@ -17,13 +17,26 @@ Two operations act on those positions:
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
 
-from fuzzyservo.controllers.fuzzy.system import Rule, Term, Variable
+from fuzzyservo.controllers.fuzzy.controller import FuzzyController
+from fuzzyservo.controllers.fuzzy.system import (
+    AGGREGATIONS,
+    AND_METHODS,
+    IMPLICATIONS,
+    MAMDANI_DEFUZZIFICATIONS,
+    MATLAB_SAMPLE_POINTS,
+    OR_METHODS,
+    FuzzySystem,
+    Rule,
+    Term,
+    Variable,
+)
 
 SEVEN_TERMS = ("NB", "NM", "NS", "Z", "PS", "PM", "PB")
 UNIFORM_INCREMENTS = (0.5, 1.0, 1.0, 1.0, 1.0, 1.0, 1.0, 0.5)
@@ -79,6 +92,123 @@ class SevenTermDesign:
         terms.append(Term("PB", "trapmf", (c[5], c[6], hi, hi)))
         d = self.translate
         return Variable(self.name, self.low + d, self.high + d, tuple(terms), self.points)
+
+
+#: a fuzzy design's variable slots, as controller files name them: error, error rate, command
+SLOTS = ("input", "rate", "output")
+_GAINS = {"gains.input": "input_gain", "gains.rate": "rate_gain", "gains.output": "output_gain"}
+
+
+@dataclass(frozen=True)
+class FuzzyDesign:
+    """A fuzzy controller as its designer writes it (a ``kind: fuzzy`` controller file):
+    each variable a :class:`SevenTermDesign` (its searchable numbers kept) or an explicit
+    :class:`Variable`, the rules, the methods, the scaling gains and the output limits [V].
+
+    :meth:`controller` builds the :class:`FuzzyController`; :meth:`with_params` is how a
+    study turns sampled numbers into a new design, by the names controller files use:
+    ``input.increments[3]``, ``input.reshape``, ``output.translate``, ``gains.output``
+    (:meth:`params` lists them).
+    """
+
+    inputs: tuple[SevenTermDesign | Variable, ...]
+    output: SevenTermDesign | Variable
+    rules: tuple[Rule, ...]
+    form: str = "p"
+    input_gain: float = 1.0
+    rate_gain: float = 1.0
+    output_gain: float = 1.0
+    and_method: str = AND_METHODS[0]
+    or_method: str = OR_METHODS[0]
+    implication: str = IMPLICATIONS[0]
+    aggregation: str = AGGREGATIONS[0]
+    defuzzification: str = MAMDANI_DEFUZZIFICATIONS[0]
+    semantics: str = "skfuzzy"
+    sample_points: int = MATLAB_SAMPLE_POINTS
+    u_min: float = -math.inf
+    u_max: float = math.inf
+    name: str = "fuzzy"
+    description: str = ""
+
+    def slots(self) -> dict[str, SevenTermDesign | Variable]:
+        """The variables by slot name (``input``, ``rate`` when two inputs, ``output``)."""
+        return dict(zip(SLOTS[: len(self.inputs)], self.inputs, strict=True)) | {
+            "output": self.output
+        }
+
+    def params(self) -> dict[str, float]:
+        """Every searchable number by name: the scaling gains and each seven-term
+        variable's increments, reshape and translation."""
+        out = {name: float(getattr(self, f)) for name, f in _GAINS.items()}
+        for slot, var in self.slots().items():
+            if isinstance(var, SevenTermDesign):
+                out |= {f"{slot}.increments[{k}]": d for k, d in enumerate(var.increments)}
+                out[f"{slot}.reshape"] = var.reshape
+                out[f"{slot}.translate"] = var.translate
+        return out
+
+    def with_params(self, **values: float) -> FuzzyDesign:
+        """The design with the named numbers (:meth:`params`) changed; ``ValueError`` for
+        an unknown name or a value no design takes (e.g. a zero increment)."""
+        known = self.params()
+        gains: dict[str, float] = {}
+        changed: dict[str, dict[str, float]] = {}
+        for name, value in values.items():
+            if name not in known:
+                raise ValueError(
+                    f"{self.name}: no searchable number {name!r}; this design has "
+                    f"{', '.join(known)}"
+                )
+            if name in _GAINS:
+                gains[_GAINS[name]] = float(value)
+            else:
+                slot, _, key = name.partition(".")
+                changed.setdefault(slot, {})[key] = float(value)
+        slots = self.slots()
+        for slot, keys in changed.items():
+            var = slots[slot]
+            increments = list(var.increments)
+            for key, value in keys.items():
+                if key.startswith("increments["):
+                    increments[int(key[len("increments[") : -1])] = value
+            scalars = {k: v for k, v in keys.items() if not k.startswith("increments[")}
+            slots[slot] = dataclasses.replace(var, increments=tuple(increments), **scalars)
+        inputs = tuple(v for k, v in slots.items() if k != "output")
+        return dataclasses.replace(self, inputs=inputs, output=slots["output"], **gains)
+
+    def renamed(self, name: str) -> FuzzyDesign:
+        return dataclasses.replace(self, name=name)
+
+    def controller(self) -> FuzzyController:
+        """The controller this design describes (``ValueError`` when it is no valid one)."""
+        inputs = tuple(v.variable() if isinstance(v, SevenTermDesign) else v for v in self.inputs)
+        output = self.output
+        system = FuzzySystem(
+            name=self.name,
+            inputs=inputs,
+            output=output.variable() if isinstance(output, SevenTermDesign) else output,
+            rules=self.rules,
+            and_method=self.and_method,
+            or_method=self.or_method,
+            implication=self.implication,
+            aggregation=self.aggregation,
+            defuzzification=self.defuzzification,
+            description=self.description,
+            semantics=self.semantics,
+            sample_points=self.sample_points,
+        )
+        return FuzzyController(
+            system=system,
+            form=self.form,
+            input_gain=self.input_gain,
+            rate_gain=self.rate_gain,
+            output_gain=self.output_gain,
+            u_min=self.u_min,
+            u_max=self.u_max,
+            name=self.name,
+            description=self.description,
+            design=self,
+        )
 
 
 def warp(x: np.ndarray, low: float, high: float, gamma: float) -> np.ndarray:

@@ -25,7 +25,7 @@ from typing import Any
 from fuzzyservo.analysis.robustness import SUMMARY_METRICS
 from fuzzyservo.io.jsonfile import write_json
 from fuzzyservo.metrics import METRIC_DOCS, METRIC_NAMES
-from fuzzyservo.tuning.objective import Evaluation, split_path
+from fuzzyservo.tuning.evaluation import Evaluation
 from fuzzyservo.tuning.robust import Comparison, compare_controllers
 from fuzzyservo.tuning.runner import Outcome, build_evaluator
 
@@ -59,7 +59,7 @@ def write_outputs(
     ``progress(1)`` per sampled plant and controller).
     """
     from fuzzyservo.controllers.fuzzy.controller import FuzzyController
-    from fuzzyservo.io.controllers import load_controller, write_controller_file
+    from fuzzyservo.io.controllers import controller_data, load_controller, write_controller_file
 
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
@@ -68,14 +68,13 @@ def write_outputs(
     evaluator = build_evaluator(spec)
     trial = best_trial_number(outcome)
 
-    data = evaluator.data(outcome.best_params)
-    data["name"] = f"{spec.name}_best"
+    data = controller_data(evaluator.controller(outcome.best_params, name=f"{spec.name}_best"))
     data["description"] = (
         f"Best {'trial' if trial is None else f'trial #{trial}'} of tuning study {spec.name} "
         f"({spec.path or 'no study file'}, {outcome.trials_complete} complete trials) on "
         f"scenarios {', '.join(spec.scenarios)}; objective {spec.objective.describe()} = "
         f"{_values_text(outcome.best.values)} (baseline {_values_text(outcome.baseline.values)}). "
-        f"Template: {spec.controller_file}."
+        f"Template: {spec.template.name}."
     )
     paths["controller"] = write_controller_file(data, out_dir / CONTROLLER_FILE)
 
@@ -111,12 +110,10 @@ def write_outputs(
 
 def comparison_controllers(evaluator, best_controller) -> list:
     """The best controller, the baseline and the template (when it is not the baseline)."""
-    from fuzzyservo.io.controllers import load_controller
-
     spec = evaluator.spec
     controllers = [best_controller, evaluator.baseline]
-    if Path(spec.controller_file).resolve() != Path(spec.baseline_file).resolve():
-        controllers.append(load_controller(spec.controller_file))
+    if spec.template != spec.baseline:
+        controllers.append(spec.template)
     return controllers
 
 
@@ -269,9 +266,8 @@ def _figures(outcome: Outcome, out_dir: Path, best_controller, fuzzy: bool) -> d
             paths[key] = plots.save(plots.response_figure(runs), out_dir / f"{key}.png")
     if fuzzy:
         from fuzzyservo.controllers.fuzzy.controller import FuzzyController
-        from fuzzyservo.io.controllers import load_controller
 
-        template = load_controller(spec.controller_file)
+        template = spec.template
         one_input = len(best_controller.system.inputs) == 1
         compare = (
             [template]
@@ -352,10 +348,10 @@ def _report(
         "| | |",
         "|---|---|",
         f"| study file | `{spec.path or '-'}` |",
-        f"| rig | `{spec.rig_file}` |",
+        f"| rig | {spec.rig.name}" + (f" (`{spec.rig.path}`)" if spec.rig.path else "") + " |",
         f"| scenarios | {', '.join(spec.scenarios)} ({spec.aggregate} over scenarios) |",
-        f"| template | `{spec.controller_file}` |",
-        f"| baseline | {evaluator.baseline.name} (`{spec.baseline_file}`) |",
+        f"| template | {spec.template.name} |",
+        f"| baseline | {evaluator.baseline.name} |",
         f"| objective | {spec.objective.describe()} (minimised) |",
         f"| constraints | {', '.join(f'`{c}`' for c in spec.constraints) or 'none'} |",
         *(
@@ -417,7 +413,7 @@ def _report(
     for p in spec.parameters:
         scale = ", log" if p.log else (", integer" if p.integer else "")
         lines.append(
-            f"| `{p.path}` | {_num(_template_value(evaluator.template, p.path), 'not set')} | "
+            f"| `{p.path}` | {_num(spec.template.params().get(p.path), 'not set')} | "
             f"{_num(outcome.best_params.get(p.path))} | [{p.low:g}, {p.high:g}]{scale} |"
         )
     lines.append("")
@@ -504,16 +500,6 @@ def _change(base: float, best: float) -> str:
         # e.g. an overshoot of 1e-13 % (rounding noise) against a real one: no ratio to show
         return "n/a"
     return f"{100.0 * (best - base) / abs(base):+.1f} %"
-
-
-def _template_value(template: dict[str, Any], path: str) -> float | None:
-    node: Any = template
-    for part in split_path(path):
-        try:
-            node = node[part]
-        except (KeyError, IndexError, TypeError):
-            return None
-    return node if isinstance(node, int | float) and not isinstance(node, bool) else None
 
 
 def _same(a: tuple[float, ...], b: tuple[float, ...]) -> bool:

@@ -423,62 +423,48 @@ class BenchOptions:
     workers: int = 2
 
 
-def _timed_line(r: BenchResult) -> str:
-    return (f"{duration_text(r.median_s):>10} {duration_text(r.reference_s):>10} "
-            f"{r.ratio:>6.0f}×  {_errors(r)}")  # fmt: skip
+def _line(r: BenchResult, template: str | None) -> str:
+    """A case's row after its name: the timings against the reference, or for a case
+    timed once (``template``, over its ``extra`` figures) its wall time and figures."""
+    errors = ", ".join(f"{k} {v:.3g}" for k, v in r.error.items())
+    if template is None:
+        return (f"{duration_text(r.median_s):>10} {duration_text(r.reference_s):>10} "
+                f"{r.ratio:>6.0f}×  {errors}")  # fmt: skip
+    x = {**r.extra, "errors": errors}
+    if "added" in x:
+        x["added"] = ", ".join(x["added"]) or "none"
+    return f"{duration_text(x['wall_s']):>10} {'':>10} {'':>7}  " + template.format(**x)
 
 
-def _study_line(r: BenchResult) -> str:
-    x = r.extra
-    return (f"{_once(r)}{x['trials']} trials on {x['workers']} workers, {x['trials_per_s']:.1f} "
-            f"trials/s; in the trials: simulation {x['simulation_s']:.1f} s, sampler/storage/"
-            f"building {x['sampler_and_storage_s']:.1f} s; {_errors(r)}")  # fmt: skip
+_STUDY_LINE = (
+    "{trials} trials on {workers} workers, {trials_per_s:.1f} trials/s; in the trials: "
+    "simulation {simulation_s:.1f} s, sampler/storage/building {sampler_and_storage_s:.1f} s; "
+    "{errors}"
+)
+_ROBUST_STUDY_LINE = (
+    "{trials} trials on {workers} workers ({trials_pruned} pruned), {trials_per_s:.1f} "
+    "trials/s, {simulations} simulations, {simulations_per_s:.0f} simulations/s; {errors}"
+)
+_MARGINS_LINE = "{simulations} simulations of 22 s, {ms_per_simulation:.0f} ms each; {errors}"
+_CALIBRATE_LINE = (
+    "wall_s {wall_s:.1f} (budget {budget_s:.0f} s); {replays} replays of 30 s, "
+    "{replay_ms:.0f} ms each; added {added}; {errors}"
+)
 
-
-def _robust_study_line(r: BenchResult) -> str:
-    x = r.extra
-    return (f"{_once(r)}{x['trials']} trials on {x['workers']} workers ({x['trials_pruned']} "
-            f"pruned), {x['trials_per_s']:.1f} trials/s, {x['simulations']} simulations, "
-            f"{x['simulations_per_s']:.0f} simulations/s; {_errors(r)}")  # fmt: skip
-
-
-def _margins_line(r: BenchResult) -> str:
-    x = r.extra
-    return (f"{_once(r)}{x['simulations']} simulations of 22 s, {x['ms_per_simulation']:.0f} ms "
-            f"each; {_errors(r)}")  # fmt: skip
-
-
-def _calibrate_line(r: BenchResult) -> str:
-    x = r.extra
-    return (f"{_once(r)}wall_s {x['wall_s']:.1f} (budget {x['budget_s']:.0f} s); {x['replays']} "
-            f"replays of 30 s, {x['replay_ms']:.0f} ms each; added "
-            f"{', '.join(x['added']) or 'none'}; {_errors(r)}")  # fmt: skip
-
-
-def _once(r: BenchResult) -> str:
-    return f"{duration_text(r.extra['wall_s']):>10} {'':>10} {'':>7}  "
-
-
-def _errors(r: BenchResult) -> str:
-    return ", ".join(f"{k} {v:.3g}" for k, v in r.error.items())
-
-
-#: every case by name, in the order ``benchmark`` runs them: how to run it, how to report it
-REGISTRY: dict[str, tuple[Callable[[BenchOptions], BenchResult], Callable[[BenchResult], str]]] = {
-    FUZZY_EVAL: (lambda o: run_fuzzy_eval(runs=o.runs), _timed_line),
+#: every case by name, in the order ``benchmark`` runs them: how to run it, and the
+#: template of its row for a case timed once (None: timed against the reference)
+REGISTRY: dict[str, tuple[Callable[[BenchOptions], BenchResult], str | None]] = {
+    FUZZY_EVAL: (lambda o: run_fuzzy_eval(runs=o.runs), None),
     **{
-        c.name: (
-            lambda o, c=c: run_case(c, runs=o.runs, reference_runs=o.reference_runs),
-            _timed_line,
-        )
+        c.name: (lambda o, c=c: run_case(c, runs=o.runs, reference_runs=o.reference_runs), None)
         for c in CASES
     },
-    STUDY: (lambda o: run_study_case(trials=o.study_trials, workers=o.workers), _study_line),
-    CALIBRATE: (lambda o: run_calibrate_case(), _calibrate_line),
-    MARGINS: (lambda o: run_margins_case(), _margins_line),
+    STUDY: (lambda o: run_study_case(trials=o.study_trials, workers=o.workers), _STUDY_LINE),
+    CALIBRATE: (lambda o: run_calibrate_case(), _CALIBRATE_LINE),
+    MARGINS: (lambda o: run_margins_case(), _MARGINS_LINE),
     ROBUST_STUDY: (
         lambda o: run_robust_study_case(trials=o.study_trials, workers=o.workers),
-        _robust_study_line,
+        _ROBUST_STUDY_LINE,
     ),
 }
 
@@ -491,7 +477,7 @@ class BenchReport(Result):
 
     def text(self) -> str:
         lines = [f"{'case':<20} {'median':>10} {'reference':>10} {'ratio':>7}  error"]
-        lines += [f"{r.name:<20} {REGISTRY[r.name][1](r)}" for r in self.results]
+        lines += [f"{r.name:<20} {_line(r, REGISTRY[r.name][1])}" for r in self.results]
         lines.append(
             "reference: scipy solve_ivp (LSODA, rtol 1e-6) per control interval, or skfuzzy compute();"
         )

@@ -91,15 +91,16 @@ def evaluate(
     return FuzzyEvaluation(system, inputs, outputs, tuple(ignored), silent)
 
 
-def load_fuzzy_controller(path: Path) -> FuzzyController:
-    """A fuzzy controller file (YAML or .fis); a classical controller is refused."""
+def load_fuzzy_controller(path: Path, other: str = " or a .fis") -> FuzzyController:
+    """A fuzzy controller file (YAML or .fis); a classical controller is refused (the
+    error names the ``other`` files that would do)."""
     from fuzzyservo.io.controllers import load_controller
 
     controller = load_controller(path)
     if not isinstance(controller, FuzzyController):
         raise ConfigError(
             f"is a {type(controller).__name__} controller, not a fuzzy one; give a 'kind: fuzzy' "
-            "file or a .fis",
+            f"file{other}",
             file=str(path),
         )
     return controller
@@ -117,16 +118,7 @@ def load_system(path: Path) -> FuzzySystem:
         from fuzzyservo.io.fcl import read_fcl
 
         return read_fcl(path)
-    from fuzzyservo.io.controllers import load_controller
-
-    controller = load_controller(path)
-    if not isinstance(controller, FuzzyController):
-        raise ConfigError(
-            f"is a {type(controller).__name__} controller, not a fuzzy one; give a 'kind: fuzzy' "
-            "file, a .fis or a .fcl",
-            file=str(path),
-        )
-    return controller.system
+    return load_fuzzy_controller(path, other=", a .fis or a .fcl").system
 
 
 def read_input_table(path: str | Path, names: list[str]) -> tuple[np.ndarray, list[str]]:

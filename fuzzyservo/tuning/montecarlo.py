@@ -157,13 +157,11 @@ def robustness(
     controllers: Sequence[Controller],
     study: StudySpec,
     *,
-    samples: int = 200,
-    seed: int | None = None,
-    scenarios: Sequence[str] | None = None,
     gain_margin: float | None = 2.0,
     progress: Callable[[int], object] | None = None,
+    **draw: Any,
 ) -> RobustnessResult:
-    """Monte Carlo of ``controllers`` on ``samples`` plants drawn from ``study``'s
-    uncertainty (:func:`plan`), each checked for ``gain_margin``."""
-    setup = plan(rig, controllers, study, samples=samples, seed=seed, scenarios=scenarios)
-    return setup.run(gain_margin, progress)
+    """Monte Carlo of ``controllers`` on plants drawn from ``study``'s uncertainty
+    (:func:`plan`, with its ``samples``, ``seed`` and ``scenarios`` from ``draw``), each
+    checked for ``gain_margin``."""
+    return plan(rig, controllers, study, **draw).run(gain_margin, progress)

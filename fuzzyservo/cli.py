@@ -11,14 +11,13 @@ from __future__ import annotations
 import argparse
 import math
 import os
-import shutil
 import sys
 from collections.abc import Sequence
 from pathlib import Path
 from typing import NoReturn
 
 from fuzzyservo.errors import ConfigError, FuzzyservoError
-from fuzzyservo.io.jsonfile import write_json
+from fuzzyservo.io.jsonfile import read_json, write_json
 from fuzzyservo.progress import note_compiling, progress_bar
 from fuzzyservo.tuning import MAIN_STUDY as DEFAULT_STUDY
 
@@ -94,12 +93,6 @@ def _at_least(low: int, **options: int | None) -> None:
 def _json(path: str | None, result) -> None:
     if path:
         write_json(path, result)
-        print(f"JSON written to {path}")
-
-
-def _copy_json(summary: Path, path: str | None) -> None:
-    if path:
-        shutil.copyfile(summary, path)
         print(f"JSON written to {path}")
 
 
@@ -220,7 +213,6 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
 
 def cmd_tune(args: argparse.Namespace) -> int:
     from fuzzyservo.analysis.robustness import comparison_text
-    from fuzzyservo.io.jsonfile import read_json
     from fuzzyservo.io.studies import load_study
     from fuzzyservo.metrics import format_value, metrics_table
     from fuzzyservo.tuning.report import write_outputs
@@ -273,7 +265,7 @@ def cmd_tune(args: argparse.Namespace) -> int:
     if bar is not None:
         print(comparison_text(read_json(paths["summary"])["comparison"]))
     print(f"report: {paths['report']}")
-    _copy_json(paths["summary"], args.json)
+    _json(args.json, read_json(paths["summary"]))  # summary.json as written
     return 0
 
 
@@ -369,7 +361,7 @@ def cmd_calibrate(args: argparse.Namespace) -> int:
     print(f"calibrated in {result.outcome.seconds:.1f} s; report: {paths['report']}")
     if "rig" in paths:
         print(f"calibrated rig: {paths['rig']}")
-    _copy_json(paths["summary"], args.json)
+    _json(args.json, read_json(paths["summary"]))  # summary.json as written
     return 0
 
 
@@ -535,7 +527,8 @@ FIT_VALVE = [
 COMMANDS = [  # name, help, function, arguments
     ("simulate", "simulate one controller on a rig scenario", cmd_compare, [RIG, CONTROLLER, *SIM]),
     ("compare", "compare controllers on a rig scenario: table, plots, JSON", cmd_compare, [
-        _arg("rig", nargs="?", default=DEFAULT_RIG, help=f"rig file or name (default: {DEFAULT_RIG})"),
+        _arg("rig", nargs="?", default=DEFAULT_RIG,
+             help=f"rig file or name (default: {DEFAULT_RIG})"),
         _arg("controllers", nargs="*",
              help=f"controller files or names (default: {DEFAULT_CONTROLLER})"), *SIM]),
     ("tune", "run (or resume) a tuning study and report against the baseline", cmd_tune, TUNE),
@@ -551,7 +544,8 @@ COMMANDS = [  # name, help, function, arguments
     ("designer", "web app: shape a fuzzy controller and watch the loop respond", cmd_designer,
      DESIGNER),
     ("margins", "gain and delay margin of the nonlinear loop", cmd_margins,
-     [RIG, CONTROLLER, SCENARIO, _arg("--json", metavar="FILE", help="also write the margins as JSON")]),
+     [RIG, CONTROLLER, SCENARIO,
+      _arg("--json", metavar="FILE", help="also write the margins as JSON")]),
     ("frequency", "closed-loop frequency response by stepped sines", cmd_frequency, FREQUENCY),
     ("bench", "speed of the compiled loop against the scipy reference path", cmd_bench, BENCH),
     ("calibrate", "replay measured data on a rig, trace the residual to missing effects, add them",

@@ -51,6 +51,9 @@ def export(
     from fuzzyservo.io.fis import write_fis
 
     name, lines, notes, paths = controller.name, [], [], []
+    for file in (fis, fcl, st):  # a file in a folder not made yet: make it
+        if file:
+            Path(file).parent.mkdir(parents=True, exist_ok=True)
     gains = (controller.input_gain, controller.rate_gain, controller.output_gain)
     if (fis or fcl) and (any(g != 1.0 for g in gains) or controller.form == "pi"):
         notes.append(f"note: a .fis/.fcl holds the inference system only; form "

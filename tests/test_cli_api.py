@@ -106,3 +106,18 @@ def test_evaluate_and_describe_from_python(tmp_path):
     assert result.outputs.shape == (2, 1) and result.notes[0].startswith("note: column(s)")
     assert result.text().splitlines()[0] == "u"
     assert "1. if e is" in fuzzyservo.describe_fuzzy(controller_named("flc2_reshaped"))
+
+
+def test_robustness_from_python_equals_the_shell(tmp_path, capsys):
+    from support import shipped
+
+    from fuzzyservo.io.studies import load_study
+    from fuzzyservo.tuning import MAIN_STUDY
+
+    study = load_study(shipped(MAIN_STUDY, "studies"))
+    rig, p_k10 = rig_named("dinca_cylinder"), controller_named("p_k10")
+    result = fuzzyservo.robustness(rig, [p_k10], study, samples=2, scenarios=["steps"])
+    shell = _shell_json(tmp_path, "robustness", "dinca_cylinder", "p_k10", "--samples", "2",
+                        "--scenario", "steps", "--out", str(tmp_path / "o"))  # fmt: skip
+    assert json.loads(result.to_json()) == shell
+    assert result.text().splitlines()[0] in capsys.readouterr().out

@@ -12,7 +12,11 @@ YAML, matplotlib nor optuna::
 
 Rigs, controllers and studies can also be built in code (``compose_rig``, ``P``,
 ``PI``, ``FuzzyDesign``, ``Study``), then simulated, compared, tuned and calibrated
-(``simulate``, ``compare``, ``tune``, ``calibrate``).
+(``simulate``, ``compare``, ``tune``, ``calibrate``). Every command of the command line
+is one function here (``compare``, ``margins``, ``frequency``, ``robustness``,
+``calibrate``, ``benchmark``, ``export``, ``evaluate``, ``fit_valve``) returning a result
+object: ``print(result)`` shows what the command prints, ``result.to_json()`` what its
+``--json`` writes.
 """
 
 from __future__ import annotations
@@ -42,9 +46,23 @@ _LAZY = {
     "Parameter": ("fuzzyservo.tuning.spec", "Parameter"),
     "Objective": ("fuzzyservo.tuning.spec", "Objective"),
     "simulate": ("fuzzyservo.simulation", "simulate"),
-    "compare": ("fuzzyservo.simulation", "compare"),
+    "compare": ("fuzzyservo.analysis.compare", "compare"),
+    "ComparisonResult": ("fuzzyservo.analysis.compare", "ComparisonResult"),
+    "margins": ("fuzzyservo.analysis.margins", "margins"),
+    "Margins": ("fuzzyservo.analysis.margins", "Margins"),
+    "frequency": ("fuzzyservo.analysis.frequency", "frequency_response"),
+    "FrequencyResponse": ("fuzzyservo.analysis.frequency", "FrequencyResponse"),
+    "robustness": ("fuzzyservo.tuning.montecarlo", "robustness"),
+    "RobustnessResult": ("fuzzyservo.tuning.montecarlo", "RobustnessResult"),
     "tune": ("fuzzyservo.tuning", "tune"),
     "calibrate": ("fuzzyservo.calibration", "calibrate"),
+    "CalibrationResult": ("fuzzyservo.calibration", "CalibrationResult"),
+    "benchmark": ("fuzzyservo.bench", "benchmark"),
+    "BenchReport": ("fuzzyservo.bench", "BenchReport"),
+    "describe_fuzzy": ("fuzzyservo.controllers.fuzzy.describe", "describe_fuzzy"),
+    "evaluate": ("fuzzyservo.io.evaluation", "evaluate"),
+    "export": ("fuzzyservo.io.export", "export"),
+    "fit_valve": ("fuzzyservo.io.valve_data", "fit_valve"),
     "SimResult": ("fuzzyservo.simulation", "SimResult"),
     "simulate_reference": ("fuzzyservo.simulation.reference", "simulate_reference"),
     "result_metrics": ("fuzzyservo.metrics", "result_metrics"),

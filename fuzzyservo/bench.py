@@ -12,13 +12,19 @@ from __future__ import annotations
 import math
 import statistics
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    from fuzzyservo.progress import ProgressBar
 
 import numpy as np
 
+from fuzzyservo.errors import ConfigError
 from fuzzyservo.io.paths import data_root
+from fuzzyservo.results import Result
 from fuzzyservo.simulation import SimResult, simulate
 from fuzzyservo.simulation.reference import simulate_reference
 
@@ -396,3 +402,111 @@ def run_case(
         integration_steps=fast.integration_steps,
         error=accuracy(fast, tight),
     )
+
+
+def duration_text(seconds: float) -> str:
+    """A wall time in µs, ms or s."""
+    if seconds < 1e-3:
+        return f"{seconds * 1e6:.2f}µs"
+    if seconds < 1.0:
+        return f"{seconds * 1e3:.2f}ms"
+    return f"{seconds:.3f}s"
+
+
+@dataclass(frozen=True)
+class BenchOptions:
+    """How long each case runs: timed runs, reference runs, a study's trials and workers."""
+
+    runs: int = 7
+    reference_runs: int = 3
+    study_trials: int = 300
+    workers: int = 2
+
+
+def _line(r: BenchResult, template: str | None) -> str:
+    """A case's row after its name: the timings against the reference, or for a case
+    timed once (``template``, over its ``extra`` figures) its wall time and figures."""
+    errors = ", ".join(f"{k} {v:.3g}" for k, v in r.error.items())
+    if template is None:
+        return (f"{duration_text(r.median_s):>10} {duration_text(r.reference_s):>10} "
+                f"{r.ratio:>6.0f}×  {errors}")  # fmt: skip
+    x = {**r.extra, "errors": errors}
+    if "added" in x:
+        x["added"] = ", ".join(x["added"]) or "none"
+    return f"{duration_text(x['wall_s']):>10} {'':>10} {'':>7}  " + template.format(**x)
+
+
+_STUDY_LINE = (
+    "{trials} trials on {workers} workers, {trials_per_s:.1f} trials/s; in the trials: "
+    "simulation {simulation_s:.1f} s, sampler/storage/building {sampler_and_storage_s:.1f} s; "
+    "{errors}"
+)
+_ROBUST_STUDY_LINE = (
+    "{trials} trials on {workers} workers ({trials_pruned} pruned), {trials_per_s:.1f} "
+    "trials/s, {simulations} simulations, {simulations_per_s:.0f} simulations/s; {errors}"
+)
+_MARGINS_LINE = "{simulations} simulations of 22 s, {ms_per_simulation:.0f} ms each; {errors}"
+_CALIBRATE_LINE = (
+    "wall_s {wall_s:.1f} (budget {budget_s:.0f} s); {replays} replays of 30 s, "
+    "{replay_ms:.0f} ms each; added {added}; {errors}"
+)
+
+#: every case by name, in the order ``benchmark`` runs them: how to run it, and the
+#: template of its row for a case timed once (None: timed against the reference)
+REGISTRY: dict[str, tuple[Callable[[BenchOptions], BenchResult], str | None]] = {
+    FUZZY_EVAL: (lambda o: run_fuzzy_eval(runs=o.runs), None),
+    **{
+        c.name: (lambda o, c=c: run_case(c, runs=o.runs, reference_runs=o.reference_runs), None)
+        for c in CASES
+    },
+    STUDY: (lambda o: run_study_case(trials=o.study_trials, workers=o.workers), _STUDY_LINE),
+    CALIBRATE: (lambda o: run_calibrate_case(), _CALIBRATE_LINE),
+    MARGINS: (lambda o: run_margins_case(), _MARGINS_LINE),
+    ROBUST_STUDY: (
+        lambda o: run_robust_study_case(trials=o.study_trials, workers=o.workers),
+        _ROBUST_STUDY_LINE,
+    ),
+}
+
+
+@dataclass(frozen=True)
+class BenchReport(Result):
+    """The cases run, in order; ``text()`` is the table ``fuzzyservo bench`` prints."""
+
+    results: tuple[BenchResult, ...]
+
+    def text(self) -> str:
+        lines = [f"{'case':<20} {'median':>10} {'reference':>10} {'ratio':>7}  error"]
+        lines += [f"{r.name:<20} {_line(r, REGISTRY[r.name][1])}" for r in self.results]
+        lines.append(
+            "reference: scipy solve_ivp (LSODA, rtol 1e-6) per control interval, or skfuzzy compute();"
+        )
+        lines.append(
+            "error: largest deviation from solve_ivp at rtol 1e-9, or from compute() (fraction of output span)"
+        )
+        return "\n".join(lines)
+
+    def to_dict(self) -> dict:
+        return {"cases": [r.to_dict() for r in self.results]}
+
+
+def benchmark(
+    cases: Sequence[str] | None = None,
+    options: BenchOptions | None = None,
+    progress: ProgressBar | None = None,
+) -> BenchReport:
+    """Run the named cases of :data:`REGISTRY` (default: all) in order; ``progress``
+    shows each case's name while it runs and counts it when done."""
+    options = options or BenchOptions()
+    wanted = list(cases or REGISTRY)
+    unknown = [c for c in wanted if c not in REGISTRY]
+    if unknown:
+        raise ConfigError(f"unknown bench case {unknown[0]!r}; known: {', '.join(REGISTRY)}")
+    results = []
+    for name in wanted:
+        if progress is not None:
+            progress.set_description(name)
+        results.append(REGISTRY[name][0](options))
+        if progress is not None:
+            progress.update(1)
+    return BenchReport(tuple(results))

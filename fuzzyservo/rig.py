@@ -12,6 +12,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from fuzzyservo.components.effects import LIBRARY, Scales, fixed_defaults
+from fuzzyservo.errors import ConfigError
 from fuzzyservo.params import check
 from fuzzyservo.plants import PlantModel
 from fuzzyservo.signals import Constant, Signal
@@ -221,7 +222,11 @@ class Rig:
         if name is None:
             return next(iter(self.scenarios.values()))
         if name not in self.scenarios:
-            raise KeyError(f"unknown scenario {name!r}; this rig has {sorted(self.scenarios)}")
+            raise ConfigError(
+                f"unknown scenario {name!r}; this rig has {', '.join(self.scenarios)}",
+                file=self.path or None,
+                key="scenarios",
+            )
         return self.scenarios[name]
 
     def params_for(self, scenario: Scenario) -> Any:

@@ -21,6 +21,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from fuzzyservo.controllers.base import Controller
+from fuzzyservo.results import Result
 from fuzzyservo.rig import Rig, Scenario
 from fuzzyservo.signals import Signal
 from fuzzyservo.simulation import simulate
@@ -42,7 +43,7 @@ class SteppedSine(Signal):
 
 
 @dataclass(frozen=True)
-class FrequencyResponse:
+class FrequencyResponse(Result):
     """Closed-loop response feedback/reference at each frequency."""
 
     rig: str
@@ -79,6 +80,19 @@ class FrequencyResponse:
         if not math.isfinite(bw):
             return math.nan
         return float(np.interp(np.log10(bw), np.log10(self.frequency_hz), self.phase_deg))
+
+    def text(self) -> str:
+        """The table ``fuzzyservo frequency`` prints: gain and phase by frequency."""
+        lines = [
+            f"{self.controller} on {self.rig}: closed loop around {self.operating_point:.4g}, "
+            f"amplitude {self.amplitude:.3g}",
+            f"  {'f [Hz]':>9} {'|T| [dB]':>9} {'phase [deg]':>11}",
+        ]
+        for f, mag, ph in zip(self.frequency_hz, self.magnitude_db, self.phase_deg, strict=True):
+            lines.append(f"  {f:9.3g} {mag:9.2f} {ph:11.1f}")
+        lines.append(f"  -3 dB bandwidth {self.bandwidth_hz:.3g} Hz, phase there "
+                     f"{self.phase_at_bandwidth_deg:.1f} deg")  # fmt: skip
+        return "\n".join(lines)
 
     def to_dict(self) -> dict[str, object]:
         def num(v: float) -> float | None:

@@ -58,6 +58,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from fuzzyservo.controllers.base import Controller
+from fuzzyservo.results import Result
 from fuzzyservo.rig import Rig, Scenario
 from fuzzyservo.simulation import simulate
 from fuzzyservo.simulation.result import SimResult
@@ -93,7 +94,7 @@ class Margin:
 
 
 @dataclass(frozen=True)
-class Margins:
+class Margins(Result):
     """Gain and delay margin of one controller on one rig scenario."""
 
     rig: str
@@ -102,6 +103,17 @@ class Margins:
     gain: Margin
     delay: Margin
     base_delay_s: float
+
+    def text(self) -> str:
+        g, d = self.gain, self.delay
+        return (
+            f"{self.controller} on {self.rig}, scenario {self.scenario} ({g.runs + d.runs} runs, "
+            f"{g.seconds + d.seconds:.1f} s)\n"
+            f"  gain margin  {g.value:.4g}  (stable at {g.bracket[0]:.4g}, oscillating at "
+            f"{g.bracket[1]:.4g}, {g.frequency_hz:.3g} Hz)\n"
+            f"  delay margin {d.value * 1e3:.4g} ms extra on the rig's "
+            f"{self.base_delay_s * 1e3:.4g} ms ({d.frequency_hz:.3g} Hz at onset)"
+        )
 
     def to_dict(self) -> dict[str, object]:
         """The JSON record: ``gain_margin``, ``oscillation_hz``, ``delay_margin_s`` first."""

@@ -23,6 +23,7 @@ import numpy as np
 from fuzzyservo.analysis.margins import stable_at
 from fuzzyservo.controllers.base import Controller
 from fuzzyservo.metrics import METRIC_NAMES, result_metrics
+from fuzzyservo.metrics import format_value as fmt
 from fuzzyservo.rig import Rig
 from fuzzyservo.simulation import SimResult, simulate
 
@@ -261,3 +262,52 @@ def summary(mcs: Sequence[MonteCarlo], gain: float | None) -> list[dict[str, obj
             row[m] = {"p50": p50, "p90": p90, "worst": worst}
         rows.append(row)
     return rows
+
+
+def summary_text(rows: Sequence[dict]) -> str:
+    """The Monte Carlo table of :func:`summary` rows: failures and median / 90 % / worst
+    of each metric."""
+    head = f"{'controller':<22} {'failures':>9} {'gain ok':>8}"
+    cols = [("settling_time_s", "settling s", 1.0), ("sse_abs", "sse mm", 1e3),
+            ("overshoot_pct", "overshoot %", 1.0), ("saturation_time_s", "saturated s", 1.0)]  # fmt: skip
+    for _, label, _ in cols:
+        head += f"  {label + ' p50/p90/max':>26}"
+    lines = [head]
+    for r in rows:
+        gain = (
+            f"{r.get('gain_margin_holds', '-')}/{r['samples']}" if "gain_margin_holds" in r else "-"
+        )
+        line = f"{r['controller']:<22} {r['failures']:>5}/{r['samples']:<3} {gain:>8}"
+        for key, _, k in cols:
+            v = r[key]
+            text = f"{fmt(v['p50'] * k)}/{fmt(v['p90'] * k)}/{fmt(v['worst'] * k)}"
+            line += "  " + text.rjust(26)
+        lines.append(line)
+    return "\n".join(lines)
+
+
+def comparison_text(comparison: dict) -> str:
+    """A robust study's comparison (the ``comparison`` of its ``summary.json``): the
+    nominal plant, then the Monte Carlo table."""
+    c = comparison
+    lines = [f"nominal plant: {'controller':<22} {'objective':>9} {'settling s':>10} "
+             f"{'sse mm':>8} {'overshoot %':>11} {'gain ' + format(c['gain_margin_checked'], 'g'):>7}"]  # fmt: skip
+    for r in c["controllers"]:
+        n = r["nominal"]
+        ok = {True: "holds", False: "FAILS", None: "-"}[n["gain_margin_holds"]]
+        lines.append(
+            f"{'':15}{r['controller']:<22} {fmt(_nan(n['objective'])):>9} "
+            f"{fmt(_nan(n['settling_time_s'])):>10} {fmt(_nan(n['sse_abs']) * 1e3):>8} "
+            f"{fmt(_nan(n['overshoot_pct'])):>11} {ok:>7}"
+        )
+    lines.append(f"Monte Carlo on {c['samples']} fresh samples (seed {c['seed']}):")
+    keys = ("settling_time_s", "sse_abs", "overshoot_pct", "saturation_time_s")
+    rows = [  # JSON null (undefined: never settles) back to NaN for the table
+        {**r, **{k: {q: _nan(v) for q, v in r[k].items()} for k in keys}} for r in c["controllers"]
+    ]
+    lines.append(summary_text(rows))
+    return "\n".join(lines)
+
+
+def _nan(value: float | None) -> float:
+    return math.nan if value is None else value

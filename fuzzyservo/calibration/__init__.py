@@ -2,12 +2,13 @@
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING
 
+from fuzzyservo.calibration.run import Calibration, CalibrationResult, prepare
+
 if TYPE_CHECKING:
-    from fuzzyservo.calibration.search import Outcome
     from fuzzyservo.controllers.base import Controller
     from fuzzyservo.measured import Measured
     from fuzzyservo.rig import Rig
@@ -22,7 +23,9 @@ def calibrate(
     max_effects: int = 2,
     per_record: Sequence[str] = (),
     workers: int = 1,
-) -> Outcome:
+    resample: bool = False,
+    progress: Callable[[str], object] | None = None,
+) -> CalibrationResult:
     """Fit ``rig`` to measured ``data`` (a :class:`Measured` or a data file): its unknowns
     (``fit: [lower, upper]``), then up to ``max_effects`` effects of the library.
 
@@ -31,23 +34,12 @@ def calibrate(
     ``workers`` > 1 fits each round's candidates in that many processes.
 
     With a ``controller`` the data's reference drives the closed loop; without, its
-    recorded valve input drives the plant. Write the report and the calibrated rig
-    file with :func:`fuzzyservo.calibration.report.write_outputs`.
+    recorded valve input drives the plant. Print the result, or write the report and
+    the calibrated rig file with :meth:`CalibrationResult.write`.
     """
-    from fuzzyservo.calibration.joint import joint_replay, per_record_fields
-    from fuzzyservo.calibration.replay import make_replay
-    from fuzzyservo.calibration.search import calibrate as search
-    from fuzzyservo.io.measured import read_rig_data
-
-    several = isinstance(data, Sequence) and not isinstance(data, str)
-    records = [
-        d if hasattr(d, "signals") else read_rig_data(d, rig.measured)
-        for d in (data if several else [data])
-    ]
-    replays = [make_replay(rig, d, controller) for d in records]
-    fields = per_record_fields(rig, per_record)
-    replay = joint_replay(replays, rig, fields) if several or fields else replays[0]
-    return search(replay, rig, effects=effects, max_effects=max_effects, workers=workers)
+    setup = prepare(rig, data, controller, effects=effects, per_record=per_record,
+                    resample=resample)  # fmt: skip
+    return setup.run(max_effects=max_effects, workers=workers, progress=progress)
 
 
-__all__ = ["calibrate"]
+__all__ = ["Calibration", "CalibrationResult", "calibrate", "prepare"]

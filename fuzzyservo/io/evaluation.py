@@ -8,15 +8,102 @@ output variable, in the system's order, written with ``repr`` precision.
 from __future__ import annotations
 
 import csv
+import dataclasses
 import math
+from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
+from fuzzyservo.controllers.fuzzy.controller import FuzzyController
 from fuzzyservo.controllers.fuzzy.system import FuzzySystem
 from fuzzyservo.errors import ConfigError
+from fuzzyservo.results import Result
 
-__all__ = ["load_system", "read_input_table", "write_output_table"]
+__all__ = [
+    "FuzzyEvaluation",
+    "evaluate",
+    "load_fuzzy_controller",
+    "load_system",
+    "read_input_table",
+    "write_output_table",
+]
+
+
+@dataclass(frozen=True)
+class FuzzyEvaluation(Result):
+    """A fuzzy system's outputs for a table of inputs; ``text()`` is the output CSV."""
+
+    system: FuzzySystem
+    inputs: np.ndarray
+    outputs: np.ndarray
+    ignored: tuple[str, ...] = ()
+    silent: int = 0
+
+    @property
+    def output_names(self) -> list[str]:
+        return [v.name for v in self.system.outputs]
+
+    @property
+    def notes(self) -> list[str]:
+        """Input columns ignored, and outputs where no rule fired (the CLI's stderr lines)."""
+        s, out = self.system, []
+        if self.ignored:
+            out.append(
+                f"note: column(s) {list(self.ignored)} are not inputs of {s.name!r}; ignored"
+            )
+        if self.silent:
+            fallback = "the middle of its range" if s.semantics == "matlab" else "NaN"
+            out.append(f"warning: no rule fired for {self.silent} output value(s); each is "
+                       f"{fallback} ({s.semantics} semantics)")  # fmt: skip
+        return out
+
+    def text(self) -> str:
+        rows = (",".join(repr(float(v)) for v in row) for row in self.outputs)
+        return "\n".join([",".join(self.output_names), *rows])
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"system": self.system.name, "semantics": self.system.semantics,
+                "outputs": {n: self.outputs[:, k].tolist() for k, n in enumerate(self.output_names)}}  # fmt: skip
+
+    def write(self, path: str | Path) -> Path:
+        """The outputs as a CSV file (:func:`write_output_table`)."""
+        return write_output_table(path, self.output_names, self.outputs)
+
+
+def evaluate(
+    system: FuzzySystem | str | Path, inputs: np.ndarray | str | Path, semantics: str | None = None
+) -> FuzzyEvaluation:
+    """What ``evalfis`` does: ``system`` (or its ``.fis``, ``.fcl`` or controller file) on
+    ``inputs`` (an (m, n_inputs) array, or a CSV with a column per input named like it),
+    in ``semantics`` (``skfuzzy`` or ``matlab``; default: the system's)."""
+    from fuzzyservo.controllers.fuzzy.evaluate import evaluate_inputs
+
+    if not isinstance(system, FuzzySystem):
+        system = load_system(Path(system))
+    if semantics:
+        system = dataclasses.replace(system, semantics=semantics)
+    ignored: list[str] = []
+    if not isinstance(inputs, np.ndarray):
+        inputs, ignored = read_input_table(inputs, [v.name for v in system.inputs])
+    outputs, silent = evaluate_inputs(system, inputs)
+    return FuzzyEvaluation(system, inputs, outputs, tuple(ignored), silent)
+
+
+def load_fuzzy_controller(path: Path, other: str = " or a .fis") -> FuzzyController:
+    """A fuzzy controller file (YAML or .fis); a classical controller is refused (the
+    error names the ``other`` files that would do)."""
+    from fuzzyservo.io.controllers import load_controller
+
+    controller = load_controller(path)
+    if not isinstance(controller, FuzzyController):
+        raise ConfigError(
+            f"is a {type(controller).__name__} controller, not a fuzzy one; give a 'kind: fuzzy' "
+            f"file{other}",
+            file=str(path),
+        )
+    return controller
 
 
 def load_system(path: Path) -> FuzzySystem:
@@ -31,17 +118,7 @@ def load_system(path: Path) -> FuzzySystem:
         from fuzzyservo.io.fcl import read_fcl
 
         return read_fcl(path)
-    from fuzzyservo.controllers.fuzzy import FuzzyController
-    from fuzzyservo.io.controllers import load_controller
-
-    controller = load_controller(path)
-    if not isinstance(controller, FuzzyController):
-        raise ConfigError(
-            f"is a {type(controller).__name__} controller, not a fuzzy one; give a 'kind: fuzzy' "
-            "file, a .fis or a .fcl",
-            file=str(path),
-        )
-    return controller.system
+    return load_fuzzy_controller(path, other=", a .fis or a .fcl").system
 
 
 def read_input_table(path: str | Path, names: list[str]) -> tuple[np.ndarray, list[str]]:

@@ -60,6 +60,18 @@ class SimResult:
     def output_unit(self) -> str:
         return self.units[self.output_name]
 
+    def columns(self) -> dict[str, np.ndarray]:
+        """Every sampled signal by a column name that carries its unit (``t_s``,
+        ``ref_V``, ``p3_Pa``, ...): the CSV a run is written to."""
+        act = f"{self.actuator_name}_{self.units.get(self.actuator_name, 'SI')}"
+        cols = {"t_s": self.t, "ref_V": self.reference, "feedback_V": self.feedback,
+                "u_V": self.command, act: self.actuator,
+                "saturated": self.saturated.astype(float)}  # fmt: skip
+        for name, values in self.signals.items():
+            unit = self.units[name].replace("/", "_").replace("^", "").replace("*", "")
+            cols[f"{name}_{unit}"] = values
+        return cols
+
     def signal(self, name: str) -> np.ndarray:
         """A plant signal, or one of reference/feedback/command/actuator/output."""
         extra = {

@@ -1,0 +1,145 @@
+"""A calibration from start to end: the data replayed on the rig (one record or several
+together), the candidate effects, the search, and what it concluded as a result object.
+
+:func:`prepare` assembles it (the one place that does), :meth:`Calibration.run` fits;
+:func:`fuzzyservo.calibration.calibrate` does both.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+from fuzzyservo.calibration.replay import Replay
+from fuzzyservo.calibration.search import Outcome
+from fuzzyservo.components.effects import LIBRARY
+from fuzzyservo.errors import ConfigError
+from fuzzyservo.metrics import format_value
+from fuzzyservo.results import Result, json_ready
+
+if TYPE_CHECKING:
+    from fuzzyservo.controllers.base import Controller
+    from fuzzyservo.io.measured import Measured
+    from fuzzyservo.rig import Rig
+
+
+@dataclass(frozen=True)
+class CalibrationResult(Result):
+    """What a calibration concluded (:class:`~fuzzyservo.calibration.search.Outcome`,
+    whose attributes read through: ``result.added``, ``result.calibrated`` ...) and the
+    replay it was fitted on. ``to_dict()`` is ``summary.json`` (without the written
+    rig's path); write the report with :meth:`write`."""
+
+    outcome: Outcome
+    replay: Replay = field(repr=False)
+
+    def __getattr__(self, name: str) -> Any:
+        if name.startswith("__") or name in ("outcome", "replay"):
+            raise AttributeError(name)
+        return getattr(self.outcome, name)
+
+    def to_dict(self) -> dict[str, Any]:
+        from fuzzyservo.calibration.report import summary_data
+
+        return summary_data(self.outcome, self.replay)
+
+    def text(self) -> str:
+        summary = json_ready(self.to_dict())  # as in summary.json: non-finite numbers are null
+        lines = [f"warning: {w}" for w in summary["warnings"]]
+        lines.append(f"effects added: {summary['decision']}")
+        for c in self.outcome.added:
+            lines.append(f"  {c.name}: " + ", ".join(f"{k} = {v:.4g}" for k, v in c.params.items()))
+        lines.append("held-out fit %  (channel: before -> after)")
+        for channel in self.replay.channels:
+            b, a = summary["fit_before_pct"][channel], summary["fit_after_pct"][channel]
+            lines.append(f"  {channel:6s} {format_value(b):>8s} -> {format_value(a):>8s}")
+        if self.outcome.rounds:
+            best = summary["candidates"][:5]
+            ranking = ", ".join(f"{c['name']} {format_value(c['score'])}" for c in best)
+            lines.append(f"ranking (score, lower is better): {ranking}")
+        return "\n".join(lines)
+
+    def write(self, out_dir: str | Path, data_label: str) -> dict[str, Path]:
+        """The calibrated rig file, figures, ``report.md`` and ``summary.json`` in
+        ``out_dir``; ``data_label`` names the data in them. Returns the files by role."""
+        from fuzzyservo.calibration.report import write_outputs
+
+        paths, _ = write_outputs(self.outcome, self.replay, data_label, Path(out_dir))
+        return paths
+
+
+@dataclass(frozen=True)
+class Calibration:
+    """A calibration ready to run: ``rig``, the ``replay`` of its data and the candidate
+    effects (``effects`` as asked for, None: the whole library)."""
+
+    rig: Rig
+    replay: Replay
+    records: tuple[Measured, ...]
+    effects: tuple[str, ...] | None
+
+    @property
+    def candidates(self) -> list[str]:
+        """The effects the rig's plant can take and does not declare yet."""
+        pool = self.effects or LIBRARY
+        return [e for e in pool if e in self.rig.plant.effects and e not in self.rig.effects]
+
+    def steps(self, max_effects: int) -> int:
+        """Candidate fits at most: what a progress bar counts."""
+        return len(self.candidates) * max(max_effects, 1)
+
+    def describe(self) -> str:
+        return (
+            f"calibrate {self.rig.name} on {', '.join(d.source for d in self.records)}: "
+            f"{self.replay.mode}; {sum(len(d) for d in self.records)} samples, "
+            f"channels {', '.join(self.replay.channels)}; {len(self.candidates)} candidate effects"
+        )
+
+    def run(
+        self,
+        *,
+        max_effects: int = 2,
+        workers: int = 1,
+        progress: Callable[[str], object] | None = None,
+    ) -> CalibrationResult:
+        """Fit the unknowns, then add up to ``max_effects`` effects; ``progress(name)``
+        as each candidate starts (one worker) or ends (several)."""
+        from fuzzyservo.calibration.search import calibrate as search
+
+        effects = None if self.effects is None else list(self.effects)
+        outcome = search(self.replay, self.rig, effects=effects, max_effects=max_effects,
+                         progress=progress, workers=workers)  # fmt: skip
+        return CalibrationResult(outcome, self.replay)
+
+
+def prepare(
+    rig: Rig,
+    data: Measured | str | Path | Sequence[Measured | str | Path],
+    controller: Controller | None = None,
+    *,
+    effects: Sequence[str] | None = None,
+    per_record: Sequence[str] = (),
+    resample: bool = False,
+) -> Calibration:
+    """Read the data (a :class:`Measured` or a data file, or a list of them to calibrate
+    together), replay it on ``rig`` (closed loop through ``controller`` when given) and
+    check the effect names. ``per_record``: rig-file keys of unknowns fitted per record.
+    ``resample``: resample uneven or repeated time stamps."""
+    from fuzzyservo.calibration.joint import joint_replay, per_record_fields
+    from fuzzyservo.calibration.replay import make_replay
+    from fuzzyservo.io.measured import read_rig_data
+
+    several = isinstance(data, Sequence) and not isinstance(data, str)
+    records = tuple(
+        d if hasattr(d, "signals") else read_rig_data(d, rig.measured, resample=resample)
+        for d in (data if several else [data])
+    )
+    fields = per_record_fields(rig, per_record)
+    for e in effects or ():
+        if e not in LIBRARY:
+            raise ConfigError(f"--effects: unknown effect {e!r}; choose from {', '.join(LIBRARY)}")
+    replays = [make_replay(rig, d, controller) for d in records]
+    replay = joint_replay(replays, rig, fields) if several or fields else replays[0]
+    return Calibration(rig, replay, records, None if effects is None else tuple(effects))

@@ -376,11 +376,11 @@ class Session:
         from optuna.trial import TrialState
         from sqlalchemy.exc import SQLAlchemyError
 
-        from fuzzyservo.tuning.runner import _driver_url
+        from fuzzyservo.tuning.runner import driver_url
 
         optuna.logging.set_verbosity(optuna.logging.WARNING)
         try:
-            loaded = optuna.load_study(study_name=spec.name, storage=_driver_url(url))
+            loaded = optuna.load_study(study_name=spec.name, storage=driver_url(url))
         except KeyError:
             raise ConfigError(f"the storage holds no study named {spec.name!r}", file=url) from None
         except (SQLAlchemyError, ValueError, ImportError) as exc:

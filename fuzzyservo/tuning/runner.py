@@ -65,7 +65,7 @@ def storage_url(spec: Study, out_dir: Path, override: str | None = None) -> str:
     return f"sqlite:///{(out_dir / f'{spec.name}.db').resolve()}"
 
 
-def _driver_url(url: str) -> str:
+def driver_url(url: str) -> str:
     """``postgresql://`` names the psycopg2 driver we ship (SQLAlchemy 2.1 would pick psycopg 3)."""
     for prefix in ("postgresql://", "postgres://"):
         if url.startswith(prefix):
@@ -82,7 +82,7 @@ def _storage(url: str):
     else:
         kwargs = {"pool_pre_ping": True}
     storage = optuna.storages.RDBStorage(
-        _driver_url(url), engine_kwargs=kwargs, heartbeat_interval=HEARTBEAT_S, grace_period=GRACE_S
+        driver_url(url), engine_kwargs=kwargs, heartbeat_interval=HEARTBEAT_S, grace_period=GRACE_S
     )
     if url.startswith("sqlite"):
         _fast_sqlite(storage.engine)

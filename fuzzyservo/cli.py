@@ -333,6 +333,7 @@ def cmd_fit_valve(args: argparse.Namespace) -> int:
 def cmd_calibrate(args: argparse.Namespace) -> int:
     from fuzzyservo.calibration import prepare
     from fuzzyservo.io.controllers import load_controller
+    from fuzzyservo.io.measured import read_rig_data
     from fuzzyservo.io.rigs import load_rig
 
     out = _out_dir(args.out)
@@ -344,9 +345,9 @@ def cmd_calibrate(args: argparse.Namespace) -> int:
     if args.controller:
         controller = load_controller(resolve(args.controller, "studies/controllers", "controller"))
     effects = [e.strip() for e in args.effects.split(",") if e.strip()] if args.effects else None
-    setup = prepare(rig, args.data[0] if len(args.data) == 1 else args.data, controller,
-                    effects=effects, per_record=(args.per_record or "").split(","),
-                    resample=args.resample)  # fmt: skip
+    records = [read_rig_data(d, rig.measured, resample=args.resample) for d in args.data]
+    setup = prepare(rig, records[0] if len(records) == 1 else records, controller,
+                    effects=effects, per_record=(args.per_record or "").split(","))  # fmt: skip
     print(setup.describe())
     bar = progress_bar(setup.steps(args.max_effects), "candidates")
     try:
@@ -356,7 +357,9 @@ def cmd_calibrate(args: argparse.Namespace) -> int:
         bar.close()
     stem = Path(args.data[0]).stem + (f"+{len(args.data) - 1}" if len(args.data) > 1 else "")
     out = out or _out_dir(str(Path("out") / f"calibrate_{rig.name}_{stem}"))
-    paths = result.write(out, ", ".join(Path(d).name for d in args.data))
+    from fuzzyservo.io.calibration_report import write_calibration
+
+    paths = write_calibration(result, out, ", ".join(Path(d).name for d in args.data))
     print(result.text())
     print(f"calibrated in {result.outcome.seconds:.1f} s; report: {paths['report']}")
     if "rig" in paths:

@@ -189,7 +189,7 @@ def test_fitted_values_carry_intervals_and_at_bound_flags_into_the_rig(rig, tmp_
     flagged, in the report's warnings and in the calibrated rig file, which loads."""
     import yaml
 
-    from fuzzyservo.calibration.report import write_outputs
+    from fuzzyservo.io.calibration_report import write_outputs
 
     ctl = controller_named("p_k10")
     true = {"coulomb_friction": {"force": 300.0}, "valve_bias": {"offset": 0.5e-3}}

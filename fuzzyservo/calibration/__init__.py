@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 from collections.abc import Callable, Sequence
-from pathlib import Path
 from typing import TYPE_CHECKING
 
 from fuzzyservo.calibration.run import Calibration, CalibrationResult, prepare
@@ -16,17 +15,17 @@ if TYPE_CHECKING:
 
 def calibrate(
     rig: Rig,
-    data: Measured | str | Path | Sequence[Measured | str | Path],
+    data: Measured | Sequence[Measured],
     controller: Controller | None = None,
     *,
     effects: Sequence[str] | None = None,
     max_effects: int = 2,
     per_record: Sequence[str] = (),
     workers: int = 1,
-    resample: bool = False,
     progress: Callable[[str], object] | None = None,
 ) -> CalibrationResult:
-    """Fit ``rig`` to measured ``data`` (a :class:`Measured` or a data file): its unknowns
+    """Fit ``rig`` to measured ``data`` (a :class:`Measured`; read a data file with
+    :func:`fuzzyservo.io.measured.read_rig_data`): its unknowns
     (``fit: [lower, upper]``), then up to ``max_effects`` effects of the library.
 
     A list of records is calibrated together (calibration/joint.py): effects and unknowns
@@ -35,10 +34,9 @@ def calibrate(
 
     With a ``controller`` the data's reference drives the closed loop; without, its
     recorded valve input drives the plant. Print the result, or write the report and
-    the calibrated rig file with :meth:`CalibrationResult.write`.
+    the calibrated rig file with :func:`fuzzyservo.io.calibration_report.write_calibration`.
     """
-    setup = prepare(rig, data, controller, effects=effects, per_record=per_record,
-                    resample=resample)  # fmt: skip
+    setup = prepare(rig, data, controller, effects=effects, per_record=per_record)
     return setup.run(max_effects=max_effects, workers=workers, progress=progress)
 
 

@@ -9,7 +9,6 @@ from __future__ import annotations
 
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
-from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from fuzzyservo.calibration.replay import Replay
@@ -30,7 +29,7 @@ class CalibrationResult(Result):
     """What a calibration concluded (:class:`~fuzzyservo.calibration.search.Outcome`,
     whose attributes read through: ``result.added``, ``result.calibrated`` ...) and the
     replay it was fitted on. ``to_dict()`` is ``summary.json`` (without the written
-    rig's path); write the report with :meth:`write`."""
+    rig's path); :func:`fuzzyservo.io.calibration_report.write_calibration` writes the report."""
 
     outcome: Outcome
     replay: Replay = field(repr=False)
@@ -60,14 +59,6 @@ class CalibrationResult(Result):
             ranking = ", ".join(f"{c['name']} {format_value(c['score'])}" for c in best)
             lines.append(f"ranking (score, lower is better): {ranking}")
         return "\n".join(lines)
-
-    def write(self, out_dir: str | Path, data_label: str) -> dict[str, Path]:
-        """The calibrated rig file, figures, ``report.md`` and ``summary.json`` in
-        ``out_dir``; ``data_label`` names the data in them. Returns the files by role."""
-        from fuzzyservo.calibration.report import write_outputs
-
-        paths, _ = write_outputs(self.outcome, self.replay, data_label, Path(out_dir))
-        return paths
 
 
 @dataclass(frozen=True)
@@ -116,26 +107,21 @@ class Calibration:
 
 def prepare(
     rig: Rig,
-    data: Measured | str | Path | Sequence[Measured | str | Path],
+    data: Measured | Sequence[Measured],
     controller: Controller | None = None,
     *,
     effects: Sequence[str] | None = None,
     per_record: Sequence[str] = (),
-    resample: bool = False,
 ) -> Calibration:
-    """Read the data (a :class:`Measured` or a data file, or a list of them to calibrate
-    together), replay it on ``rig`` (closed loop through ``controller`` when given) and
-    check the effect names. ``per_record``: rig-file keys of unknowns fitted per record.
-    ``resample``: resample uneven or repeated time stamps."""
+    """Replay the measured ``data`` (a :class:`Measured`, or a list of them to calibrate
+    together; :func:`fuzzyservo.io.measured.read_rig_data` reads a data file as the rig
+    file's ``measured:`` says) on ``rig`` (closed loop through ``controller`` when given)
+    and check the effect names. ``per_record``: rig-file keys of unknowns fitted per record."""
     from fuzzyservo.calibration.joint import joint_replay, per_record_fields
     from fuzzyservo.calibration.replay import make_replay
-    from fuzzyservo.io.measured import read_rig_data
 
-    several = isinstance(data, Sequence) and not isinstance(data, str)
-    records = tuple(
-        d if hasattr(d, "signals") else read_rig_data(d, rig.measured, resample=resample)
-        for d in (data if several else [data])
-    )
+    several = isinstance(data, Sequence)
+    records = tuple(data) if several else (data,)
     fields = per_record_fields(rig, per_record)
     for e in effects or ():
         if e not in LIBRARY:

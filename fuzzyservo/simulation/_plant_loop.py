@@ -25,7 +25,7 @@ import numpy as np
 from numba import prange
 
 from fuzzyservo._jit import njit
-from fuzzyservo.components.effects import E_LAG
+from fuzzyservo.components.effects import E
 from fuzzyservo.simulation._loop import (
     _A_U,
     _C_U,
@@ -239,9 +239,9 @@ def closed_loop(
     status = STATUS_OK
     where = -1
     total = 0
-    lag = p[E_LAG] > 0.0
+    lag = p[E.valve_lag_s] > 0.0
     n_plant = plant_states(x, p)
-    whole, part = delay_split(p, dt)
+    whole, part = delay_split(p, s)
     for k in range(n):
         for i in range(x.size):
             states[k, i] = x[i]

@@ -1,11 +1,14 @@
-"""The compiled closed loop, compiled once per plant: this file is a template.
+"""The compiled closed loop, compiled once per plant: its functions are written against
+the plant's kernels by the names of :data:`PLANT_SLOTS`.
 
-:func:`fuzzyservo._jit.bind_plant` writes a copy of it whose binding block imports (or
-defines) one plant's ``plant_rhs``, ``plant_signals`` and ``plant_in_end_stop``, and
-numba compiles and caches that copy. A loop thus inlines exactly one plant, with no
-dispatch on a plant code, and a plant composed from components at run time is as fast
-as a hand-written one. As it stands (bound to the seed-002 cylinder) the file is a
-valid module, so linters and readers see ordinary Python.
+:func:`fuzzyservo._jit.bind_plant` generates, for one plant, a module that defines
+those names (the plant's binding: imports of a plant module's kernels, or the source
+generated for a composition) followed by the source of each function of :data:`BOUND`,
+which takes every other name it uses from this module; numba compiles and caches that
+module. A loop thus inlines exactly one plant, with no dispatch on a plant code, and a
+plant composed from components at run time is as fast as a hand-written one. As it
+stands (bound to its default plant below) this file is an ordinary module, so linters,
+readers and the generated modules' imports see ordinary Python.
 
 The plant is integrated between samples by an adaptive linearly implicit
 Rosenbrock-W method, ROS34PW2 (order 3, embedded order 2), with a finite-difference
@@ -51,12 +54,13 @@ from fuzzyservo.simulation._loop import (
 )
 
 # isort: split
-# >>> plant binding
+# the default plant; each generated loop module binds its own (bind_plant)
 from fuzzyservo.plants.cylinder import in_end_stop as plant_in_end_stop
 from fuzzyservo.plants.cylinder import rhs as plant_rhs
 from fuzzyservo.plants.cylinder import signals as plant_signals
 
-# <<< plant binding
+# The names the loop calls its plant by: what a plant's binding must define.
+PLANT_SLOTS = ("plant_rhs", "plant_signals", "plant_in_end_stop")
 
 
 @njit(cache=True, inline="always")
@@ -355,3 +359,15 @@ def rhs_with_inputs(x: np.ndarray, a: float, load: float, p: np.ndarray, null: f
 def in_end_stop(x: np.ndarray, p: np.ndarray) -> bool:
     """True when the plant part of ``x`` sits beyond a mechanical end stop."""
     return plant_in_end_stop(x[: plant_states(x, p)], p)
+
+
+# What a loop module bound to one plant holds: these functions, after the plant's binding.
+BOUND = (
+    loop_rhs,
+    integrate_interval,
+    closed_loop,
+    closed_loop_batch,
+    signal_table,
+    rhs_with_inputs,
+    in_end_stop,
+)

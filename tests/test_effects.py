@@ -55,6 +55,20 @@ def test_every_plant_carries_the_effects_at_the_same_positions(type_name: str) -
     assert set(fx.INPUT_EFFECTS) <= set(PLANTS[type_name].effects)
 
 
+def test_effect_parameters_are_made_from_the_library_declarations() -> None:
+    declared = {prm.field: prm for e in fx.LIBRARY.values() for prm in e.params}
+    fields = {f.name: f for f in dataclasses.fields(fx.EffectParams)}
+    assert set(fields) == set(declared) == set(fx.E._fields)
+    for field_name, prm in declared.items():
+        meta = fields[field_name].metadata
+        assert meta["unit"] == prm.unit and meta["doc"] == prm.doc
+        assert meta["nonnegative"] is not prm.signed
+        assert meta["key"].endswith(f".{prm.key}")
+    assert fields["valve_bias_si"].metadata["key"] == "valve_bias.offset"
+    with pytest.raises(ValueError, match="unit"):
+        fx.EffectParam("k", "k_si", "Pa*s/m^3x", lambda s: (0.0, 1.0), doc="a misspelt unit")
+
+
 def test_friction_force_formulation() -> None:
     # MODELLING.md: F = (Fc + Fst·exp(−(v/vs)²))·tanh(v/vc); here Fc = 100 + 50 N
     p = np.zeros(len(fx.E))

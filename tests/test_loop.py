@@ -107,6 +107,21 @@ def _integrate(steps: int, t_end: float = 1.0) -> np.ndarray:
     return x
 
 
+def test_a_bound_loop_is_the_template_s_functions_after_the_plant_s_binding() -> None:
+    import inspect
+
+    from fuzzyservo.simulation import _plant_loop as template
+
+    loop = bind_plant(_LINEAR)
+    for slot in template.PLANT_SLOTS:
+        assert callable(getattr(loop, slot))
+    for function in template.BOUND:
+        bound = getattr(loop, function.__name__)
+        assert bound is not function
+        assert inspect.getsource(bound.py_func) == inspect.getsource(function.py_func)
+    assert bind_plant(_LINEAR) is loop
+
+
 def test_ros34pw2_is_third_order_on_a_linear_system() -> None:
     exact = expm(_A) @ np.array([1.0, 0.0, 0.5])
     errors = [np.max(np.abs(_integrate(n) - exact)) for n in (40, 80, 160, 320)]

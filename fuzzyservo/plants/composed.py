@@ -256,17 +256,17 @@ class _Vocabulary(ast.NodeTransformer):
         return ast.copy_location(index, node)
 
     def _position(self, prefix: str, ident: str) -> tuple[str, int]:
-        what = {"E": "effect parameter (a field of EffectParams)", "P": "parameter"}
+        what = {"E": "effect parameter", "P": "parameter"}.get(prefix, "state")
+        fix = "use a field of EffectParams" if prefix == "E" else "declare it or fix the name"
         if prefix == "E":
-            at = getattr(E, ident, None) if ident in E._fields else None
+            at = getattr(E, ident) if ident in E._fields else None
         elif prefix == "P":
             at = self.param_index.get((self.name, ident))
         else:
             at = self.state_index.get((self.name, ident))
         if at is None:
             raise CompositionError(
-                f"component {self.comp.type!r}: code uses undeclared "
-                f"{what.get(prefix, 'state')} {ident!r}; declare it or fix the name"
+                f"component {self.comp.type!r}: code uses undeclared {what} {ident!r}; {fix}"
             )
         return {"E": "p", "P": "p", "X": "x", "DX": "dx"}[prefix], at
 

@@ -16,7 +16,7 @@ import pytest
 import yaml
 from support import DATA, controller_named, rig_named
 
-from fuzzyservo.components.effects import E
+from fuzzyservo.components.effects import INPUT_EFFECTS, E
 from fuzzyservo.controllers.classical import OpenLoop
 from fuzzyservo.errors import ConfigError
 from fuzzyservo.io.rigs import load_rig
@@ -91,6 +91,9 @@ def test_io_delay_is_its_own_stage_declared_once(rig) -> None:
     assert loop_settings(late).io_delay_s == rig.io_delay_s == pytest.approx(0.020)
     compiled = [p.name for stage in LOOP_STAGES for p in stage.params if p.compiled]
     assert LoopSettings._fields == (*compiled, "tol")
+    # every input effect is one loop stage, and only input effects are
+    effects = [stage.effect for stage in LOOP_STAGES if stage.effect]
+    assert sorted(effects) == sorted(INPUT_EFFECTS)
 
 
 def test_noise_reproduces_with_its_seed_and_switches_off(rig) -> None:

@@ -1,14 +1,14 @@
 """The compiled closed loop, compiled once per plant: its functions are written against
 the plant's kernels by the names of :data:`PLANT_SLOTS`.
 
-:func:`fuzzyservo._jit.bind_plant` generates, for one plant, a module that defines
-those names (the plant's binding: imports of a plant module's kernels, or the source
-generated for a composition) followed by the source of each function of :data:`BOUND`,
-which takes every other name it uses from this module; numba compiles and caches that
-module. A loop thus inlines exactly one plant, with no dispatch on a plant code, and a
-plant composed from components at run time is as fast as a hand-written one. As it
-stands (bound to its default plant below) this file is an ordinary module, so linters,
-readers and the generated modules' imports see ordinary Python.
+:func:`fuzzyservo._jit.bind_plant` generates, for one plant, a module from this file:
+every statement as it is, but those that bind the plant slots (the default plant
+below) give way to the plant's binding (imports of a plant module's kernels, or the
+source generated for a composition); numba compiles and caches that module. A loop
+thus inlines exactly one plant, with no dispatch on a plant code, and a plant composed
+from components at run time is as fast as a hand-written one. As it stands (bound to
+its default plant) this file is an ordinary module, so linters and readers see
+ordinary Python.
 
 The plant is integrated between samples by an adaptive linearly implicit
 Rosenbrock-W method, ROS34PW2 (order 3, embedded order 2), with a finite-difference
@@ -359,15 +359,3 @@ def rhs_with_inputs(x: np.ndarray, a: float, load: float, p: np.ndarray, null: f
 def in_end_stop(x: np.ndarray, p: np.ndarray) -> bool:
     """True when the plant part of ``x`` sits beyond a mechanical end stop."""
     return plant_in_end_stop(x[: plant_states(x, p)], p)
-
-
-# What a loop module bound to one plant holds: these functions, after the plant's binding.
-BOUND = (
-    loop_rhs,
-    integrate_interval,
-    closed_loop,
-    closed_loop_batch,
-    signal_table,
-    rhs_with_inputs,
-    in_end_stop,
-)

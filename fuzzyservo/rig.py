@@ -173,7 +173,8 @@ class Rig:
     bounds of values the rig file marks as unknown (``fit: [lo, hi]``), which
     calibration fits. ``measured``: how its data files are read. ``io_delay_s``: the
     loop's input-output latency (computation and conversion), from the sample of the
-    feedback to the command reaching the actuator; it adds to a ``transport_delay``.
+    feedback to the command reaching the actuator: the loop's ``io_delay`` stage, in
+    series with the ``transport_delay`` effect (the stages: ``simulation/_loop.py``).
     """
 
     name: str

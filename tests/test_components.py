@@ -161,6 +161,22 @@ def test_compositions_refuse_in_one_line() -> None:
         compose(_minimal("linear_motor"))
 
 
+def test_component_code_vocabulary_resolves_to_declared_positions() -> None:
+    from fuzzyservo.components._declare import Component, Param
+    from fuzzyservo.components.effects import E
+    from fuzzyservo.plants.composed import _Vocabulary
+
+    load = Component("spring", "load", "a test load", "test", params=(Param("k", "N/m", "k"),))
+    vocabulary = _Vocabulary("ld", load, {("ld", "k"): 20}, {("ld", "y"): 0})
+    code = "L.f = P.k * X.y + E.valve_lag_s  # comments are dropped\nf_load += L.f"
+    assert vocabulary.resolve(code) == (f"ld_f = p[20] * x[0] + p[{E.valve_lag_s}]\nf_load += ld_f")
+    assert vocabulary.resolve("DX.y = 'P.k'") == "dx[0] = 'P.k'"
+    with pytest.raises(CompositionError, match="undeclared parameter 'c'"):
+        vocabulary.resolve("f_load += P.c")
+    with pytest.raises(CompositionError, match="undeclared effect parameter 'lag'"):
+        vocabulary.resolve("f_load += E.lag")
+
+
 def test_rig_file_errors_name_the_component_key(tmp_path: Path) -> None:
     data = yaml.safe_load((DATA / "rigs" / "servo_lift.yaml").read_text())
     data["plant"]["components"]["valve"]["parameters"]["rated_flw"] = {"value": 1, "unit": "1"}

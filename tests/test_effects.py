@@ -49,16 +49,32 @@ def test_library_has_exactly_the_issue_names_with_units_bounds_and_sources() -> 
 def test_every_plant_carries_the_effects_at_the_same_positions(type_name: str) -> None:
     cls = PLANTS[type_name].params_cls
     assert issubclass(cls, fx.EffectParams)
-    assert index_of(cls, "coulomb_force_si") == fx.E_COULOMB == 0
-    assert index_of(cls, "pump_flow_m3_s") == fx.E_PUMP
+    assert index_of(cls, "coulomb_force_si") == fx.E.coulomb_force_si == 0
+    for name, at in fx.E._asdict().items():
+        assert index_of(cls, name) == at
     assert set(fx.INPUT_EFFECTS) <= set(PLANTS[type_name].effects)
+
+
+def test_effect_parameters_are_made_from_the_library_declarations() -> None:
+    declared = {prm.field: prm for e in fx.LIBRARY.values() for prm in e.params}
+    fields = {f.name: f for f in dataclasses.fields(fx.EffectParams)}
+    assert set(fields) == set(declared) == set(fx.E._fields)
+    for field_name, prm in declared.items():
+        meta = fields[field_name].metadata
+        assert meta["unit"] == prm.unit and meta["doc"] == prm.doc
+        assert meta["nonnegative"] is not prm.signed
+        assert meta["key"].endswith(f".{prm.key}")
+    assert fields["valve_bias_si"].metadata["key"] == "valve_bias.offset"
+    with pytest.raises(ValueError, match="unit"):
+        fx.EffectParam("k", "k_si", "Pa*s/m^3x", lambda s: (0.0, 1.0), doc="a misspelt unit")
 
 
 def test_friction_force_formulation() -> None:
     # MODELLING.md: F = (Fc + Fst·exp(−(v/vs)²))·tanh(v/vc); here Fc = 100 + 50 N
-    p = np.zeros(13)
-    p[fx.E_COULOMB], p[fx.E_STRIBECK_FC], p[fx.E_STRIBECK_FS] = 100.0, 50.0, 30.0
-    p[fx.E_STRIBECK_VS], p[fx.E_SMOOTH] = 5e-3, 1e-4
+    p = np.zeros(len(fx.E))
+    p[fx.E.coulomb_force_si], p[fx.E.stribeck_coulomb_force_si] = 100.0, 50.0
+    p[fx.E.stribeck_stiction_force_si] = 30.0
+    p[fx.E.stribeck_velocity_si], p[fx.E.friction_smoothing_velocity_si] = 5e-3, 1e-4
     assert fx.friction_force(0.0, p) == 0.0
     assert fx.friction_force(1.0, p) == pytest.approx(150.0)  # far above vs: Coulomb only
     v = 5e-3

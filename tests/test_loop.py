@@ -107,6 +107,24 @@ def _integrate(steps: int, t_end: float = 1.0) -> np.ndarray:
     return x
 
 
+def test_a_bound_loop_is_the_template_with_the_plant_s_binding() -> None:
+    import inspect
+
+    from fuzzyservo.simulation import _plant_loop as template
+
+    loop = bind_plant(_LINEAR)
+    for slot in template.PLANT_SLOTS:
+        assert getattr(loop, slot) is not getattr(template, slot)
+    names = ("closed_loop", "closed_loop_batch", "integrate_interval", "signal_table")
+    for name in names:
+        bound, original = getattr(loop, name), getattr(template, name)
+        assert bound is not original
+        assert inspect.getsource(bound.py_func) == inspect.getsource(original.py_func)
+    assert bind_plant(_LINEAR) is loop
+    with pytest.raises(ValueError, match="plant_signals"):
+        bind_plant("def plant_rhs(): pass\ndef plant_in_end_stop(): pass")
+
+
 def test_ros34pw2_is_third_order_on_a_linear_system() -> None:
     exact = expm(_A) @ np.array([1.0, 0.0, 0.5])
     errors = [np.max(np.abs(_integrate(n) - exact)) for n in (40, 80, 160, 320)]

@@ -16,13 +16,15 @@ import pytest
 import yaml
 from support import DATA, controller_named, rig_named
 
+from fuzzyservo.components.effects import INPUT_EFFECTS, E
 from fuzzyservo.controllers.classical import OpenLoop
 from fuzzyservo.errors import ConfigError
 from fuzzyservo.io.rigs import load_rig
 from fuzzyservo.rig import Scenario
 from fuzzyservo.signals import Sampled
 from fuzzyservo.simulation import simulate
-from fuzzyservo.simulation._loop import adc
+from fuzzyservo.simulation._loop import LOOP_STAGES, LoopSettings, adc
+from fuzzyservo.simulation.closed_loop import loop_settings, prepare
 from fuzzyservo.simulation.reference import simulate_reference
 
 
@@ -75,6 +77,23 @@ def test_io_delay_is_transport_delay_within_the_hold(rig) -> None:
         noise=False,
     )
     assert np.allclose(both.signals["y"], tr.signals["y"], atol=1e-9)
+
+
+def test_io_delay_is_its_own_stage_declared_once(rig) -> None:
+    """The I/O delay is a loop setting, the transport delay an effect in the packed
+    parameters: neither is folded into the other, and the loop's settings are the
+    declared stages' parameters."""
+    stages = [stage.name for stage in LOOP_STAGES]
+    assert stages.index("io_delay") + 1 == stages.index("transport_delay")
+    late = rig.with_effect("transport_delay", delay=3e-3)
+    prep = prepare(late, controller_named("p_k10"))
+    assert prep.p[E.transport_delay_s] == 3e-3
+    assert loop_settings(late).io_delay_s == rig.io_delay_s == pytest.approx(0.020)
+    compiled = [p.name for stage in LOOP_STAGES for p in stage.params if p.compiled]
+    assert LoopSettings._fields == (*compiled, "tol")
+    # every input effect is one loop stage, and only input effects are
+    effects = [stage.effect for stage in LOOP_STAGES if stage.effect]
+    assert sorted(effects) == sorted(INPUT_EFFECTS)
 
 
 def test_noise_reproduces_with_its_seed_and_switches_off(rig) -> None:

@@ -6,13 +6,14 @@ Simscape Fluids build a circuit. Each component type is one module under
 :func:`registry` finds them, so a new component is that one file plus its test.
 
 A component's compiled code is a few lines of Python (``code``, by phase) written
-against the circuit's shared variables (:data:`BUS`) and four prefixes that the
-composer (:mod:`fuzzyservo.plants.composed`) replaces:
+against the circuit's shared variables (the names :data:`PHASES` defines) and five
+prefixes that the composer (:mod:`fuzzyservo.plants.composed`) resolves on the code's
+syntax tree, to positions derived from the declarations:
 
 ``P.key``    the component's parameter ``key`` (an entry of the packed vector)
 ``X.name``   its state ``name``;  ``DX.name = ...`` sets that state's derivative
 ``L.name``   a variable local to this instance (prefixed with the instance name)
-``E.field``  an effect parameter (a field of :class:`~fuzzyservo.components.effects.EffectParams`)
+``E.field``  an effect parameter (a field of :data:`~fuzzyservo.components.effects.E`)
 
 Signals are expressions in the same vocabulary, written to the signal table by name,
 so no table has to agree with another by position.

@@ -1,8 +1,11 @@
 """The effect library: physical effects a model may lack, declarable in any rig file, off by default.
 
-Every plant's parameter set inherits :class:`EffectParams`, so the effects travel in
-the packed parameter vector at the same positions (``E_*``) for every plant, and a
-zero value switches an effect off. Two stages:
+Each effect is declared once, as an entry of :data:`LIBRARY`: its parameters with their
+file keys, fields, units, docs and calibration bounds. The rest is made from it:
+:class:`EffectParams`, the fields every plant's parameter set inherits, so the effects
+travel in the packed parameter vector at the same positions for every plant, and
+:data:`E`, those positions by field name (``p[E.valve_lag_s]``). A zero value switches
+an effect off. Two stages:
 
 * **input effects**, applied by the simulation loop between the actuator and the plant
   input for every plant: ``transport_delay`` → ``valve_bias`` → ``valve_lag`` →
@@ -37,88 +40,279 @@ external_leakage    q = Ke·p out of each chamber to the drain (seals, case)    
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, NamedTuple
 
 from fuzzyservo._jit import njit
 from fuzzyservo.components.orifice import signed_sqrt_flow
 from fuzzyservo.params import index_of, quantity
+from fuzzyservo.units import parse_unit
+
+# unit tokens an effect parameter may use; the plant resolves them (force N or N·m, ...)
+UNIT_TOKENS = ("force", "velocity", "input")
 
 
-def _effect_field(key: str, unit: str, doc: str, **bounds: Any) -> Any:
-    return quantity(key, unit, default=0.0, doc=doc, effect=True, **bounds)
+# --------------------------------------------------------------------------- library
 
 
-@dataclass(frozen=True, kw_only=True)
-class EffectParams:
-    """Effect parameters every plant parameter set carries; 0 switches an effect off.
+@dataclass(frozen=True)
+class Scales:
+    """Size of a rig, from which effect bounds follow: stall force [N or N·m], no-load
+    velocity [m/s or rad/s], rated flow [m³/s], supply-to-return pressure [Pa], rated
+    input [A or V], the declared bulk modulus [Pa], the controller's period [s], and
+    the velocity over which friction's sign(v) is smoothed (tanh) on this plant."""
 
-    Units of ``*_si`` fields depend on the plant: force N (cylinder) or N·m (motor),
-    velocity m/s or rad/s, input A or V (the plant's input unit).
+    force: float
+    velocity: float
+    flow: float
+    pressure: float
+    input: float
+    bulk_modulus: float
+    sample_time: float
+    smoothing_velocity: float = float("nan")  # tanh smoothing of sign(v) the plant uses
+
+
+@dataclass(frozen=True)
+class EffectParam:
+    """One parameter of an effect, declared once: the file key (``<effect>.<key>``), the
+    field of :class:`EffectParams` it is stored in, its unit, what it is, whether it may be
+    negative, its bounds for calibration (from the rig's :class:`Scales`), fitted or fixed.
+
+    ``unit`` is an SI expression (checked here) or a token the plant resolves: ``force``
+    (N or N·m), ``velocity`` (m/s or rad/s), ``input`` (the plant input's A or V).
     """
 
-    coulomb_force_si: float = _effect_field(
-        "coulomb_friction.force", "force", "Coulomb friction force or torque", nonnegative=True
-    )
-    friction_smoothing_velocity_si: float = _effect_field(
-        "friction.smoothing_velocity", "velocity", "tanh smoothing of sign(v)", nonnegative=True
-    )
-    stribeck_coulomb_force_si: float = _effect_field(
-        "stribeck_friction.coulomb_force", "force", "Coulomb level", nonnegative=True
-    )
-    stribeck_stiction_force_si: float = _effect_field(
-        "stribeck_friction.stiction_force", "force", "breakaway minus Coulomb", nonnegative=True
-    )
-    stribeck_velocity_si: float = _effect_field(
-        "stribeck_friction.stribeck_velocity", "velocity", "Stribeck velocity", nonnegative=True
-    )
-    line_resistance_pa_s_m3: float = _effect_field(
-        "line_resistance.resistance", "Pa*s/m^3", "laminar line resistance", nonnegative=True
-    )
-    internal_leakage_m3_s_pa: float = _effect_field(
-        "internal_leakage.coefficient", "m^3/(s*Pa)", "cross-port leakage", nonnegative=True
-    )
-    valve_deadband_si: float = _effect_field(
-        "valve_deadband.width", "input", "dead band half-width", nonnegative=True
-    )
-    valve_bias_si: float = _effect_field("valve_bias.offset", "input", "null bias offset")
-    valve_lag_s: float = _effect_field(
-        "valve_lag.time_constant", "s", "spool time constant", nonnegative=True
-    )
-    transport_delay_s: float = _effect_field(
-        "transport_delay.delay", "s", "input delay", nonnegative=True
-    )
-    effective_bulk_modulus_pa: float = _effect_field(
-        "bulk_modulus.effective", "Pa", "effective bulk modulus (0: the oil's)", nonnegative=True
-    )
-    pump_flow_m3_s: float = _effect_field(
-        "supply_droop.pump_flow", "m^3/s", "pump flow limit (0: unlimited)", nonnegative=True
-    )
-    external_leakage_m3_s_pa: float = _effect_field(
-        "external_leakage.coefficient", "m^3/(s*Pa)", "leakage to the drain", nonnegative=True
+    key: str
+    field: str
+    unit: str
+    bounds: Callable[[Scales], tuple[float, float]]
+    doc: str = ""
+    signed: bool = False  # may be negative (a bias); every other effect parameter is >= 0
+    fitted: bool = True
+    default: Callable[[Scales], float] | None = None
+    log: bool = False  # search the parameter on a logarithmic grid
+
+    def __post_init__(self) -> None:
+        if self.unit not in UNIT_TOKENS:
+            parse_unit(self.unit)  # raises on a misspelled unit, at import
+        if not (self.field.isidentifier() and self.doc):
+            raise ValueError(f"effect parameter {self.key!r}: needs a field name and a doc")
+
+    def value_bounds(self, scales: Scales) -> tuple[float, float]:
+        lo, hi = self.bounds(scales)
+        return float(lo), float(hi)
+
+
+@dataclass(frozen=True)
+class Effect:
+    """A library entry: name, stage (``input`` or ``plant``), parameters, and what it models."""
+
+    name: str
+    stage: str
+    params: tuple[EffectParam, ...]
+    formulation: str
+    source: str
+
+    @property
+    def fitted(self) -> tuple[EffectParam, ...]:
+        return tuple(p for p in self.params if p.fitted)
+
+    def param_by_field(self, field: str) -> EffectParam:
+        for p in self.params:
+            if p.field == field:
+                return p
+        raise KeyError(field)
+
+    def param(self, key: str) -> EffectParam:
+        for p in self.params:
+            if p.key == key:
+                return p
+        raise KeyError(key)
+
+
+def _smoothing() -> EffectParam:
+    return EffectParam(
+        "smoothing_velocity",
+        "friction_smoothing_velocity_si",
+        "velocity",
+        lambda s: (0.0, 0.1 * s.velocity),
+        doc="tanh smoothing of sign(v)",
+        fitted=False,
+        default=lambda s: s.smoothing_velocity,
     )
 
 
-def _index(name: str) -> int:
-    return index_of(EffectParams, name)
+LIBRARY: dict[str, Effect] = {
+    e.name: e
+    for e in (
+        Effect(
+            "coulomb_friction",
+            "plant",
+            (
+                EffectParam("force", "coulomb_force_si", "force", lambda s: (0.0, 0.1 * s.force), doc="Coulomb friction force or torque"),
+                _smoothing(),
+            ),
+            "F = Fc·tanh(v/vc) opposing the motion [N or N·m]; vc the plant's smoothing velocity",
+            "docs/modelling.md Friction (smooth form); seed 002 §5 names dry friction as neglected",
+        ),
+        Effect(
+            "stribeck_friction",
+            "plant",
+            (
+                EffectParam(
+                    "coulomb_force", "stribeck_coulomb_force_si", "force",
+                    lambda s: (0.0, 0.1 * s.force), doc="Coulomb level"),
+                EffectParam(
+                    "stiction_force", "stribeck_stiction_force_si", "force",
+                    lambda s: (0.0, 0.1 * s.force), doc="breakaway minus Coulomb"),
+                EffectParam(
+                    "stribeck_velocity", "stribeck_velocity_si", "velocity",
+                    lambda s: (1e-3 * s.velocity, 0.2 * s.velocity), log=True, doc="Stribeck velocity"),
+                _smoothing(),
+            ),
+            "F = (Fc + Fst·exp(−(v/vs)²))·tanh(v/vc): breakaway Fc + Fst at rest, Fc in motion",
+            "docs/modelling.md Friction and typical ranges (Fs/Fc 1.1-1.5, vs 1-10 mm/s)",
+        ),
+        Effect(
+            "line_resistance",
+            "plant",
+            (
+                EffectParam(
+                    "resistance", "line_resistance_pa_s_m3", "Pa*s/m^3",
+                    lambda s: (0.0, s.pressure / s.flow), log=True, doc="laminar line resistance"),
+            ),
+            "laminar line between each valve port and its chamber: Δp = R·q [Pa], "
+            "R = 128·μ·L/(π·d⁴)",
+            "docs/modelling.md line loss; seed 002 §5 names the valve-cylinder line as neglected",
+        ),
+        Effect(
+            "internal_leakage",
+            "plant",
+            (
+                EffectParam(
+                    # up to the rated flow at the full supply pressure: a worn piston seal;
+                    # a tenth of it (the earlier bound) was below the cylinder range's top
+                    # on seed 002 (8.8e-13 < 1e-12 m³/(s·Pa))
+                    "coefficient", "internal_leakage_m3_s_pa", "m^3/(s*Pa)",
+                    lambda s: (0.0, s.flow / s.pressure), log=True, doc="cross-port leakage"),
+            ),
+            "q = Kl·(pA − pB) across the piston or motor [m³/s]",
+            "docs/modelling.md typical ranges (1e-14..1e-12 cylinders, 1e-12..1e-11 motors); "
+            "seed 003 §2, seed 001 eq. 1-9",
+        ),
+        Effect(
+            "valve_deadband",
+            "input",
+            (
+                EffectParam(
+                    "width", "valve_deadband_si", "input", lambda s: (0.0, 0.1 * s.input), doc="dead band half-width"),
+            ),
+            "i_eff = i0 + sign(Δi)·max(|Δi| − w, 0) around the valve null i0",
+            "docs/modelling.md dead band / overlap",
+        ),
+        Effect(
+            "valve_bias",
+            "input",
+            (
+                EffectParam(
+                    "offset", "valve_bias_si", "input",
+                    lambda s: (-0.05 * s.input, 0.05 * s.input), doc="null bias offset", signed=True),
+            ),
+            "i_eff = i + b: a null bias beyond the declared one [A or V]",
+            "docs/modelling.md null bias (≤ 2-3 % of rated current)",
+        ),
+        Effect(
+            "valve_lag",
+            "input",
+            (EffectParam("time_constant", "valve_lag_s", "s", lambda s: (0.0, 0.02), doc="spool time constant"),),
+            "τ·di_s/dt = i − i_s: first-order spool dynamics [s]",
+            "docs/modelling.md typical ranges (spool bandwidth 50-200 Hz: τ 0.8-3.2 ms); seed 000 eq. 8",
+        ),
+        Effect(
+            "transport_delay",
+            "input",
+            (
+                EffectParam(
+                    "delay", "transport_delay_s", "s",
+                    lambda s: (0.0, max(0.05, 5.0 * s.sample_time)), doc="input delay"),
+            ),
+            "i_eff(t) = i(t − d): computation, bus and converter delay [s]",
+            "docs/modelling.md transport delay (cross-correlation peak at lag > 0)",
+        ),
+        Effect(
+            "bulk_modulus",
+            "plant",
+            (
+                EffectParam(
+                    "effective", "effective_bulk_modulus_pa", "Pa",
+                    lambda s: (0.1e9, s.bulk_modulus), doc="effective bulk modulus (0: the oil's)"),
+            ),
+            "E_eff replaces the oil's bulk modulus in every chamber [Pa]",
+            "docs/modelling.md typical ranges (oil 1.4-1.8 GPa; hoses or air 0.2-0.7 GPa)",
+        ),
+        Effect(
+            "supply_droop",
+            "plant",
+            (
+                EffectParam(
+                    "pump_flow", "pump_flow_m3_s", "m^3/s",
+                    lambda s: (0.1 * s.flow, 4.0 * s.flow), doc="pump flow limit (0: unlimited)"),
+            ),
+            "q_supply = min(q_demand, Qp): a pump of limited flow behind the relief valve; "
+            "the supply pressure sags when the valve asks for more",
+            "docs/modelling.md supply droop; seed 003 eq. 1 (pump with relief)",
+        ),
+        Effect(
+            "external_leakage",
+            "plant",
+            (
+                EffectParam(
+                    "coefficient", "external_leakage_m3_s_pa", "m^3/(s*Pa)",
+                    lambda s: (0.0, 0.1 * s.flow / s.pressure), log=True, doc="leakage to the drain"),
+            ),
+            "q = Ke·p out of each chamber to the drain (rod seals, a motor's case drain) "
+            "[m³/s]; composed cylinders and motors",
+            "docs/modelling.md typical ranges (leakage 1e-14..1e-11 m³/(s·Pa)); seed 000 eq. 17 "
+            "(a motor's external leakage), seed 001 eq. 1-9",
+        ),
+    )
+}  # fmt: skip
 
 
-# Positions in every plant's packed vector (the inherited fields come first).
-E_COULOMB = _index("coulomb_force_si")
-E_SMOOTH = _index("friction_smoothing_velocity_si")
-E_STRIBECK_FC = _index("stribeck_coulomb_force_si")
-E_STRIBECK_FS = _index("stribeck_stiction_force_si")
-E_STRIBECK_VS = _index("stribeck_velocity_si")
-E_LINE = _index("line_resistance_pa_s_m3")
-E_LEAK = _index("internal_leakage_m3_s_pa")
-E_DEADBAND = _index("valve_deadband_si")
-E_BIAS = _index("valve_bias_si")
-E_LAG = _index("valve_lag_s")
-E_DELAY = _index("transport_delay_s")
-E_BULK = _index("effective_bulk_modulus_pa")
-E_PUMP = _index("pump_flow_m3_s")
+def _declared_fields() -> dict[str, tuple[str, EffectParam]]:
+    """Field -> (the first effect declaring it, its declaration), in library order (a
+    field two effects share, friction's smoothing velocity, is one entry)."""
+    out: dict[str, tuple[str, EffectParam]] = {}
+    for effect in LIBRARY.values():
+        for prm in effect.params:
+            out.setdefault(prm.field, (effect.name, prm))
+    return out
+
+
+def _make_effect_params() -> type:
+    fields = [
+        (name, float, quantity(f"{effect}.{prm.key}", prm.unit, default=0.0, doc=prm.doc,
+                               effect=True, nonnegative=not prm.signed))
+        for name, (effect, prm) in _declared_fields().items()
+    ]  # fmt: skip
+    cls = dataclasses.make_dataclass("EffectParams", fields, frozen=True, kw_only=True)
+    cls.__module__ = __name__
+    cls.__doc__ = (
+        "Effect parameters every plant parameter set carries (made from :data:`LIBRARY`); "
+        "0 switches an effect off.\n\nUnits of ``*_si`` fields depend on the plant: force "
+        "N (cylinder) or N·m (motor), velocity m/s or rad/s, input A or V (the plant's input)."
+    )
+    return cls
+
+
+EffectParams = _make_effect_params()
+# Where each effect parameter sits in every plant's packed vector (the inherited fields
+# come first): ``p[E.valve_lag_s]`` in a kernel, ``E.valve_lag_s`` in a component's code.
+EffectIndex = NamedTuple("EffectIndex", [(name, int) for name in _declared_fields()])
+E = EffectIndex(*(index_of(EffectParams, name) for name in _declared_fields()))
 
 
 def effective_bulk_modulus(params: Any) -> float:
@@ -132,7 +326,7 @@ def effective_bulk_modulus(params: Any) -> float:
 @njit(cache=True, inline="always")
 def bulk_modulus(p: Any, declared: float) -> float:
     """E_eff [Pa] when the ``bulk_modulus`` effect is on, else the declared oil modulus."""
-    e = p[E_BULK]
+    e = p[E.effective_bulk_modulus_pa]
     return e if e > 0.0 else declared
 
 
@@ -144,15 +338,15 @@ def friction_force(v: float, p: Any) -> float:
     form; Armstrong-Hélouvry's Stribeck curve without its viscous part, which every
     plant already has). Zero when both friction effects are off.
     """
-    fc = p[E_COULOMB] + p[E_STRIBECK_FC]
-    fst = p[E_STRIBECK_FS]
+    fc = p[E.coulomb_force_si] + p[E.stribeck_coulomb_force_si]
+    fst = p[E.stribeck_stiction_force_si]
     if fc == 0.0 and fst == 0.0:
         return 0.0
-    vc = p[E_SMOOTH]
+    vc = p[E.friction_smoothing_velocity_si]
     if vc <= 0.0:
         vc = 1e-4
     level = fc
-    vs = p[E_STRIBECK_VS]
+    vs = p[E.stribeck_velocity_si]
     if fst > 0.0 and vs > 0.0:
         r = v / vs
         level += fst * math.exp(-r * r)
@@ -228,7 +422,7 @@ def port_pressure(
 def pump_limited(q: float, p: Any) -> float:
     """Supply flow [m³/s] limited to the pump's delivery Qp (``supply_droop``); when the
     demand exceeds Qp the relief valve closes and the supply pressure sags."""
-    qp = p[E_PUMP]
+    qp = p[E.pump_flow_m3_s]
     if qp <= 0.0:
         return q
     if q > qp:
@@ -237,228 +431,6 @@ def pump_limited(q: float, p: Any) -> float:
         return -qp
     return q
 
-
-# --------------------------------------------------------------------------- library
-
-
-@dataclass(frozen=True)
-class Scales:
-    """Size of a rig, from which effect bounds follow: stall force [N or N·m], no-load
-    velocity [m/s or rad/s], rated flow [m³/s], supply-to-return pressure [Pa], rated
-    input [A or V], the declared bulk modulus [Pa], the controller's period [s], and
-    the velocity over which friction's sign(v) is smoothed (tanh) on this plant."""
-
-    force: float
-    velocity: float
-    flow: float
-    pressure: float
-    input: float
-    bulk_modulus: float
-    sample_time: float
-    smoothing_velocity: float = float("nan")  # tanh smoothing of sign(v) the plant uses
-
-
-@dataclass(frozen=True)
-class EffectParam:
-    """One parameter of an effect: file key, field, unit token, fitted or fixed, bounds."""
-
-    key: str
-    field: str
-    unit: str  # "force", "velocity", "input" or an SI expression
-    bounds: Callable[[Scales], tuple[float, float]]
-    fitted: bool = True
-    default: Callable[[Scales], float] | None = None
-    log: bool = False  # search the parameter on a logarithmic grid
-
-    def value_bounds(self, scales: Scales) -> tuple[float, float]:
-        lo, hi = self.bounds(scales)
-        return float(lo), float(hi)
-
-
-@dataclass(frozen=True)
-class Effect:
-    """A library entry: name, stage (``input`` or ``plant``), parameters, and what it models."""
-
-    name: str
-    stage: str
-    params: tuple[EffectParam, ...]
-    formulation: str
-    source: str
-
-    @property
-    def fitted(self) -> tuple[EffectParam, ...]:
-        return tuple(p for p in self.params if p.fitted)
-
-    def param_by_field(self, field: str) -> EffectParam:
-        for p in self.params:
-            if p.field == field:
-                return p
-        raise KeyError(field)
-
-    def param(self, key: str) -> EffectParam:
-        for p in self.params:
-            if p.key == key:
-                return p
-        raise KeyError(key)
-
-
-def _smoothing() -> EffectParam:
-    return EffectParam(
-        "smoothing_velocity",
-        "friction_smoothing_velocity_si",
-        "velocity",
-        lambda s: (0.0, 0.1 * s.velocity),
-        fitted=False,
-        default=lambda s: s.smoothing_velocity,
-    )
-
-
-LIBRARY: dict[str, Effect] = {
-    e.name: e
-    for e in (
-        Effect(
-            "coulomb_friction",
-            "plant",
-            (
-                EffectParam("force", "coulomb_force_si", "force", lambda s: (0.0, 0.1 * s.force)),
-                _smoothing(),
-            ),
-            "F = Fc·tanh(v/vc) opposing the motion [N or N·m]; vc the plant's smoothing velocity",
-            "docs/modelling.md Friction (smooth form); seed 002 §5 names dry friction as neglected",
-        ),
-        Effect(
-            "stribeck_friction",
-            "plant",
-            (
-                EffectParam(
-                    "coulomb_force", "stribeck_coulomb_force_si", "force",
-                    lambda s: (0.0, 0.1 * s.force),
-                ),
-                EffectParam(
-                    "stiction_force", "stribeck_stiction_force_si", "force",
-                    lambda s: (0.0, 0.1 * s.force),
-                ),
-                EffectParam(
-                    "stribeck_velocity", "stribeck_velocity_si", "velocity",
-                    lambda s: (1e-3 * s.velocity, 0.2 * s.velocity), log=True,
-                ),
-                _smoothing(),
-            ),
-            "F = (Fc + Fst·exp(−(v/vs)²))·tanh(v/vc): breakaway Fc + Fst at rest, Fc in motion",
-            "docs/modelling.md Friction and typical ranges (Fs/Fc 1.1-1.5, vs 1-10 mm/s)",
-        ),
-        Effect(
-            "line_resistance",
-            "plant",
-            (
-                EffectParam(
-                    "resistance", "line_resistance_pa_s_m3", "Pa*s/m^3",
-                    lambda s: (0.0, s.pressure / s.flow), log=True,
-                ),
-            ),
-            "laminar line between each valve port and its chamber: Δp = R·q [Pa], "
-            "R = 128·μ·L/(π·d⁴)",
-            "docs/modelling.md line loss; seed 002 §5 names the valve-cylinder line as neglected",
-        ),
-        Effect(
-            "internal_leakage",
-            "plant",
-            (
-                EffectParam(
-                    # up to the rated flow at the full supply pressure: a worn piston seal;
-                    # a tenth of it (the earlier bound) was below the cylinder range's top
-                    # on seed 002 (8.8e-13 < 1e-12 m³/(s·Pa))
-                    "coefficient", "internal_leakage_m3_s_pa", "m^3/(s*Pa)",
-                    lambda s: (0.0, s.flow / s.pressure), log=True,
-                ),
-            ),
-            "q = Kl·(pA − pB) across the piston or motor [m³/s]",
-            "docs/modelling.md typical ranges (1e-14..1e-12 cylinders, 1e-12..1e-11 motors); "
-            "seed 003 §2, seed 001 eq. 1-9",
-        ),
-        Effect(
-            "valve_deadband",
-            "input",
-            (
-                EffectParam(
-                    "width", "valve_deadband_si", "input", lambda s: (0.0, 0.1 * s.input)
-                ),
-            ),
-            "i_eff = i0 + sign(Δi)·max(|Δi| − w, 0) around the valve null i0",
-            "docs/modelling.md dead band / overlap",
-        ),
-        Effect(
-            "valve_bias",
-            "input",
-            (
-                EffectParam(
-                    "offset", "valve_bias_si", "input",
-                    lambda s: (-0.05 * s.input, 0.05 * s.input),
-                ),
-            ),
-            "i_eff = i + b: a null bias beyond the declared one [A or V]",
-            "docs/modelling.md null bias (≤ 2-3 % of rated current)",
-        ),
-        Effect(
-            "valve_lag",
-            "input",
-            (EffectParam("time_constant", "valve_lag_s", "s", lambda s: (0.0, 0.02)),),
-            "τ·di_s/dt = i − i_s: first-order spool dynamics [s]",
-            "docs/modelling.md typical ranges (spool bandwidth 50-200 Hz: τ 0.8-3.2 ms); seed 000 eq. 8",
-        ),
-        Effect(
-            "transport_delay",
-            "input",
-            (
-                EffectParam(
-                    "delay", "transport_delay_s", "s",
-                    lambda s: (0.0, max(0.05, 5.0 * s.sample_time)),
-                ),
-            ),
-            "i_eff(t) = i(t − d): computation, bus and converter delay [s]",
-            "docs/modelling.md transport delay (cross-correlation peak at lag > 0)",
-        ),
-        Effect(
-            "bulk_modulus",
-            "plant",
-            (
-                EffectParam(
-                    "effective", "effective_bulk_modulus_pa", "Pa",
-                    lambda s: (0.1e9, s.bulk_modulus),
-                ),
-            ),
-            "E_eff replaces the oil's bulk modulus in every chamber [Pa]",
-            "docs/modelling.md typical ranges (oil 1.4-1.8 GPa; hoses or air 0.2-0.7 GPa)",
-        ),
-        Effect(
-            "supply_droop",
-            "plant",
-            (
-                EffectParam(
-                    "pump_flow", "pump_flow_m3_s", "m^3/s",
-                    lambda s: (0.1 * s.flow, 4.0 * s.flow),
-                ),
-            ),
-            "q_supply = min(q_demand, Qp): a pump of limited flow behind the relief valve; "
-            "the supply pressure sags when the valve asks for more",
-            "docs/modelling.md supply droop; seed 003 eq. 1 (pump with relief)",
-        ),
-        Effect(
-            "external_leakage",
-            "plant",
-            (
-                EffectParam(
-                    "coefficient", "external_leakage_m3_s_pa", "m^3/(s*Pa)",
-                    lambda s: (0.0, 0.1 * s.flow / s.pressure), log=True,
-                ),
-            ),
-            "q = Ke·p out of each chamber to the drain (rod seals, a motor's case drain) "
-            "[m³/s]; composed cylinders and motors",
-            "docs/modelling.md typical ranges (leakage 1e-14..1e-11 m³/(s·Pa)); seed 000 eq. 17 "
-            "(a motor's external leakage), seed 001 eq. 1-9",
-        ),
-    )
-}  # fmt: skip
 
 INPUT_EFFECTS = tuple(name for name, e in LIBRARY.items() if e.stage == "input")
 # The library as the hand-written seed 002 and seed 000 kernels read it (external_leakage

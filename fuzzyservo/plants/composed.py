@@ -14,6 +14,7 @@ run in order, each instance's code in the order the rig file lists them.
 
 from __future__ import annotations
 
+import ast
 import dataclasses
 import re
 from collections.abc import Mapping
@@ -29,10 +30,9 @@ from fuzzyservo.components._declare import (
     Component,
     registry,
 )
-from fuzzyservo.components.effects import INPUT_EFFECTS, LIBRARY, EffectParams, Scales
+from fuzzyservo.components.effects import INPUT_EFFECTS, LIBRARY, E, EffectParams, Scales
 from fuzzyservo.params import index_of, pack, quantity
 
-_PREFIX = re.compile(r"\b(DX|X|P|L|E)\.([A-Za-z_]\w*)")
 _STATIC_FORCE = "static_force"
 
 
@@ -147,33 +147,7 @@ def compose(parts: tuple[tuple[str, str], ...]) -> Any:
         raise CompositionError(f"two components declare the same state name: {state_names}")
 
     def subst(name: str, comp: Component, text: str) -> str:
-        def repl(m: re.Match) -> str:
-            prefix, ident = m.group(1), m.group(2)
-            if prefix == "E":
-                try:
-                    return f"p[{index_of(EffectParams, ident)}]"
-                except ValueError:
-                    raise CompositionError(
-                        f"component {comp.type!r}: code reads {ident!r}, not a field of EffectParams"
-                    ) from None
-            if prefix == "P":
-                try:
-                    return f"p[{param_index[(name, ident)]}]"
-                except KeyError:
-                    raise CompositionError(
-                        f"component {comp.type!r}: code reads undeclared parameter {ident!r}"
-                    ) from None
-            if prefix in ("X", "DX"):
-                try:
-                    i = state_index[(name, ident)]
-                except KeyError:
-                    raise CompositionError(
-                        f"component {comp.type!r}: code uses undeclared state {ident!r}"
-                    ) from None
-                return f"{'dx' if prefix == 'DX' else 'x'}[{i}]"
-            return f"{name}_{ident}"
-
-        return _PREFIX.sub(repl, text)
+        return _Vocabulary(name, comp, param_index, state_index).resolve(text)
 
     # the body: phases in order, instances in file order; defaults where a role is absent
     body: list[str] = ["mass = 0.0", "f_load = f_ext"]
@@ -241,6 +215,64 @@ def compose(parts: tuple[tuple[str, str], ...]) -> Any:
         pressures=tuple(name for name in signal_names if units[name] == "Pa"),
     )
     return model
+
+
+class _Vocabulary(ast.NodeTransformer):
+    """One instance's code with its vocabulary resolved (components/_declare.py): the
+    attribute ``P.key`` becomes ``p[i]``, ``X.name``/``DX.name`` become ``x[i]``/``dx[i]``,
+    ``E.field`` the effect's ``p[i]`` and ``L.name`` the local ``<instance>_name``, with
+    every ``i`` the position the declarations give. The code is parsed, rewritten as a
+    syntax tree and printed back, so only names in the code (not in its strings or
+    comments) change, and a name the component did not declare is an error."""
+
+    def __init__(
+        self,
+        name: str,
+        comp: Component,
+        param_index: Mapping[tuple[str, str], int],
+        state_index: Mapping[tuple[str, str], int],
+    ) -> None:
+        self.name, self.comp = name, comp
+        self.param_index, self.state_index = param_index, state_index
+
+    def resolve(self, code: str) -> str:
+        try:
+            tree = ast.parse(code)
+        except SyntaxError as exc:
+            raise CompositionError(
+                f"component {self.comp.type!r}: its code does not parse ({exc.msg}, line "
+                f"{exc.lineno}); fix the component's code"
+            ) from None
+        return ast.unparse(ast.fix_missing_locations(self.visit(tree)))
+
+    def visit_Attribute(self, node: ast.Attribute) -> ast.AST:
+        if not (isinstance(node.value, ast.Name) and node.value.id in _VOCABULARY):
+            return self.generic_visit(node)
+        prefix, ident = node.value.id, node.attr
+        if prefix == "L":
+            return ast.copy_location(ast.Name(f"{self.name}_{ident}", node.ctx), node)
+        vector, at = self._position(prefix, ident)
+        index = ast.Subscript(ast.Name(vector, ast.Load()), ast.Constant(at), node.ctx)
+        return ast.copy_location(index, node)
+
+    def _position(self, prefix: str, ident: str) -> tuple[str, int]:
+        what = {"E": "effect parameter", "P": "parameter"}.get(prefix, "state")
+        fix = "use a field of EffectParams" if prefix == "E" else "declare it or fix the name"
+        if prefix == "E":
+            at = getattr(E, ident) if ident in E._fields else None
+        elif prefix == "P":
+            at = self.param_index.get((self.name, ident))
+        else:
+            at = self.state_index.get((self.name, ident))
+        if at is None:
+            raise CompositionError(
+                f"component {self.comp.type!r}: code uses undeclared {what} {ident!r}; {fix}"
+            )
+        return {"E": "p", "P": "p", "X": "x", "DX": "dx"}[prefix], at
+
+
+# the prefixes of a component's code (components/_declare.py)
+_VOCABULARY = ("P", "X", "DX", "L", "E")
 
 
 def _composed_params(parts: tuple[tuple[str, str], ...], values: dict[str, float]) -> Any:

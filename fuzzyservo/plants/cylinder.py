@@ -48,9 +48,8 @@ import numpy as np
 
 from fuzzyservo._jit import njit
 from fuzzyservo.components.effects import (
-    E_LEAK,
-    E_LINE,
     FIRST_EFFECTS,
+    E,
     EffectParams,
     Scales,
     bulk_modulus,
@@ -225,7 +224,7 @@ def _evaluate(
     # valve ports: the chambers themselves, or line_resistance's port nodes
     pa_port = p3
     pb_port = p4
-    r_line = p[E_LINE]
+    r_line = p[E.line_resistance_pa_s_m3]
     if r_line > 0.0:
         pa_port = port_pressure(c14, p1, c23, p2, p3, r_line, lam)
         pb_port = port_pressure(c23, p1, c14, p2, p4, r_line, lam)
@@ -233,7 +232,7 @@ def _evaluate(
     q2 = signed_sqrt_flow(c23, pa_port - p2, lam)
     q3 = signed_sqrt_flow(c23, p1 - pb_port, lam)
     q4 = signed_sqrt_flow(c14, pb_port - p2, lam)
-    q_leak = p[E_LEAK] * (p3 - p4)  # internal_leakage across the piston
+    q_leak = p[E.internal_leakage_m3_s_pa] * (p3 - p4)  # internal_leakage across the piston
     f_fric = friction_force(v, p)  # coulomb_friction, stribeck_friction
     f_stop = _stop_force(y, v, p)
     dx[X.y] = v

@@ -35,9 +35,8 @@ import numpy as np
 
 from fuzzyservo._jit import njit
 from fuzzyservo.components.effects import (
-    E_LEAK,
-    E_LINE,
     FIRST_EFFECTS,
+    E,
     EffectParams,
     Scales,
     bulk_modulus,
@@ -111,7 +110,7 @@ def line_flow(spool: float, p_load: float, p: np.ndarray) -> float:
     ``supply_droop`` then caps |Q| at the pump's flow (components/effects.py).
     """
     q = valve_flow(spool, p_load, p)
-    r2 = 2.0 * p[E_LINE]
+    r2 = 2.0 * p[E.line_resistance_pa_s_m3]
     if r2 > 0.0 and q != 0.0:
         lo = min(0.0, q)
         hi = max(0.0, q)
@@ -155,7 +154,9 @@ def rhs(x: np.ndarray, u: float, t_load: float, p: np.ndarray, dx: np.ndarray) -
         P.inertia_kg_m2
     ]
     dx[X.theta] = w
-    leak = (p[P.leakage_m5_n_s] + p[E_LEAK]) * pl  # eq. 17 plus internal_leakage
+    leak = (
+        p[P.leakage_m5_n_s] + p[E.internal_leakage_m3_s_pa]
+    ) * pl  # eq. 17 plus internal_leakage
     dx[X.p_load] = (
         4.0
         * bulk_modulus(p, p[P.bulk_modulus_pa])
@@ -173,7 +174,7 @@ def signals(x: np.ndarray, u: float, t_load: float, p: np.ndarray, out: np.ndarr
     out[S.p_load] = x[X.p_load]
     out[S.q_valve] = line_flow(x[X.spool], x[X.p_load], p)
     out[S.t_friction] = friction_torque(x[X.w], p)
-    out[S.q_leak] = p[E_LEAK] * x[X.p_load]
+    out[S.q_leak] = p[E.internal_leakage_m3_s_pa] * x[X.p_load]
     out[S.p_a] = 0.5 * (p[P.supply_pressure_pa] + x[X.p_load])
     out[S.p_b] = 0.5 * (p[P.supply_pressure_pa] - x[X.p_load])
 

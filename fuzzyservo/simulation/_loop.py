@@ -17,23 +17,30 @@ below), which need no Jacobian-vector product: the same steps, 7 % less CPU time
 Nothing in here raises: a failure ends the run with a status code the caller turns
 into a result.
 
-Input effects (components/effects.py) sit between the held actuator value and the
-plant: ``transport_delay`` shifts the held sequence in time (an interval is integrated
-in two parts where the delayed input switches), ``valve_bias`` adds to it,
-``valve_lag`` appends one state (the spool, ``τ·ds/dt = a + b − s``) to the plant's,
-and ``valve_deadband`` maps the spool onto the plant input around its null.
+The loop's stages are declared once, in order, in :data:`LOOP_STAGES`: the feedback
+sensor, its noise and ADC, the sample and hold, the actuator's current limit, the I/O
+delay, then the input effects (components/effects.py) between the held actuator value
+and the plant. :class:`LoopSettings` is made from their parameters. The two delays,
+``io_delay`` (a loop setting) and ``transport_delay`` (an effect), shift the held
+sequence in time together (an interval is integrated in two parts where the delayed
+input switches); ``valve_bias`` adds to it, ``valve_lag`` appends one state (the spool,
+``τ·ds/dt = a + b − s``) to the plant's, and ``valve_deadband`` maps the spool onto
+the plant input around its null.
 """
 
 from __future__ import annotations
 
 import math
-from typing import NamedTuple
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import Any, NamedTuple
 
 import numpy as np
 
 from fuzzyservo._jit import njit
-from fuzzyservo.components.effects import E_BIAS, E_DEADBAND, E_DELAY, E_LAG, deadband
+from fuzzyservo.components.effects import LIBRARY, E, deadband
 from fuzzyservo.controllers.kernels import controller_step
+from fuzzyservo.units import parse_unit
 
 STATUS_OK = 0
 STATUS_DIVERGED = 1
@@ -130,25 +137,90 @@ def _lu_solve(a: np.ndarray, piv: np.ndarray, b: np.ndarray) -> None:
         b[i] = s / a[i, i]
 
 
-class LoopSettings(NamedTuple):
-    """The loop's scalars by name (numba reads a namedtuple at no cost).
+@dataclass(frozen=True)
+class StageParam:
+    """One parameter of a loop stage: its name in :class:`LoopSettings`, its unit (an SI
+    expression, checked here, or ``reading``: the feedback sensor's unit, ``command``: the
+    controller output's, ``input``: the plant input's), what it is, and how it is read
+    from a rig. ``compiled`` False: used before the loop (the noise is drawn in
+    :func:`~fuzzyservo.simulation.closed_loop.prepare`), not passed to it."""
 
-    Measurement ``y = adc(sensor_offset + sensor_gain·x[sensor_index] + noise)`` with
-    the ADC's range ``adc_lo .. adc_hi`` and step ``adc_step`` (0: no quantisation);
-    actuator ``a = clip(act_gain·u, act_lo, act_hi)``; ``tol`` the local-error tolerance.
-    """
+    name: str
+    unit: str
+    doc: str
+    read: Callable[[Any], float]
+    kind: type = float
+    compiled: bool = True
 
-    dt: float
-    sensor_index: int
-    sensor_offset: float
-    sensor_gain: float
-    act_gain: float
-    act_lo: float
-    act_hi: float
-    tol: float
-    adc_lo: float = 0.0
-    adc_hi: float = 0.0
-    adc_step: float = 0.0
+    def __post_init__(self) -> None:
+        if self.unit not in _STAGE_UNIT_TOKENS:
+            parse_unit(self.unit)  # raises on a misspelled unit, at import
+
+
+@dataclass(frozen=True)
+class LoopStage:
+    """One stage of the sampled loop, declared once: its parameters, or the input effect
+    (:data:`~fuzzyservo.components.effects.LIBRARY`) whose parameters ride in the packed
+    plant vector, and what it does."""
+
+    name: str
+    doc: str
+    params: tuple[StageParam, ...] = ()
+    effect: str = ""
+
+    def __post_init__(self) -> None:
+        if self.effect and LIBRARY[self.effect].stage != "input":
+            raise ValueError(f"loop stage {self.name!r}: {self.effect!r} is not an input effect")
+
+
+_STAGE_UNIT_TOKENS = ("reading", "reading/state", "command", "input", "input/command")
+
+# The loop's chain from plant state to plant input, in order. Its parameters are the
+# fields of LoopSettings; the input effects' are in the plant's packed vector (E).
+LOOP_STAGES = (
+    LoopStage("sensor", "reading y = offset + gain·x[index] of the feedback sensor", (
+        StageParam("sensor_index", "1", "state the sensor reads",
+                   lambda rig: rig.plant.states.index(rig.feedback.signal), kind=int),
+        StageParam("sensor_offset", "reading", "reading at state 0",
+                   lambda rig: rig.feedback.offset),
+        StageParam("sensor_gain", "reading/state", "reading per state unit",
+                   lambda rig: rig.feedback.slope),
+    )),
+    LoopStage("sensor_noise", "y += σ·N(0, 1), one draw per sample, seeded", (
+        StageParam("noise_std", "reading", "standard deviation σ",
+                   lambda rig: rig.feedback.noise_std, compiled=False),
+    )),
+    LoopStage("adc", "y to the nearest code lo + c·step, clipped to lo .. hi (step 0: off)", (
+        StageParam("adc_lo", "reading", "lowest code", lambda rig: rig.feedback.adc_lower),
+        StageParam("adc_hi", "reading", "top of the range", lambda rig: rig.feedback.adc_upper),
+        StageParam("adc_step", "reading", "code step (0: no ADC)",
+                   lambda rig: rig.feedback.adc_step),
+    )),
+    LoopStage("sample_and_hold", "the controller runs every dt; its output is held", (
+        StageParam("dt", "s", "sample time", lambda rig: rig.sample_time_s),
+    )),
+    LoopStage("current_limit", "a = clip(gain·u, lo, hi): the actuator's amplifier", (
+        StageParam("act_gain", "input/command", "plant input per command unit",
+                   lambda rig: rig.actuator.gain),
+        StageParam("act_lo", "input", "lower limit", lambda rig: rig.actuator.lower),
+        StageParam("act_hi", "input", "upper limit", lambda rig: rig.actuator.upper),
+    )),
+    LoopStage("io_delay", "a(t − d_io): computation and conversion, sample to actuator", (
+        StageParam("io_delay_s", "s", "I/O delay d_io", lambda rig: rig.io_delay_s),
+    )),
+    LoopStage("transport_delay", "a(t − d): bus and converter delay", effect="transport_delay"),
+    LoopStage("null_bias", "a + b: a null bias beyond the declared one", effect="valve_bias"),
+    LoopStage("spool_lag", "τ·ds/dt = a + b − s: first-order spool", effect="valve_lag"),
+    LoopStage("dead_band", "spool overlap around the null", effect="valve_deadband"),
+)  # fmt: skip
+
+# LoopSettings: the compiled stages' parameters by name (numba reads a namedtuple at no
+# cost), then the integrator's local-error tolerance ``tol``.
+LoopSettings = NamedTuple(
+    "LoopSettings",
+    [(p.name, p.kind) for stage in LOOP_STAGES for p in stage.params if p.compiled]
+    + [("tol", float)],
+)
 
 
 @njit(cache=True)
@@ -194,11 +266,11 @@ def sample(
 
 
 @njit(cache=True)
-def delay_split(p: np.ndarray, dt: float) -> tuple[int, float]:
-    """``transport_delay`` (which carries the rig's I/O delay too, see
-    :func:`~fuzzyservo.simulation.closed_loop.prepare`) as ``(whole samples, fraction of
-    a sample)``; fractions within 1e-9 of a whole sample round to it."""
-    delay = p[E_DELAY] / dt
+def delay_split(p: np.ndarray, s: LoopSettings) -> tuple[int, float]:
+    """The ``io_delay`` and ``transport_delay`` stages together as ``(whole samples,
+    fraction of a sample)``: two pure delays in series, exact within the zero-order hold;
+    fractions within 1e-9 of a whole sample round to it."""
+    delay = (p[E.transport_delay_s] + s.io_delay_s) / s.dt
     whole = int(delay)
     part = delay - whole
     if part < 1e-9:
@@ -219,7 +291,7 @@ def held_inputs(actuator: np.ndarray, k: int, whole: int) -> tuple[float, float]
 @njit(cache=True)
 def spool_start(p: np.ndarray, a: float) -> float:
     """Where ``valve_lag``'s spool starts: at the first held value plus ``valve_bias``."""
-    return a + p[E_BIAS]
+    return a + p[E.valve_bias_si]
 
 
 @njit(cache=True, inline="always")
@@ -230,19 +302,19 @@ def input_stage(x: np.ndarray, a: float, p: np.ndarray, null: float, dx: np.ndar
     ``s`` (``ds/dt = (a + b − s)/τ``, written to ``dx``) and the input is ``dz(s)``, where
     ``b`` is ``valve_bias`` and ``dz`` the ``valve_deadband`` around ``null``.
     """
-    tau = p[E_LAG]
+    tau = p[E.valve_lag_s]
     if tau > 0.0:
         n = x.size - 1
         s = x[n]
-        dx[n] = (a + p[E_BIAS] - s) / tau
-        return deadband(s, null, p[E_DEADBAND])
-    return deadband(a + p[E_BIAS], null, p[E_DEADBAND])
+        dx[n] = (a + p[E.valve_bias_si] - s) / tau
+        return deadband(s, null, p[E.valve_deadband_si])
+    return deadband(a + p[E.valve_bias_si], null, p[E.valve_deadband_si])
 
 
 @njit(cache=True)
 def plant_states(x: np.ndarray, p: np.ndarray) -> int:
     """How many of ``x`` are the plant's (``valve_lag`` appends the spool)."""
-    return x.size - 1 if p[E_LAG] > 0.0 else x.size
+    return x.size - 1 if p[E.valve_lag_s] > 0.0 else x.size
 
 
 @njit(cache=True)

@@ -1,11 +1,14 @@
-"""The compiled closed loop, compiled once per plant: this file is a template.
+"""The compiled closed loop, compiled once per plant: its functions are written against
+the plant's kernels by the names of :data:`PLANT_SLOTS`.
 
-:func:`fuzzyservo._jit.bind_plant` writes a copy of it whose binding block imports (or
-defines) one plant's ``plant_rhs``, ``plant_signals`` and ``plant_in_end_stop``, and
-numba compiles and caches that copy. A loop thus inlines exactly one plant, with no
-dispatch on a plant code, and a plant composed from components at run time is as fast
-as a hand-written one. As it stands (bound to the seed-002 cylinder) the file is a
-valid module, so linters and readers see ordinary Python.
+:func:`fuzzyservo._jit.bind_plant` generates, for one plant, a module from this file:
+every statement as it is, but those that bind the plant slots (the default plant
+below) give way to the plant's binding (imports of a plant module's kernels, or the
+source generated for a composition); numba compiles and caches that module. A loop
+thus inlines exactly one plant, with no dispatch on a plant code, and a plant composed
+from components at run time is as fast as a hand-written one. As it stands (bound to
+its default plant) this file is an ordinary module, so linters and readers see
+ordinary Python.
 
 The plant is integrated between samples by an adaptive linearly implicit
 Rosenbrock-W method, ROS34PW2 (order 3, embedded order 2), with a finite-difference
@@ -25,7 +28,7 @@ import numpy as np
 from numba import prange
 
 from fuzzyservo._jit import njit
-from fuzzyservo.components.effects import E_LAG
+from fuzzyservo.components.effects import E
 from fuzzyservo.simulation._loop import (
     _A_U,
     _C_U,
@@ -51,12 +54,13 @@ from fuzzyservo.simulation._loop import (
 )
 
 # isort: split
-# >>> plant binding
+# the default plant; each generated loop module binds its own (bind_plant)
 from fuzzyservo.plants.cylinder import in_end_stop as plant_in_end_stop
 from fuzzyservo.plants.cylinder import rhs as plant_rhs
 from fuzzyservo.plants.cylinder import signals as plant_signals
 
-# <<< plant binding
+# The names the loop calls its plant by: what a plant's binding must define.
+PLANT_SLOTS = ("plant_rhs", "plant_signals", "plant_in_end_stop")
 
 
 @njit(cache=True, inline="always")
@@ -239,9 +243,9 @@ def closed_loop(
     status = STATUS_OK
     where = -1
     total = 0
-    lag = p[E_LAG] > 0.0
+    lag = p[E.valve_lag_s] > 0.0
     n_plant = plant_states(x, p)
-    whole, part = delay_split(p, dt)
+    whole, part = delay_split(p, s)
     for k in range(n):
         for i in range(x.size):
             states[k, i] = x[i]

@@ -7,7 +7,6 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from fuzzyservo.components.effects import E_DELAY
 from fuzzyservo.controllers.base import Controller
 from fuzzyservo.rig import Rig, Scenario
 from fuzzyservo.simulation import _loop
@@ -63,8 +62,7 @@ def prepare(
 ) -> Prepared:
     """Resolve the scenario, its parameters, the initial state and the sampled inputs.
 
-    The rig's I/O delay joins ``transport_delay`` in the packed parameters, so the loop
-    applies the sum exactly within the zero-order hold. The feedback sensor's noise is
+    The feedback sensor's noise is
     drawn here, outside the compiled loop, from a generator seeded with ``noise_seed``
     (so both paths see the same sequence and runs reproduce); ``noise`` None follows
     the scenario's ``noise`` switch.
@@ -91,7 +89,6 @@ def prepare(
     if not controller.has_limits:
         controller = controller.with_limits(*rig.actuator.command_limits)
     p = pack(params)
-    p[E_DELAY] += rig.io_delay_s
     std = rig.feedback.noise_std if (sc.noise if noise is None else noise) else 0.0
     draws = np.random.default_rng(noise_seed).standard_normal(n) * std if std > 0 else np.zeros(n)
     return Prepared(
@@ -229,22 +226,13 @@ def simulate_batch(
 
 
 def loop_settings(rig: Rig, tol: float = DEFAULT_TOL) -> _loop.LoopSettings:
-    """The loop's scalars for ``rig``: sample time, feedback sensor and its ADC, actuator,
-    tolerance."""
-    fb, act = rig.feedback, rig.actuator
-    return _loop.LoopSettings(
-        dt=float(rig.sample_time_s),
-        sensor_index=rig.plant.states.index(fb.signal),
-        sensor_offset=float(fb.offset),
-        sensor_gain=float(fb.slope),
-        act_gain=float(act.gain),
-        act_lo=float(act.lower),
-        act_hi=float(act.upper),
-        tol=float(tol),
-        adc_lo=float(fb.adc_lower),
-        adc_hi=float(fb.adc_upper),
-        adc_step=float(fb.adc_step),
-    )
+    """The loop's scalars for ``rig``: every compiled parameter of :data:`_loop.LOOP_STAGES`
+    read from the rig (feedback sensor and its ADC, sample time, actuator, I/O delay),
+    then the integrator's tolerance."""
+    values = [
+        p.kind(p.read(rig)) for stage in _loop.LOOP_STAGES for p in stage.params if p.compiled
+    ]
+    return _loop.LoopSettings(*values, float(tol))
 
 
 def assemble(

@@ -53,7 +53,7 @@ def simulate_reference(
     null = prep.null
     lag = prep.params.valve_lag_s > 0
     dt = rig.sample_time_s
-    whole, part = delay_split(p, dt)
+    whole, part = delay_split(p, settings)
     status, where, steps = "ok", -1, 0
     for k in range(n):
         states[k] = x

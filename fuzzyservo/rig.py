@@ -72,8 +72,8 @@ class LinearSensor:
 
     def measure(self, value: np.ndarray, noise: np.ndarray) -> np.ndarray:
         """What the acquisition delivers for ``value``: the reading plus ``noise``
-        (already scaled, reading unit), quantised (:func:`~fuzzyservo.simulation._loop.adc`)."""
-        from fuzzyservo.simulation._loop import adc
+        (already scaled, reading unit), quantised (:func:`~fuzzyservo.components.sensor.adc`)."""
+        from fuzzyservo.components.sensor import adc
 
         reading = np.asarray(self.read(value), dtype=float) + noise
         return adc(reading, self.adc_lower, self.adc_upper, self.adc_step)

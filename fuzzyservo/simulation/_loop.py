@@ -39,6 +39,7 @@ import numpy as np
 
 from fuzzyservo._jit import njit
 from fuzzyservo.components.effects import LIBRARY, E, deadband
+from fuzzyservo.components.sensor import adc
 from fuzzyservo.controllers.kernels import controller_step
 from fuzzyservo.units import parse_unit
 
@@ -221,18 +222,6 @@ LoopSettings = NamedTuple(
     [(p.name, p.kind) for stage in LOOP_STAGES for p in stage.params if p.compiled]
     + [("tol", float)],
 )
-
-
-@njit(cache=True)
-def adc(v: float | np.ndarray, lo: float, hi: float, step: float) -> float | np.ndarray:
-    """An ADC of step ``step`` over ``lo .. hi``: the nearest of the 2^bits codes
-    ``lo + c·step`` (c = 0 .. 2^bits − 1); readings outside the range clip to its ends.
-    ``step`` 0 passes ``v`` through."""
-    if step <= 0.0:
-        return v + 0.0
-    code = np.floor((v - lo) / step + 0.5)
-    top = np.floor((hi - lo) / step + 0.5) - 1.0
-    return lo + np.minimum(np.maximum(code, 0.0), top) * step
 
 
 @njit(cache=True)

@@ -175,44 +175,5 @@ def test_controller_kinds_are_unique_and_each_reaches_its_kernel() -> None:
         assert u_loop == u_python
 
 
-def _imports(path, package_root):
-    """fuzzyservo modules a file imports, at top level or inside functions (AST)."""
-    import ast
-
-    names = set()
-    for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
-        if isinstance(node, ast.ImportFrom) and node.module and node.level == 0:
-            names.add(node.module)
-        elif isinstance(node, ast.Import):
-            names.update(a.name for a in node.names)
-    return {n for n in names if n.startswith("fuzzyservo.")}
-
-
-def test_no_import_cycles_in_controllers() -> None:
-    """base ↔ kernels ↔ classical/fuzzy and fuzzy.system ↔ evaluate were cycles (issue 10);
-    every import, lazy ones included, now points one way."""
-    from pathlib import Path
-
-    import fuzzyservo
-
-    root = Path(fuzzyservo.__file__).parent
-    graph = {}
-    for path in (root / "controllers").rglob("*.py"):
-        if path.name == "__init__.py":
-            continue
-        module = "fuzzyservo." + ".".join(path.relative_to(root).with_suffix("").parts)
-        graph[module] = _imports(path, root)
-
-    def cycle_from(start, node, seen):
-        for nxt in graph.get(node, ()):
-            if nxt == start:
-                return [node, nxt]
-            if nxt not in seen:
-                seen.add(nxt)
-                found = cycle_from(start, nxt, seen)
-                if found:
-                    return [node, *found]
-        return None
-
-    for module in graph:
-        assert cycle_from(module, module, set()) is None, cycle_from(module, module, set())
+# Import cycles (issue 10's in controllers among them) are checked for every module by
+# tests/test_architecture.py; annotations-only imports (TYPE_CHECKING) do not count.

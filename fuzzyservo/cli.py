@@ -742,7 +742,7 @@ def cmd_calibrate(args: argparse.Namespace) -> int:
     from fuzzyservo.calibration.joint import joint_replay, per_record_fields
     from fuzzyservo.calibration.replay import make_replay
     from fuzzyservo.calibration.report import write_outputs
-    from fuzzyservo.calibration.search import calibrate
+    from fuzzyservo.calibration.search import calibrate, candidate_effects
     from fuzzyservo.components.effects import LIBRARY
     from fuzzyservo.io.controllers import load_controller
     from fuzzyservo.io.measured import read_rig_data
@@ -770,9 +770,7 @@ def cmd_calibrate(args: argparse.Namespace) -> int:
     replays = [make_replay(rig, d, controller) for d in records]
     replay = replays[0] if len(replays) == 1 and not per_record else None
     replay = replay or joint_replay(replays, rig, per_record)
-    candidates = [
-        e for e in (effects or LIBRARY) if e in rig.plant.effects and e not in rig.effects
-    ]
+    candidates = candidate_effects(rig, effects)
     print(
         f"calibrate {rig.name} on {', '.join(d.source for d in records)}: {replay.mode}; "
         f"{sum(len(d) for d in records)} samples, "

@@ -43,6 +43,7 @@ from fuzzyservo.controllers.fuzzy.system import (
     IMPLICATIONS,
     MAMDANI_DEFUZZIFICATIONS,
     MATLAB_SAMPLE_POINTS,
+    NO_TERM,
     OR_METHODS,
     SEMANTICS,
     SHAPES,
@@ -50,6 +51,8 @@ from fuzzyservo.controllers.fuzzy.system import (
     Rule,
     Term,
     Variable,
+    term_code,
+    term_index,
 )
 from fuzzyservo.errors import ConfigError
 from fuzzyservo.io._yaml import Node
@@ -258,11 +261,10 @@ def _rules(root: Node, inputs: list[Variable], output: Variable) -> tuple[Rule, 
         antecedent = []
         for var, term in zip(inputs, names, strict=True):
             if term == "-":
-                antecedent.append(-1)
+                antecedent.append(NO_TERM)
                 continue
-            negate = term.startswith("~")
             k = _term_index(root, var, term.lstrip("~"), where)
-            antecedent.append(-k - 2 if negate else k)
+            antecedent.append(term_code(k, negated=term.startswith("~")))
         weight = float(m["w"]) if m["w"] else 1.0
         try:
             rules.append(
@@ -293,11 +295,11 @@ def rule_text(system: FuzzySystem, rule: Rule) -> str:
     """One rule as a rule line ``"NB and PS -> NM 0.5"`` (what :func:`_rules` reads back)."""
     names = []
     for var, idx in zip(system.inputs, rule.antecedent, strict=True):
-        if idx == -1:
+        k, negated = term_index(idx)
+        if idx == NO_TERM:
             names.append("-")
         else:
-            k = idx if idx >= 0 else -idx - 2
-            names.append(("~" if idx < -1 else "") + var.terms[k].name)
+            names.append(("~" if negated else "") + var.terms[k].name)
     weight = f" {rule.weight:g}" if rule.weight != 1.0 else ""
     return (
         f" {rule.connective} ".join(names)

@@ -31,14 +31,32 @@ from fuzzyservo.controllers.fuzzy.system import (
     AND_METHODS,
     DEFUZZIFICATIONS,
     IMPLICATIONS,
+    NO_TERM,
     OR_METHODS,
     FuzzySystem,
     Variable,
+    term_index,
 )
+from fuzzyservo.controllers.layout import Slot, layout
 
 # header
-_NIN, _NOUT, _NRULES, _SUGENO, _AND, _OR, _IMP, _AGG, _DEFUZZ, _SAMPLES, _VARS, _RULES = range(12)
-_HEADER = 12
+#: the exact block's header (offsets from the block start)
+EXACT_HEAD = layout(
+    "ExactHead",
+    Slot("n_inputs"),
+    Slot("n_outputs"),
+    Slot("n_rules"),
+    Slot("sugeno", "1 for a Sugeno system, 0 for Mamdani", flag=True),
+    Slot("and_method", "index in AND_METHODS"),
+    Slot("or_method", "index in OR_METHODS"),
+    Slot("implication", "index in IMPLICATIONS"),
+    Slot("aggregation", "index in AGGREGATIONS"),
+    Slot("defuzzification", "index in DEFUZZIFICATIONS"),
+    Slot("samples", "points of the output universe (MATLAB's NumSamples)"),
+    Slot("variables", "offset of the table of variable offsets"),
+    Slot("rules", "offset of the rules"),
+)
+_X = EXACT_HEAD
 _LINEAR = SHAPE_CODES["linear"]
 _CONSTANT = SHAPE_CODES["constant"]
 
@@ -48,10 +66,10 @@ def pack_exact(system: FuzzySystem) -> tuple[np.ndarray, int]:
 
     Layout: header; a table of variable offsets (inputs, then outputs); each variable
     ``[low, high, n_terms, term offsets…]`` and each term ``[shape code, n, params…]``;
-    the rules, ``n_in + n_out + 2`` numbers each (MATLAB-style indices decoded as in
-    :class:`.Rule`, then weight and connective 0 AND / 1 OR).
+    the rules, ``n_in + n_out + 2`` numbers each (the term codes of :class:`.Rule`, then
+    weight and connective 0 AND / 1 OR).
     """
-    block: list[float] = [0.0] * _HEADER
+    block: list[float] = [0.0] * len(_X)
     variables: list[Variable] = [*system.inputs, *system.outputs]
     table_at = len(block)
     block += [0.0] * len(variables)
@@ -67,15 +85,15 @@ def pack_exact(system: FuzzySystem) -> tuple[np.ndarray, int]:
         block += [*rule.antecedent, *rule.consequents, rule.weight]
         block.append(0.0 if rule.connective == "and" else 1.0)
     n_in, n_out = len(system.inputs), len(system.outputs)
-    block[_NIN], block[_NOUT], block[_NRULES] = n_in, n_out, len(system.rules)
-    block[_SUGENO] = 1.0 if system.type == "sugeno" else 0.0
-    block[_AND] = AND_METHODS.index(system.and_method)
-    block[_OR] = OR_METHODS.index(system.or_method)
-    block[_IMP] = IMPLICATIONS.index(system.implication)
-    block[_AGG] = AGGREGATIONS.index(system.aggregation)
-    block[_DEFUZZ] = DEFUZZIFICATIONS.index(system.defuzzification)
-    block[_SAMPLES] = system.sample_points
-    block[_VARS], block[_RULES] = table_at, rules_at
+    block[_X.n_inputs], block[_X.n_outputs], block[_X.n_rules] = n_in, n_out, len(system.rules)
+    block[_X.sugeno] = 1.0 if system.type == "sugeno" else 0.0
+    block[_X.and_method] = AND_METHODS.index(system.and_method)
+    block[_X.or_method] = OR_METHODS.index(system.or_method)
+    block[_X.implication] = IMPLICATIONS.index(system.implication)
+    block[_X.aggregation] = AGGREGATIONS.index(system.aggregation)
+    block[_X.defuzzification] = DEFUZZIFICATIONS.index(system.defuzzification)
+    block[_X.samples] = system.sample_points
+    block[_X.variables], block[_X.rules] = table_at, rules_at
     t_max = max(len(v.terms) for v in system.inputs)
     scratch = n_in * t_max + len(system.rules) + n_in + system.sample_points
     return np.asarray(block, dtype=np.float64), scratch
@@ -92,15 +110,16 @@ def antecedent(
     and_m: int,
     or_m: int,
 ) -> float:
-    """A rule's antecedent: its term codes at ``cp[q:q + n_in]`` (k, −1 none, −(k+2) NOT k)
+    """A rule's antecedent: its term codes at ``cp[q:q + n_in]`` (:func:`.term_index`)
     combined by AND (``conn`` 0: min or product) or OR (1: max or probabilistic OR) over the
     memberships ``mu[i*t_stride + k]``. Shared by both semantics."""
     acc = -1.0
     for i in range(n_in):
         a = int(cp[q + i])
-        if a == -1:
+        if a == NO_TERM:
             continue
-        m = mu[i * t_stride + a] if a >= 0 else 1.0 - mu[i * t_stride + (-a - 2)]
+        k, negated = term_index(a)
+        m = 1.0 - mu[i * t_stride + k] if negated else mu[i * t_stride + k]
         if acc < 0.0:
             acc = m
         elif conn == 0.0:
@@ -123,17 +142,17 @@ def evaluate_exact(
 
     Returns the number of outputs for which no rule fired (set to mid-range).
     """
-    n_in = int(cp[b + _NIN])
-    n_out = int(cp[b + _NOUT])
-    n_rules = int(cp[b + _NRULES])
-    and_m = int(cp[b + _AND])
-    or_m = int(cp[b + _OR])
-    imp_m = int(cp[b + _IMP])
-    agg_m = int(cp[b + _AGG])
-    defuzz_m = int(cp[b + _DEFUZZ])
-    n_s = int(cp[b + _SAMPLES])
-    vt = b + int(cp[b + _VARS])
-    ro = b + int(cp[b + _RULES])
+    n_in = int(cp[b + _X.n_inputs])
+    n_out = int(cp[b + _X.n_outputs])
+    n_rules = int(cp[b + _X.n_rules])
+    and_m = int(cp[b + _X.and_method])
+    or_m = int(cp[b + _X.or_method])
+    imp_m = int(cp[b + _X.implication])
+    agg_m = int(cp[b + _X.aggregation])
+    defuzz_m = int(cp[b + _X.defuzzification])
+    n_s = int(cp[b + _X.samples])
+    vt = b + int(cp[b + _X.variables])
+    ro = b + int(cp[b + _X.rules])
     width = n_in + n_out + 2
 
     # 1. inputs clipped, membership in every term
@@ -162,14 +181,15 @@ def evaluate_exact(
         v = b + int(cp[vt + n_in + o])
         lo = cp[v]
         hi = cp[v + 1]
-        if cp[b + _SUGENO] == 1.0:
+        if cp[b + _X.sugeno] == 1.0:
             num = 0.0
             den = 0.0
             for r in range(n_rules):
                 c = int(cp[ro + r * width + n_in + o])
-                if c < 0 or w[r] == 0.0:
+                k, negated = term_index(c)
+                if c == NO_TERM or negated or w[r] == 0.0:
                     continue
-                t = b + int(cp[v + 3 + c])
+                t = b + int(cp[v + 3 + k])
                 if int(cp[t]) == _CONSTANT:
                     z = cp[t + 2]
                 else:
@@ -191,10 +211,10 @@ def evaluate_exact(
             ys[k] = 0.0
         for r in range(n_rules):
             c = int(cp[ro + r * width + n_in + o])
-            if c == -1 or w[r] == 0.0:
+            if c == NO_TERM or w[r] == 0.0:
                 continue
-            neg = c < -1
-            t = b + int(cp[v + 3 + (-c - 2 if neg else c)])
+            k, neg = term_index(c)
+            t = b + int(cp[v + 3 + k])
             for k in range(n_s):
                 xk = hi if k == n_s - 1 else lo + k * step
                 m = _term_mu(cp, t, xk)

@@ -293,18 +293,18 @@ def _term_index(root: Node, var: Variable, term: str, where: str) -> int:
 
 def rule_text(system: FuzzySystem, rule: Rule) -> str:
     """One rule as a rule line ``"NB and PS -> NM 0.5"`` (what :func:`_rules` reads back)."""
-    names = []
-    for var, idx in zip(system.inputs, rule.antecedent, strict=True):
-        k, negated = term_index(idx)
-        if idx == NO_TERM:
-            names.append("-")
-        else:
-            names.append(("~" if negated else "") + var.terms[k].name)
+    names = [_term_text(v, idx) for v, idx in zip(system.inputs, rule.antecedent, strict=True)]
     weight = f" {rule.weight:g}" if rule.weight != 1.0 else ""
-    return (
-        f" {rule.connective} ".join(names)
-        + f" -> {system.output.terms[rule.consequent].name}{weight}"
-    )
+    then = _term_text(system.output, rule.consequent)
+    return f" {rule.connective} ".join(names) + f" -> {then}{weight}"
+
+
+def _term_text(var: Variable, code: int) -> str:
+    """A term code as a rule line writes it: ``NB``, ``~NB`` (NOT NB) or ``-`` (none)."""
+    if code == NO_TERM:
+        return "-"
+    k, negated = term_index(code)
+    return ("~" if negated else "") + var.terms[k].name
 
 
 def fuzzy_controller_data(controller: FuzzyController) -> dict:

@@ -29,8 +29,15 @@ from fuzzyservo.controllers.fuzzy.controller import (
     SYSTEM,
     FuzzyController,
 )
-from fuzzyservo.controllers.fuzzy.evaluate import EXACT, OUTPUT_HEAD, SAMPLED, SYSTEM_HEAD
-from fuzzyservo.controllers.fuzzy.exact import EXACT_HEAD
+from fuzzyservo.controllers.fuzzy.evaluate import (
+    EXACT,
+    OUTPUT_HEAD,
+    SAMPLED,
+    SAMPLED_RULE,
+    SAMPLED_VARIABLE,
+    SYSTEM_HEAD,
+)
+from fuzzyservo.controllers.fuzzy.exact import EXACT_HEAD, EXACT_RULE, EXACT_TERM, EXACT_VARIABLE
 from fuzzyservo.controllers.fuzzy.shapes import SHAPE_CODES
 from fuzzyservo.controllers.fuzzy.system import NO_TERM
 from fuzzyservo.controllers.layout import slots
@@ -41,7 +48,17 @@ __all__ = [
 
 REALS = ("double", "float")
 #: the packed vectors' layouts the generated code reads, by the prefix of its constants
-_LAYOUTS = {"CP": FUZZY_PARAMS, "T": SYSTEM_HEAD, "H": OUTPUT_HEAD, "X": EXACT_HEAD}
+_LAYOUTS = {
+    "CP": FUZZY_PARAMS,
+    "T": SYSTEM_HEAD,
+    "H": OUTPUT_HEAD,
+    "SV": SAMPLED_VARIABLE,
+    "SR": SAMPLED_RULE,
+    "X": EXACT_HEAD,
+    "XV": EXACT_VARIABLE,
+    "XT": EXACT_TERM,
+    "XR": EXACT_RULE,
+}
 
 
 def identifier(name: str) -> str:
@@ -190,10 +207,12 @@ def c_sources(
 
 def _c_constants() -> list[str]:
     """The slots of the packed vectors as C constants (``CP_SAMPLE_TIME``, ``H_N_RULES``
-    ...), generated from the layouts the compiled code reads."""
+    ...; ``<prefix>_SIZE`` a record's size), generated from the layouts the compiled
+    code reads."""
     lines = ["/* slots of the packed vectors (fuzzyservo.controllers.layout) */"]
     for prefix, layout in _LAYOUTS.items():
         names = [f"{prefix}_{slot.name.upper()} = {k}" for k, slot in enumerate(slots(layout))]
+        names.append(f"{prefix}_SIZE = {len(layout)}")
         lines.append(f"enum {{ {', '.join(names)} }};")
     lines += [
         f"enum {{ CP_SYSTEM = {SYSTEM} }}; /* the packed system starts here */",

@@ -106,7 +106,7 @@ static @R@ evaluate_output(long b, @R@ *scratch, const @R@ *xs)
     int and_m = (int)ix(CP[b + H_AND_METHOD]), or_m = (int)ix(CP[b + H_OR_METHOD]);
     int imp_m = (int)ix(CP[b + H_IMPLICATION]), agg_m = (int)ix(CP[b + H_AGGREGATION]);
     int defuzz_m = (int)ix(CP[b + H_DEFUZZIFICATION]);
-    long n_t = ix(CP[b + H_N_TERMS]), rule_width = n_in + 3, ins = b + ix(CP[b + H_INPUTS]);
+    long n_t = ix(CP[b + H_N_TERMS]), rule_width = n_in + SR_SIZE, ins = b + ix(CP[b + H_INPUTS]);
     long t_stride = ix(CP[b + H_TERM_STRIDE]);
     @R@ *mu = scratch, *cut, *extra, *px, *py;
     long i, k, r, t, j, o, n, nt, u0, ro, q, a, oo, m0, s_lo, s_hi, z_n, z_off, j_lo, j_hi;
@@ -116,9 +116,10 @@ static @R@ evaluate_output(long b, @R@ *scratch, const @R@ *xs)
 
     for (i = 0; i < n_in; i++) {
         o = b + ix(CP[ins + i]);
-        lo = CP[o]; hi = CP[o + 1]; n = ix(CP[o + 2]); nt = ix(CP[o + 3]);
+        lo = CP[o + SV_LOW]; hi = CP[o + SV_HIGH];
+        n = ix(CP[o + SV_N_POINTS]); nt = ix(CP[o + SV_N_TERMS]);
         x = fs_min(fs_max(xs[i], lo), hi);
-        u0 = o + 4;
+        u0 = o + SV_SIZE;
         j = locate(u0, n, x);
         for (k = 0; k < nt; k++) mu[i * t_stride + k] = interp_at(u0, u0 + n + k * n, n, j, x);
     }
@@ -134,19 +135,19 @@ static @R@ evaluate_output(long b, @R@ *scratch, const @R@ *xs)
             k = term_index(a, &negated);
             mv = negated ? 1 - mu[i * t_stride + k] : mu[i * t_stride + k];
             if (acc < 0) acc = mv;
-            else if (CP[q + n_in + 2] == 0) acc = and_m == 0 ? fs_min(acc, mv) : acc * mv;
+            else if (CP[q + n_in + SR_CONNECTIVE] == 0) acc = and_m == 0 ? fs_min(acc, mv) : acc * mv;
             else acc = or_m == 0 ? fs_max(acc, mv) : acc + mv - acc * mv;
         }
-        f = acc * CP[q + n_in + 1];
-        t = ix(CP[q + n_in]);
+        f = acc * CP[q + n_in + SR_WEIGHT];
+        t = ix(CP[q + n_in + SR_TERM]);
         if (cut[t] < 0) cut[t] = f;
         else if (agg_m == 0) cut[t] = fs_max(cut[t], f);
         else if (agg_m == 1) cut[t] = cut[t] + f;
         else cut[t] = cut[t] + f - cut[t] * f;
     }
     oo = b + ix(CP[b + H_OUTPUT]);
-    n = ix(CP[oo + 2]);
-    u0 = oo + 4;
+    n = ix(CP[oo + SV_N_POINTS]);
+    u0 = oo + SV_SIZE;
     m0 = u0 + n;
     s_lo = m0 + n_t * n;
     s_hi = s_lo + n_t;
@@ -287,7 +288,7 @@ static @R@ mf_value(int code, long o, @R@ x)
     }
 }
 
-static @R@ term_mu(long t, @R@ x) { return mf_value((int)ix(CP[t]), t + 2, x); }
+static @R@ term_mu(long t, @R@ x) { return mf_value((int)ix(CP[t + XT_SHAPE]), t + XT_SIZE, x); }
 
 /* MATLAB's defuzz on ys at linspace(lo, hi, n); NAN when all zero */
 static @R@ defuzz_samples(const @R@ *ys, @R@ lo, @R@ hi, @R@ step, long n, int method)
@@ -328,11 +329,11 @@ static int evaluate_exact(long b, @R@ *scratch, const @R@ *xs, @R@ *out)
     int defuzz_m = (int)ix(CP[b + X_DEFUZZIFICATION]), silent = 0, neg;
     long n_s = ix(CP[b + X_SAMPLES]), vt = b + ix(CP[b + X_VARIABLES]);
     long ro = b + ix(CP[b + X_RULES]);
-    long width = n_in + n_out + 2, t_max = 0, i, k, r, o, v, q, a, c, t;
+    long width = n_in + n_out + XR_SIZE, t_max = 0, i, k, r, o, v, q, a, c, t;
     @R@ *mu, *x, *w, *ys, acc, mv, lo, hi, num, den, z, step, xk, value;
 
     for (i = 0; i < n_in; i++) {
-        k = ix(CP[b + ix(CP[vt + i]) + 2]);
+        k = ix(CP[b + ix(CP[vt + i]) + XV_N_TERMS]);
         if (k > t_max) t_max = k;
     }
     mu = scratch;
@@ -341,8 +342,9 @@ static int evaluate_exact(long b, @R@ *scratch, const @R@ *xs, @R@ *out)
     ys = w + n_rules;
     for (i = 0; i < n_in; i++) {
         v = b + ix(CP[vt + i]);
-        x[i] = fs_min(fs_max(xs[i], CP[v]), CP[v + 1]);
-        for (k = 0; k < ix(CP[v + 2]); k++) mu[i * t_max + k] = term_mu(b + ix(CP[v + 3 + k]), x[i]);
+        x[i] = fs_min(fs_max(xs[i], CP[v + XV_LOW]), CP[v + XV_HIGH]);
+        for (k = 0; k < ix(CP[v + XV_N_TERMS]); k++)
+            mu[i * t_max + k] = term_mu(b + ix(CP[v + XV_SIZE + k]), x[i]);
     }
     for (r = 0; r < n_rules; r++) {
         q = ro + r * width;
@@ -353,26 +355,26 @@ static int evaluate_exact(long b, @R@ *scratch, const @R@ *xs, @R@ *out)
             k = term_index(a, &neg);
             mv = neg ? 1 - mu[i * t_max + k] : mu[i * t_max + k];
             if (acc < 0) acc = mv;
-            else if (CP[q + n_in + n_out + 1] == 0) acc = and_m == 0 ? fs_min(acc, mv) : acc * mv;
+            else if (CP[q + n_in + n_out + XR_CONNECTIVE] == 0) acc = and_m == 0 ? fs_min(acc, mv) : acc * mv;
             else acc = or_m == 0 ? fs_max(acc, mv) : acc + mv - acc * mv;
         }
-        w[r] = acc * CP[q + n_in + n_out];
+        w[r] = acc * CP[q + n_in + n_out + XR_WEIGHT];
     }
     for (o = 0; o < n_out; o++) {
         v = b + ix(CP[vt + n_in + o]);
-        lo = CP[v];
-        hi = CP[v + 1];
+        lo = CP[v + XV_LOW];
+        hi = CP[v + XV_HIGH];
         if (CP[b + X_SUGENO] == 1) {
             num = 0; den = 0;
             for (r = 0; r < n_rules; r++) {
                 c = ix(CP[ro + r * width + n_in + o]);
                 k = term_index(c, &neg);
                 if (c == NO_TERM || neg || w[r] == 0) continue;
-                t = b + ix(CP[v + 3 + k]);
-                if (ix(CP[t]) == @CONSTANT@) z = CP[t + 2];
+                t = b + ix(CP[v + XV_SIZE + k]);
+                if (ix(CP[t + XT_SHAPE]) == @CONSTANT@) z = CP[t + XT_SIZE];
                 else {
-                    z = CP[t + 2 + n_in];
-                    for (i = 0; i < n_in; i++) z += CP[t + 2 + i] * x[i];
+                    z = CP[t + XT_SIZE + n_in];
+                    for (i = 0; i < n_in; i++) z += CP[t + XT_SIZE + i] * x[i];
                 }
                 num += w[r] * z;
                 den += w[r];
@@ -386,7 +388,7 @@ static int evaluate_exact(long b, @R@ *scratch, const @R@ *xs, @R@ *out)
         for (r = 0; r < n_rules; r++) {
             c = ix(CP[ro + r * width + n_in + o]);
             if (c == NO_TERM || w[r] == 0) continue;
-            t = b + ix(CP[v + 3 + term_index(c, &neg)]);
+            t = b + ix(CP[v + XV_SIZE + term_index(c, &neg)]);
             for (k = 0; k < n_s; k++) {
                 xk = k == n_s - 1 ? hi : lo + (@R@)k * step;
                 mv = term_mu(t, xk);

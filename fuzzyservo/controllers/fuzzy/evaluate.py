@@ -42,7 +42,7 @@ from fuzzyservo.controllers.fuzzy.system import (
     FuzzySystem,
     term_index,
 )
-from fuzzyservo.controllers.layout import Slot, layout
+from fuzzyservo.controllers.layout import Slot, layout, pack
 
 #: the top of a packed system: these slots, then from ``blocks`` on the offset of each
 #: output's block (``SAMPLED``) or of the exact block (``EXACT``)
@@ -69,7 +69,19 @@ OUTPUT_HEAD = layout(
     Slot("rules", "offset of the rules"),
     Slot("n_terms", "the output's (virtual) terms"),
 )
-_T, _H = SYSTEM_HEAD, OUTPUT_HEAD
+#: a sampled variable's record: these slots, then its universe (``n_points``) and its
+#: membership table (``n_terms`` rows); an output's then the supports and zero crossings
+SAMPLED_VARIABLE = layout(
+    "SampledVariable", Slot("low"), Slot("high"), Slot("n_points"), Slot("n_terms")
+)
+#: a rule's record: one term code per input, then these slots
+SAMPLED_RULE = layout(
+    "SampledRule",
+    Slot("term", "the output's (virtual) term"),
+    Slot("weight"),
+    Slot("connective", "0 AND, 1 OR"),
+)
+_T, _H, _SV, _SR = SYSTEM_HEAD, OUTPUT_HEAD, SAMPLED_VARIABLE, SAMPLED_RULE
 SAMPLED, EXACT = 0, 1
 
 
@@ -125,7 +137,9 @@ def _pack_output(system: FuzzySystem, output: int) -> tuple[np.ndarray, int]:
     for var in system.inputs:
         u, table = var.table()
         t_max = max(t_max, len(var.terms))
-        offsets.append(add([var.low, var.high, u.size, len(var.terms)]))
+        offsets.append(
+            add(pack(_SV, low=var.low, high=var.high, n_points=u.size, n_terms=len(var.terms)))
+        )
         add(u)
         add(table)
     out = system.outputs[output]
@@ -158,7 +172,7 @@ def _pack_output(system: FuzzySystem, output: int) -> tuple[np.ndarray, int]:
             u[idx]
             + (0.0 - table[t][idx]) * (u[idx + 1] - u[idx]) / (table[t][idx + 1] - table[t][idx])
         )
-    off_out = add([out.low, out.high, u.size, n_t])
+    off_out = add(pack(_SV, low=out.low, high=out.high, n_points=u.size, n_terms=n_t))
     add(u)
     add(table)
     add(support_lo)
@@ -173,7 +187,15 @@ def _pack_output(system: FuzzySystem, output: int) -> tuple[np.ndarray, int]:
         [
             v
             for rule, t in zip(rules, rule_terms, strict=True)
-            for v in (*rule.antecedent, t, rule.weight, 0.0 if rule.connective == "and" else 1.0)
+            for v in (
+                *rule.antecedent,
+                *pack(
+                    _SR,
+                    term=t,
+                    weight=rule.weight,
+                    connective=0.0 if rule.connective == "and" else 1.0,
+                ),
+            )
         ]
     )
     block = np.concatenate([np.zeros(len(_H)), *parts])
@@ -277,7 +299,7 @@ def _evaluate_output(cp: np.ndarray, b: int, scratch: np.ndarray, xs: np.ndarray
     agg_m = int(cp[b + _H.aggregation])
     defuzz_m = int(cp[b + _H.defuzzification])
     n_t = int(cp[b + _H.n_terms])
-    rule_width = n_in + 3
+    rule_width = n_in + len(_SR)
     ins = b + int(cp[b + _H.inputs])
 
     # 1. fuzzification: mu[i*t_stride + k]
@@ -285,12 +307,12 @@ def _evaluate_output(cp: np.ndarray, b: int, scratch: np.ndarray, xs: np.ndarray
     mu = scratch[: n_in * t_stride]
     for i in range(n_in):
         o = b + int(cp[ins + i])
-        lo = cp[o]
-        hi = cp[o + 1]
-        n = int(cp[o + 2])
-        nt = int(cp[o + 3])
+        lo = cp[o + _SV.low]
+        hi = cp[o + _SV.high]
+        n = int(cp[o + _SV.n_points])
+        nt = int(cp[o + _SV.n_terms])
         x = min(max(xs[i], lo), hi)
-        u0 = o + 4
+        u0 = o + len(_SV)
         j = _locate(cp, u0, n, x)
         for k in range(nt):
             mu[i * t_stride + k] = _interp_at(cp, u0, u0 + n + k * n, n, j, x)
@@ -302,9 +324,10 @@ def _evaluate_output(cp: np.ndarray, b: int, scratch: np.ndarray, xs: np.ndarray
     ro = b + int(cp[b + _H.rules])
     for r in range(n_rules):
         q = ro + r * rule_width
-        acc = antecedent(cp, q, n_in, cp[q + n_in + 2], mu, t_stride, and_m, or_m)
-        f = acc * cp[q + n_in + 1]
-        t = int(cp[q + n_in])
+        tail = q + n_in
+        acc = antecedent(cp, q, n_in, cp[tail + _SR.connective], mu, t_stride, and_m, or_m)
+        f = acc * cp[tail + _SR.weight]
+        t = int(cp[tail + _SR.term])
         if cut[t] < 0.0:
             cut[t] = f
         elif agg_m == 0:
@@ -316,8 +339,8 @@ def _evaluate_output(cp: np.ndarray, b: int, scratch: np.ndarray, xs: np.ndarray
 
     # 3. output universe: the span where the aggregate may be non-zero
     oo = b + int(cp[b + _H.output])
-    n = int(cp[oo + 2])
-    u0 = oo + 4
+    n = int(cp[oo + _SV.n_points])
+    u0 = oo + len(_SV)
     m0 = u0 + n
     s_lo = m0 + n_t * n
     s_hi = s_lo + n_t

@@ -37,7 +37,7 @@ from fuzzyservo.controllers.fuzzy.system import (
     Variable,
     term_index,
 )
-from fuzzyservo.controllers.layout import Slot, layout
+from fuzzyservo.controllers.layout import Slot, layout, pack
 
 # header
 #: the exact block's header (offsets from the block start)
@@ -56,7 +56,13 @@ EXACT_HEAD = layout(
     Slot("variables", "offset of the table of variable offsets"),
     Slot("rules", "offset of the rules"),
 )
-_X = EXACT_HEAD
+#: a variable's record: these slots, then the offset of each of its terms
+EXACT_VARIABLE = layout("ExactVariable", Slot("low"), Slot("high"), Slot("n_terms"))
+#: a term's record: these slots, then its parameters
+EXACT_TERM = layout("ExactTerm", Slot("shape", "the shape's code in SHAPE_CODES"), Slot("n_params"))
+#: a rule's record: one term code per input and per output, then these slots
+EXACT_RULE = layout("ExactRule", Slot("weight"), Slot("connective", "0 AND, 1 OR"))
+_X, _XV, _XT, _XR = EXACT_HEAD, EXACT_VARIABLE, EXACT_TERM, EXACT_RULE
 _LINEAR = SHAPE_CODES["linear"]
 _CONSTANT = SHAPE_CODES["constant"]
 
@@ -64,10 +70,9 @@ _CONSTANT = SHAPE_CODES["constant"]
 def pack_exact(system: FuzzySystem) -> tuple[np.ndarray, int]:
     """Flatten ``system`` for :func:`evaluate_exact`; also the scratch size it needs.
 
-    Layout: header; a table of variable offsets (inputs, then outputs); each variable
-    ``[low, high, n_terms, term offsets…]`` and each term ``[shape code, n, params…]``;
-    the rules, ``n_in + n_out + 2`` numbers each (the term codes of :class:`.Rule`, then
-    weight and connective 0 AND / 1 OR).
+    Layout: :data:`EXACT_HEAD`; a table of variable offsets (inputs, then outputs); each
+    variable :data:`EXACT_VARIABLE` and its term offsets, each term :data:`EXACT_TERM` and
+    its parameters; the rules, the term codes of :class:`.Rule` and :data:`EXACT_RULE`.
     """
     block: list[float] = [0.0] * len(_X)
     variables: list[Variable] = [*system.inputs, *system.outputs]
@@ -75,15 +80,18 @@ def pack_exact(system: FuzzySystem) -> tuple[np.ndarray, int]:
     block += [0.0] * len(variables)
     for v, var in enumerate(variables):
         block[table_at + v] = len(block)
-        head = len(block)
-        block += [var.low, var.high, len(var.terms)] + [0.0] * len(var.terms)
+        terms_at = len(block) + len(_XV)
+        block += [*pack(_XV, low=var.low, high=var.high, n_terms=len(var.terms))]
+        block += [0.0] * len(var.terms)
         for k, term in enumerate(var.terms):
-            block[head + 3 + k] = len(block)
-            block += [SHAPE_CODES[term.shape], len(term.params), *term.params]
+            block[terms_at + k] = len(block)
+            block += [*pack(_XT, shape=SHAPE_CODES[term.shape], n_params=len(term.params))]
+            block += term.params
     rules_at = len(block)
     for rule in system.rules:
-        block += [*rule.antecedent, *rule.consequents, rule.weight]
-        block.append(0.0 if rule.connective == "and" else 1.0)
+        connective = 0.0 if rule.connective == "and" else 1.0
+        block += [*rule.antecedent, *rule.consequents]
+        block += [*pack(_XR, weight=rule.weight, connective=connective)]
     n_in, n_out = len(system.inputs), len(system.outputs)
     block[_X.n_inputs], block[_X.n_outputs], block[_X.n_rules] = n_in, n_out, len(system.rules)
     block[_X.sugeno] = 1.0 if system.type == "sugeno" else 0.0
@@ -131,7 +139,7 @@ def antecedent(
 
 @njit(cache=True, inline="always")
 def _term_mu(cp: np.ndarray, t: int, x: float) -> float:
-    return mf_value(int(cp[t]), cp, t + 2, x)
+    return mf_value(int(cp[t + _XT.shape]), cp, t + len(_XT), x)
 
 
 @njit(cache=True)
@@ -153,34 +161,35 @@ def evaluate_exact(
     n_s = int(cp[b + _X.samples])
     vt = b + int(cp[b + _X.variables])
     ro = b + int(cp[b + _X.rules])
-    width = n_in + n_out + 2
+    width = n_in + n_out + len(_XR)
 
     # 1. inputs clipped, membership in every term
     t_max = 0
     for i in range(n_in):
-        t_max = max(t_max, int(cp[b + int(cp[vt + i]) + 2]))
+        t_max = max(t_max, int(cp[b + int(cp[vt + i]) + _XV.n_terms]))
     mu = scratch[: n_in * t_max]
     x = scratch[n_in * t_max : n_in * t_max + n_in]
     for i in range(n_in):
         v = b + int(cp[vt + i])
-        x[i] = min(max(xs[i], cp[v]), cp[v + 1])
-        for k in range(int(cp[v + 2])):
-            mu[i * t_max + k] = _term_mu(cp, b + int(cp[v + 3 + k]), x[i])
+        x[i] = min(max(xs[i], cp[v + _XV.low]), cp[v + _XV.high])
+        for k in range(int(cp[v + _XV.n_terms])):
+            mu[i * t_max + k] = _term_mu(cp, b + int(cp[v + len(_XV) + k]), x[i])
 
     # 2. firing strengths
     w = scratch[n_in * t_max + n_in : n_in * t_max + n_in + n_rules]
     for r in range(n_rules):
         q = ro + r * width
-        w[r] = antecedent(cp, q, n_in, cp[q + n_in + n_out + 1], mu, t_max, and_m, or_m)
-        w[r] *= cp[q + n_in + n_out]
+        tail = q + n_in + n_out
+        w[r] = antecedent(cp, q, n_in, cp[tail + _XR.connective], mu, t_max, and_m, or_m)
+        w[r] *= cp[tail + _XR.weight]
 
     # 3./4. each output
     ys = scratch[n_in * t_max + n_in + n_rules : n_in * t_max + n_in + n_rules + n_s]
     silent = 0
     for o in range(n_out):
         v = b + int(cp[vt + n_in + o])
-        lo = cp[v]
-        hi = cp[v + 1]
+        lo = cp[v + _XV.low]
+        hi = cp[v + _XV.high]
         if cp[b + _X.sugeno] == 1.0:
             num = 0.0
             den = 0.0
@@ -189,13 +198,14 @@ def evaluate_exact(
                 k, negated = term_index(c)
                 if c == NO_TERM or negated or w[r] == 0.0:
                     continue
-                t = b + int(cp[v + 3 + k])
-                if int(cp[t]) == _CONSTANT:
-                    z = cp[t + 2]
+                t = b + int(cp[v + len(_XV) + k])
+                coeffs = t + len(_XT)
+                if int(cp[t + _XT.shape]) == _CONSTANT:
+                    z = cp[coeffs]
                 else:
-                    z = cp[t + 2 + n_in]
+                    z = cp[coeffs + n_in]
                     for i in range(n_in):
-                        z += cp[t + 2 + i] * x[i]
+                        z += cp[coeffs + i] * x[i]
                 num += w[r] * z
                 den += w[r]
             if den == 0.0:
@@ -214,7 +224,7 @@ def evaluate_exact(
             if c == NO_TERM or w[r] == 0.0:
                 continue
             k, neg = term_index(c)
-            t = b + int(cp[v + 3 + k])
+            t = b + int(cp[v + len(_XV) + k])
             for k in range(n_s):
                 xk = hi if k == n_s - 1 else lo + k * step
                 m = _term_mu(cp, t, xk)

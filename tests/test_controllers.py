@@ -110,3 +110,21 @@ def test_pi_removes_the_bias_error_p_leaves(dinca, p_k10):
     pi_metrics = result_metrics(simulate(dinca, PI(kp=10.0, ki=20.0, name="pi"), "steps")).aggregate
     assert p_metrics["sse_abs"] > 1e-3
     assert pi_metrics["sse_abs"] < 0.05 * p_metrics["sse_abs"]
+
+
+def test_packed_layouts_are_declared_by_name():
+    """cp/cs slots come from one declaration: pack() needs every slot by name, and the
+    kernels, the packer and the generated C read the same indices."""
+    from fuzzyservo.controllers.classical import PIDF_PARAMS, PIDF_STATE
+    from fuzzyservo.controllers.fuzzy.controller import FUZZY_PARAMS, SYSTEM
+    from fuzzyservo.controllers.layout import layout, pack, slots
+
+    cp, cs = PIDF(kp=2.0, ki=3.0, filter_time_s=0.01, form="PI-D").pack(0.001)
+    assert cp.size == len(PIDF_PARAMS) and cs.size == len(PIDF_STATE)
+    assert (cp[PIDF_PARAMS.kp], cp[PIDF_PARAMS.c], cp[PIDF_PARAMS.sample_time]) == (2.0, 0.0, 0.001)
+    assert [s.flag for s in slots(PIDF_STATE)] == [False, False, False, True]
+    assert SYSTEM == len(FUZZY_PARAMS)
+    with pytest.raises(ValueError, match="missing"):
+        pack(PIDF_PARAMS, kp=1.0)
+    with pytest.raises(ValueError, match="declared twice"):
+        layout("Twice", "a", "a")

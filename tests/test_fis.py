@@ -51,6 +51,37 @@ def test_two_input_round_trip_keeps_not_none_or_and_weights():
     assert parse_fis(fis_text(edited)) == edited
 
 
+def test_rule_term_codes_decode_in_one_place():
+    """term_code/term_index and the .fis MF numbers (k > 0, 0 none, -k NOT) are inverses."""
+    from fuzzyservo.controllers.fuzzy.system import (
+        NO_TERM,
+        from_matlab,
+        term_code,
+        term_index,
+        to_matlab,
+    )
+
+    assert term_index(NO_TERM) == (-1, False)
+    for k in range(4):
+        for negated in (False, True):
+            assert term_index(term_code(k, negated)) == (k, negated)
+    for number in (-3, -1, 0, 1, 3):
+        assert to_matlab(from_matlab(number)) == number
+    assert (from_matlab(0), from_matlab(2), from_matlab(-2)) == (NO_TERM, 1, term_code(1, True))
+
+
+def test_a_not_consequent_reads_as_not_in_the_rule_lines():
+    """The rule line and the designer's rule table decode the consequent: NOT Z is no
+    longer shown as another term (a negative index into the terms did that)."""
+    from fuzzyservo.io.fuzzy import rule_text
+
+    system = read_fis(TIPPER)
+    text = fis_text(system).replace("3 2, 3 (1) : 2", "3 2, -3 (1) : 2")
+    edited = parse_fis(text)
+    rule = edited.rules[2]
+    assert rule_text(edited, rule).endswith(f"-> ~{edited.output.terms[2].name}")
+
+
 def test_written_text_is_matlab_layout():
     system = shipped("flc1_translated").system
     lines = fis_text(system).splitlines()

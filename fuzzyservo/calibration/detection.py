@@ -21,9 +21,8 @@ from dataclasses import dataclass
 
 from fuzzyservo.calibration.decision import held_out_evidence, threshold
 from fuzzyservo.calibration.replay import make_replay
-from fuzzyservo.calibration.search import calibrate, fit
+from fuzzyservo.calibration.search import calibrate, candidate_effects, fit
 from fuzzyservo.calibration.synthetic import synthetic_run
-from fuzzyservo.components.effects import LIBRARY
 from fuzzyservo.controllers.base import Controller
 from fuzzyservo.rig import Rig
 
@@ -80,8 +79,9 @@ def detected(
     replay = make_replay(rig, data, controller)
     nominal, _ = replay.run(rig)
     _, candidate = fit(replay, rig, effect)
-    candidates = sum(1 for e in LIBRARY if e in rig.plant.effects and e not in rig.effects)
-    return held_out_evidence(replay, nominal, candidate.model).z > threshold(candidates)
+    return held_out_evidence(replay, nominal, candidate.model).z > threshold(
+        len(candidate_effects(rig))
+    )
 
 
 def detection_ladder(

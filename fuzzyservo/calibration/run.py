@@ -12,7 +12,7 @@ from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
 
 from fuzzyservo.calibration.replay import Replay
-from fuzzyservo.calibration.search import Outcome
+from fuzzyservo.calibration.search import Outcome, candidate_effects
 from fuzzyservo.components.effects import LIBRARY
 from fuzzyservo.errors import ConfigError
 from fuzzyservo.metrics import format_value
@@ -74,8 +74,7 @@ class Calibration:
     @property
     def candidates(self) -> list[str]:
         """The effects the rig's plant can take and does not declare yet."""
-        pool = self.effects or LIBRARY
-        return [e for e in pool if e in self.rig.plant.effects and e not in self.rig.effects]
+        return candidate_effects(self.rig, self.effects)
 
     def steps(self, max_effects: int) -> int:
         """Candidate fits at most: what a progress bar counts."""

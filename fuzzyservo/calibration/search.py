@@ -429,6 +429,14 @@ def fit_table(replay: Replay, model: dict[str, np.ndarray]) -> dict[str, float]:
     return {c: fit_percent(replay.measured(c)[part], model[c][part]) for c in replay.channels}
 
 
+def candidate_effects(rig: Rig, effects: Sequence[str] | None = None) -> list[str]:
+    """The effects a calibration of ``rig`` may add: those of ``effects`` (default: the
+    whole :data:`~fuzzyservo.components.effects.LIBRARY`, in its order) that the rig's
+    plant models and the rig does not declare already."""
+    allowed = LIBRARY if effects is None else effects
+    return [e for e in allowed if e in rig.plant.effects and e not in rig.effects]
+
+
 def calibrate(
     replay: Replay,
     rig: Rig,
@@ -448,11 +456,7 @@ def calibrate(
     ``screen_samples`` and refits the best on all of it (:func:`_confirm`).
     """
     start = time.perf_counter()
-    names = [
-        e
-        for e in (effects if effects is not None else LIBRARY)
-        if e in rig.plant.effects and e not in rig.effects
-    ]
+    names = candidate_effects(rig, effects)
     noise = replay.noise_cost()
     held_out = slice(replay.split, None)
     declared_model, _ = replay.run(rig)

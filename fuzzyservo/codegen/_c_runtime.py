@@ -13,6 +13,14 @@ static @R@ fs_min(@R@ a, @R@ b) { return b < a ? b : a; }
 static @R@ fs_max(@R@ a, @R@ b) { return b > a ? b : a; }
 static long ix(@R@ v) { return (long)v; }
 
+/* a rule's term code decoded, as fuzzyservo.controllers.fuzzy.system.term_index does:
+   the term, and in *negated whether the rule says NOT term */
+static long term_index(long code, int *negated)
+{
+    *negated = code < NO_TERM;
+    return *negated ? -code - 2 : code;
+}
+
 #if FS_SAMPLED
 static @R@ interp_at(long u0, long m0, long n, long j, @R@ x)
 {
@@ -94,49 +102,52 @@ static @R@ defuzzify(const @R@ *x, const @R@ *y, long n, int method)
 /* one output, skfuzzy semantics: sampled universes, cut levels, aggregation, defuzz */
 static @R@ evaluate_output(long b, @R@ *scratch, const @R@ *xs)
 {
-    long n_in = ix(CP[b + 0]), n_rules = ix(CP[b + 1]);
-    int and_m = (int)ix(CP[b + 2]), or_m = (int)ix(CP[b + 3]), imp_m = (int)ix(CP[b + 4]);
-    int agg_m = (int)ix(CP[b + 5]), defuzz_m = (int)ix(CP[b + 6]);
-    long n_t = ix(CP[b + 11]), rule_width = n_in + 3, ins = b + ix(CP[b + 7]);
-    long t_stride = ix(CP[b + 8]);
+    long n_in = ix(CP[b + H_N_INPUTS]), n_rules = ix(CP[b + H_N_RULES]);
+    int and_m = (int)ix(CP[b + H_AND_METHOD]), or_m = (int)ix(CP[b + H_OR_METHOD]);
+    int imp_m = (int)ix(CP[b + H_IMPLICATION]), agg_m = (int)ix(CP[b + H_AGGREGATION]);
+    int defuzz_m = (int)ix(CP[b + H_DEFUZZIFICATION]);
+    long n_t = ix(CP[b + H_N_TERMS]), rule_width = n_in + SR_SIZE, ins = b + ix(CP[b + H_INPUTS]);
+    long t_stride = ix(CP[b + H_TERM_STRIDE]);
     @R@ *mu = scratch, *cut, *extra, *px, *py;
     long i, k, r, t, j, o, n, nt, u0, ro, q, a, oo, m0, s_lo, s_hi, z_n, z_off, j_lo, j_hi;
     long base, n_extra, x_base, width, m, e, jj, mrow, zs;
     @R@ x, lo, hi, acc, mv, f, c, z, x_lo, x_hi, fa, v, y;
-    int prev, nxt;
+    int prev, nxt, negated;
 
     for (i = 0; i < n_in; i++) {
         o = b + ix(CP[ins + i]);
-        lo = CP[o]; hi = CP[o + 1]; n = ix(CP[o + 2]); nt = ix(CP[o + 3]);
+        lo = CP[o + SV_LOW]; hi = CP[o + SV_HIGH];
+        n = ix(CP[o + SV_N_POINTS]); nt = ix(CP[o + SV_N_TERMS]);
         x = fs_min(fs_max(xs[i], lo), hi);
-        u0 = o + 4;
+        u0 = o + SV_SIZE;
         j = locate(u0, n, x);
         for (k = 0; k < nt; k++) mu[i * t_stride + k] = interp_at(u0, u0 + n + k * n, n, j, x);
     }
     cut = scratch + n_in * t_stride;
     for (t = 0; t < n_t; t++) cut[t] = -1;
-    ro = b + ix(CP[b + 10]);
+    ro = b + ix(CP[b + H_RULES]);
     for (r = 0; r < n_rules; r++) {
         q = ro + r * rule_width;
         acc = -1;
         for (i = 0; i < n_in; i++) {
             a = ix(CP[q + i]);
-            if (a == -1) continue;
-            mv = a >= 0 ? mu[i * t_stride + a] : 1 - mu[i * t_stride + (-a - 2)];
+            if (a == NO_TERM) continue;
+            k = term_index(a, &negated);
+            mv = negated ? 1 - mu[i * t_stride + k] : mu[i * t_stride + k];
             if (acc < 0) acc = mv;
-            else if (CP[q + n_in + 2] == 0) acc = and_m == 0 ? fs_min(acc, mv) : acc * mv;
+            else if (CP[q + n_in + SR_CONNECTIVE] == 0) acc = and_m == 0 ? fs_min(acc, mv) : acc * mv;
             else acc = or_m == 0 ? fs_max(acc, mv) : acc + mv - acc * mv;
         }
-        f = acc * CP[q + n_in + 1];
-        t = ix(CP[q + n_in]);
+        f = acc * CP[q + n_in + SR_WEIGHT];
+        t = ix(CP[q + n_in + SR_TERM]);
         if (cut[t] < 0) cut[t] = f;
         else if (agg_m == 0) cut[t] = fs_max(cut[t], f);
         else if (agg_m == 1) cut[t] = cut[t] + f;
         else cut[t] = cut[t] + f - cut[t] * f;
     }
-    oo = b + ix(CP[b + 9]);
-    n = ix(CP[oo + 2]);
-    u0 = oo + 4;
+    oo = b + ix(CP[b + H_OUTPUT]);
+    n = ix(CP[oo + SV_N_POINTS]);
+    u0 = oo + SV_SIZE;
     m0 = u0 + n;
     s_lo = m0 + n_t * n;
     s_hi = s_lo + n_t;
@@ -277,7 +288,7 @@ static @R@ mf_value(int code, long o, @R@ x)
     }
 }
 
-static @R@ term_mu(long t, @R@ x) { return mf_value((int)ix(CP[t]), t + 2, x); }
+static @R@ term_mu(long t, @R@ x) { return mf_value((int)ix(CP[t + XT_SHAPE]), t + XT_SIZE, x); }
 
 /* MATLAB's defuzz on ys at linspace(lo, hi, n); NAN when all zero */
 static @R@ defuzz_samples(const @R@ *ys, @R@ lo, @R@ hi, @R@ step, long n, int method)
@@ -311,15 +322,18 @@ static @R@ defuzz_samples(const @R@ *ys, @R@ lo, @R@ hi, @R@ step, long n, int m
 /* all outputs, matlab (evalfis) semantics; returns the outputs that fired no rule */
 static int evaluate_exact(long b, @R@ *scratch, const @R@ *xs, @R@ *out)
 {
-    long n_in = ix(CP[b]), n_out = ix(CP[b + 1]), n_rules = ix(CP[b + 2]);
-    int and_m = (int)ix(CP[b + 4]), or_m = (int)ix(CP[b + 5]), imp_m = (int)ix(CP[b + 6]);
-    int agg_m = (int)ix(CP[b + 7]), defuzz_m = (int)ix(CP[b + 8]), silent = 0, neg;
-    long n_s = ix(CP[b + 9]), vt = b + ix(CP[b + 10]), ro = b + ix(CP[b + 11]);
-    long width = n_in + n_out + 2, t_max = 0, i, k, r, o, v, q, a, c, t;
+    long n_in = ix(CP[b + X_N_INPUTS]), n_out = ix(CP[b + X_N_OUTPUTS]);
+    long n_rules = ix(CP[b + X_N_RULES]);
+    int and_m = (int)ix(CP[b + X_AND_METHOD]), or_m = (int)ix(CP[b + X_OR_METHOD]);
+    int imp_m = (int)ix(CP[b + X_IMPLICATION]), agg_m = (int)ix(CP[b + X_AGGREGATION]);
+    int defuzz_m = (int)ix(CP[b + X_DEFUZZIFICATION]), silent = 0, neg;
+    long n_s = ix(CP[b + X_SAMPLES]), vt = b + ix(CP[b + X_VARIABLES]);
+    long ro = b + ix(CP[b + X_RULES]);
+    long width = n_in + n_out + XR_SIZE, t_max = 0, i, k, r, o, v, q, a, c, t;
     @R@ *mu, *x, *w, *ys, acc, mv, lo, hi, num, den, z, step, xk, value;
 
     for (i = 0; i < n_in; i++) {
-        k = ix(CP[b + ix(CP[vt + i]) + 2]);
+        k = ix(CP[b + ix(CP[vt + i]) + XV_N_TERMS]);
         if (k > t_max) t_max = k;
     }
     mu = scratch;
@@ -328,36 +342,39 @@ static int evaluate_exact(long b, @R@ *scratch, const @R@ *xs, @R@ *out)
     ys = w + n_rules;
     for (i = 0; i < n_in; i++) {
         v = b + ix(CP[vt + i]);
-        x[i] = fs_min(fs_max(xs[i], CP[v]), CP[v + 1]);
-        for (k = 0; k < ix(CP[v + 2]); k++) mu[i * t_max + k] = term_mu(b + ix(CP[v + 3 + k]), x[i]);
+        x[i] = fs_min(fs_max(xs[i], CP[v + XV_LOW]), CP[v + XV_HIGH]);
+        for (k = 0; k < ix(CP[v + XV_N_TERMS]); k++)
+            mu[i * t_max + k] = term_mu(b + ix(CP[v + XV_SIZE + k]), x[i]);
     }
     for (r = 0; r < n_rules; r++) {
         q = ro + r * width;
         acc = -1;
         for (i = 0; i < n_in; i++) {
             a = ix(CP[q + i]);
-            if (a == -1) continue;
-            mv = a >= 0 ? mu[i * t_max + a] : 1 - mu[i * t_max + (-a - 2)];
+            if (a == NO_TERM) continue;
+            k = term_index(a, &neg);
+            mv = neg ? 1 - mu[i * t_max + k] : mu[i * t_max + k];
             if (acc < 0) acc = mv;
-            else if (CP[q + n_in + n_out + 1] == 0) acc = and_m == 0 ? fs_min(acc, mv) : acc * mv;
+            else if (CP[q + n_in + n_out + XR_CONNECTIVE] == 0) acc = and_m == 0 ? fs_min(acc, mv) : acc * mv;
             else acc = or_m == 0 ? fs_max(acc, mv) : acc + mv - acc * mv;
         }
-        w[r] = acc * CP[q + n_in + n_out];
+        w[r] = acc * CP[q + n_in + n_out + XR_WEIGHT];
     }
     for (o = 0; o < n_out; o++) {
         v = b + ix(CP[vt + n_in + o]);
-        lo = CP[v];
-        hi = CP[v + 1];
-        if (CP[b + 3] == 1) {
+        lo = CP[v + XV_LOW];
+        hi = CP[v + XV_HIGH];
+        if (CP[b + X_SUGENO] == 1) {
             num = 0; den = 0;
             for (r = 0; r < n_rules; r++) {
                 c = ix(CP[ro + r * width + n_in + o]);
-                if (c < 0 || w[r] == 0) continue;
-                t = b + ix(CP[v + 3 + c]);
-                if (ix(CP[t]) == @CONSTANT@) z = CP[t + 2];
+                k = term_index(c, &neg);
+                if (c == NO_TERM || neg || w[r] == 0) continue;
+                t = b + ix(CP[v + XV_SIZE + k]);
+                if (ix(CP[t + XT_SHAPE]) == @CONSTANT@) z = CP[t + XT_SIZE];
                 else {
-                    z = CP[t + 2 + n_in];
-                    for (i = 0; i < n_in; i++) z += CP[t + 2 + i] * x[i];
+                    z = CP[t + XT_SIZE + n_in];
+                    for (i = 0; i < n_in; i++) z += CP[t + XT_SIZE + i] * x[i];
                 }
                 num += w[r] * z;
                 den += w[r];
@@ -370,9 +387,8 @@ static int evaluate_exact(long b, @R@ *scratch, const @R@ *xs, @R@ *out)
         for (k = 0; k < n_s; k++) ys[k] = 0;
         for (r = 0; r < n_rules; r++) {
             c = ix(CP[ro + r * width + n_in + o]);
-            if (c == -1 || w[r] == 0) continue;
-            neg = c < -1;
-            t = b + ix(CP[v + 3 + (neg ? -c - 2 : c)]);
+            if (c == NO_TERM || w[r] == 0) continue;
+            t = b + ix(CP[v + XV_SIZE + term_index(c, &neg)]);
             for (k = 0; k < n_s; k++) {
                 xk = k == n_s - 1 ? hi : lo + (@R@)k * step;
                 mv = term_mu(t, xk);
@@ -397,11 +413,11 @@ static int evaluate_point(long b, @R@ *scratch, const @R@ *xs, @R@ *out)
     int silent = 0;
     long o;
 #if FS_EXACT
-    if (CP[b] == 1) return evaluate_exact(b + ix(CP[b + 3]), scratch, xs, out);
+    if (CP[b + T_SEMANTICS] == SEM_EXACT) return evaluate_exact(b + ix(CP[b + T_BLOCKS]), scratch, xs, out);
 #endif
 #if FS_SAMPLED
-    for (o = 0; o < ix(CP[b + 2]); o++) {
-        out[o] = evaluate_output(b + ix(CP[b + 3 + o]), scratch, xs);
+    for (o = 0; o < ix(CP[b + T_N_OUTPUTS]); o++) {
+        out[o] = evaluate_output(b + ix(CP[b + T_BLOCKS + o]), scratch, xs);
         if (out[o] != out[o]) silent++;
     }
 #else

@@ -12,7 +12,8 @@ from __future__ import annotations
 
 import math
 
-from fuzzyservo.controllers.fuzzy.controller import FORMS, FuzzyController
+from fuzzyservo.controllers.fuzzy.controller import FORMS, FUZZY_STATE, FuzzyController
+from fuzzyservo.controllers.layout import slots
 
 #: default table size per input for Structured Text
 ST_POINTS = {1: 257, 2: 65}
@@ -75,9 +76,10 @@ def st_source(
         "    ];",
         "END_VAR",
         "VAR",
-        "    e_prev : LREAL := 0.0;",
-        "    u_prev : LREAL := 0.0;",
-        "    started : BOOL := FALSE;",
+        *(
+            f"    {slot.name} : {'BOOL := FALSE' if slot.flag else 'LREAL := 0.0'};"
+            for slot in slots(FUZZY_STATE)
+        ),
         "    e : LREAL;",
         "    de : LREAL;",
         "    x0 : LREAL;",

@@ -39,6 +39,7 @@ PHASES = (
     "mass",  # mass += moving mass [kg or kg·m²]
     "load",  # f_load += force opposing +pos [N or N·m]
     "motion",  # the actuator's derivatives
+    "node",  # other consumers at the supply node (an accumulator): q_supply += their intake
     "supply_flow",  # the supply's derivatives (it sees q_supply, q_tank)
 )
 
@@ -50,6 +51,7 @@ ROLES: dict[str, tuple[int, int]] = {
     "line": (0, 1),
     "actuator": (1, 1),
     "load": (0, 99),
+    "accumulator": (0, 1),
 }
 
 # State groups, in the order the composed state vector lists them (the seed plants'

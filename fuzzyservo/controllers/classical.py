@@ -17,6 +17,35 @@ import numpy as np
 from fuzzyservo._jit import njit
 from fuzzyservo.controllers.base import Controller
 from fuzzyservo.controllers.kinds import KIND_OPEN_LOOP, KIND_P, KIND_PI, KIND_PIDF
+from fuzzyservo.controllers.layout import Slot, layout, pack
+
+_LIMITS = (Slot("u_min", "lower output limit [V]"), Slot("u_max", "upper output limit [V]"))
+_SAMPLE_TIME = Slot("sample_time", "T_s [s]")
+#: cp of open loop and P; their state vector holds nothing the kernels read
+P_PARAMS = layout("PParams", Slot("gain", "K [V/V]"), *_LIMITS)
+P_STATE = layout("PState", Slot("unused", "the compiled loop passes every controller a state"))
+PI_PARAMS = layout(
+    "PIParams", Slot("kp", "Kp [V/V]"), Slot("ki", "Ki [1/s]"), *_LIMITS, _SAMPLE_TIME
+)
+PI_STATE = layout("PIState", Slot("integral", "I = ∫e dt [V·s]"))
+PIDF_PARAMS = layout(
+    "PIDFParams",
+    Slot("kp", "Kp [V/V]"),
+    Slot("ki", "Ki [1/s]"),
+    Slot("kd", "Kd [s]"),
+    Slot("filter_time", "Tf [s]"),
+    Slot("b", "set-point weight of the proportional term"),
+    Slot("c", "set-point weight of the derivative term"),
+    *_LIMITS,
+    _SAMPLE_TIME,
+)
+PIDF_STATE = layout(
+    "PIDFState",
+    Slot("integral", "I = ∫e dt [V·s]"),
+    Slot("derivative", "D, the filtered derivative of c·r − y [V/s]"),
+    Slot("previous", "c·r − y at the previous sample [V]"),
+    Slot("started", "0 before the first sample: the derivative starts there", flag=True),
+)
 
 
 @njit(cache=True, inline="always")
@@ -26,14 +55,14 @@ def _clip(u: float, lo: float, hi: float) -> float:
 
 @njit(cache=True)
 def open_loop_step(cp: np.ndarray, cs: np.ndarray, r: float, y: float) -> float:
-    """u = K·r, clipped to [u_min, u_max]; the measurement is ignored. cp = (K, u_min, u_max)."""
-    return _clip(cp[0] * r, cp[1], cp[2])
+    """u = K·r, clipped to [u_min, u_max]; the measurement is ignored. cp: :data:`P_PARAMS`."""
+    return _clip(cp[P_PARAMS.gain] * r, cp[P_PARAMS.u_min], cp[P_PARAMS.u_max])
 
 
 @njit(cache=True)
 def p_step(cp: np.ndarray, cs: np.ndarray, r: float, y: float) -> float:
-    """u = K·(r − y), clipped to [u_min, u_max]. cp = (K, u_min, u_max)."""
-    return _clip(cp[0] * (r - y), cp[1], cp[2])
+    """u = K·(r − y), clipped to [u_min, u_max]. cp: :data:`P_PARAMS`."""
+    return _clip(cp[P_PARAMS.gain] * (r - y), cp[P_PARAMS.u_min], cp[P_PARAMS.u_max])
 
 
 @njit(cache=True)
@@ -42,15 +71,16 @@ def pi_step(cp: np.ndarray, cs: np.ndarray, r: float, y: float) -> float:
 
     u_k = clip(Kp·e_k + Ki·I_k),  I_{k+1} = I_k + e_k·T_s unless u_k sits at a limit
     and e_k would drive it further (clamping; Åström & Hägglund, "Advanced PID
-    control", §3.5). cp = (Kp, Ki, u_min, u_max, T_s); cs = (I,).
+    control", §3.5). cp: :data:`PI_PARAMS`; cs: :data:`PI_STATE`.
     """
+    k, st = PI_PARAMS, PI_STATE
     e = r - y
-    u_free = cp[0] * e + cp[1] * cs[0]
-    u = _clip(u_free, cp[2], cp[3])
-    saturated_high = u_free > cp[3] and e > 0.0
-    saturated_low = u_free < cp[2] and e < 0.0
+    u_free = cp[k.kp] * e + cp[k.ki] * cs[st.integral]
+    u = _clip(u_free, cp[k.u_min], cp[k.u_max])
+    saturated_high = u_free > cp[k.u_max] and e > 0.0
+    saturated_low = u_free < cp[k.u_min] and e < 0.0
     if not (saturated_high or saturated_low):
-        cs[0] += e * cp[4]
+        cs[st.integral] += e * cp[k.sample_time]
     return u
 
 
@@ -65,23 +95,24 @@ def pidf_step(cp: np.ndarray, cs: np.ndarray, r: float, y: float) -> float:
     backward difference, which is stable for every Tf ≥ 0 (Tf = 0: a plain backward
     difference); the integral by the forward rectangle with clamping anti-windup as
     :func:`pi_step`. The derivative starts from the first sample, so it gives no kick.
-    cp = (Kp, Ki, Kd, Tf, b, c, u_min, u_max, T_s); cs = (I, D, previous c·r − y, started).
+    cp: :data:`PIDF_PARAMS`; cs: :data:`PIDF_STATE`.
     """
-    kp, ki, kd, tf = cp[0], cp[1], cp[2], cp[3]
-    ts = cp[8]
+    k, st = PIDF_PARAMS, PIDF_STATE
+    kp, ki, kd, tf = cp[k.kp], cp[k.ki], cp[k.kd], cp[k.filter_time]
+    ts = cp[k.sample_time]
     e = r - y
-    ed = cp[5] * r - y
-    if cs[3] == 0.0:
-        cs[2] = ed
-        cs[3] = 1.0
-    cs[1] = (tf * cs[1] + (ed - cs[2])) / (tf + ts)
-    cs[2] = ed
-    u_free = kp * (cp[4] * r - y) + ki * cs[0] + kd * cs[1]
-    u = _clip(u_free, cp[6], cp[7])
-    saturated_high = u_free > cp[7] and e > 0.0
-    saturated_low = u_free < cp[6] and e < 0.0
+    ed = cp[k.c] * r - y
+    if cs[st.started] == 0.0:
+        cs[st.previous] = ed
+        cs[st.started] = 1.0
+    cs[st.derivative] = (tf * cs[st.derivative] + (ed - cs[st.previous])) / (tf + ts)
+    cs[st.previous] = ed
+    u_free = kp * (cp[k.b] * r - y) + ki * cs[st.integral] + kd * cs[st.derivative]
+    u = _clip(u_free, cp[k.u_min], cp[k.u_max])
+    saturated_high = u_free > cp[k.u_max] and e > 0.0
+    saturated_low = u_free < cp[k.u_min] and e < 0.0
     if not (saturated_high or saturated_low):
-        cs[0] += e * ts
+        cs[st.integral] += e * ts
     return u
 
 
@@ -108,7 +139,8 @@ class P(Controller):
     kernel = staticmethod(p_step)
 
     def pack(self, sample_time_s: float) -> tuple[np.ndarray, np.ndarray]:
-        return np.array([self.gain, self.u_min, self.u_max]), np.zeros(1)
+        cp = pack(P_PARAMS, gain=self.gain, u_min=self.u_min, u_max=self.u_max)
+        return cp, np.zeros(len(P_STATE))
 
 
 @dataclass(frozen=True)
@@ -137,7 +169,11 @@ class PI(Controller):
     kernel = staticmethod(pi_step)
 
     def pack(self, sample_time_s: float) -> tuple[np.ndarray, np.ndarray]:
-        return np.array([self.kp, self.ki, self.u_min, self.u_max, sample_time_s]), np.zeros(1)
+        cp = pack(
+            PI_PARAMS, kp=self.kp, ki=self.ki, u_min=self.u_min, u_max=self.u_max,
+            sample_time=sample_time_s,
+        )  # fmt: skip
+        return cp, np.zeros(len(PI_STATE))
 
 
 @dataclass(frozen=True)
@@ -179,8 +215,8 @@ class PIDF(Controller):
 
     def pack(self, sample_time_s: float) -> tuple[np.ndarray, np.ndarray]:
         b, c = PID_FORMS[self.form]
-        cp = np.array(
-            [self.kp, self.ki, self.kd, self.filter_time_s, b, c, self.u_min, self.u_max,
-             sample_time_s]
+        cp = pack(
+            PIDF_PARAMS, kp=self.kp, ki=self.ki, kd=self.kd, filter_time=self.filter_time_s,
+            b=b, c=c, u_min=self.u_min, u_max=self.u_max, sample_time=sample_time_s,
         )  # fmt: skip
-        return cp, np.zeros(4)
+        return cp, np.zeros(len(PIDF_STATE))

@@ -19,6 +19,7 @@ from typing import Any
 import numpy as np
 
 from fuzzyservo.controllers.fuzzy import FuzzyController
+from fuzzyservo.controllers.fuzzy.system import NO_TERM, term_index
 from fuzzyservo.designer.files import Folders
 from fuzzyservo.errors import ConfigError
 from fuzzyservo.io.controllers import read_controller_data
@@ -212,14 +213,15 @@ class Session:
         grid = [["" for _ in range(shape[1])] for _ in range(shape[0])]
         for rule in system.rules:
             ant = rule.antecedent
-            if rule.weight != 1.0 or any(i < 0 for i in ant):
+            if rule.weight != 1.0 or any(i == NO_TERM or term_index(i)[1] for i in ant):
                 return None
             if len(ant) == 2 and rule.connective != "and":
                 return None
             i, j = ant[0], ant[1] if len(ant) == 2 else 0
-            if grid[i][j]:
+            k, negated = term_index(rule.consequent)
+            if grid[i][j] or negated or rule.consequent == NO_TERM:
                 return None
-            grid[i][j] = system.output.terms[rule.consequent].name
+            grid[i][j] = system.output.terms[k].name
         return grid
 
     def set_rule_cell(self, row: int, column: int, term: str) -> None:

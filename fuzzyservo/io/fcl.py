@@ -51,12 +51,14 @@ from typing import NoReturn
 from fuzzyservo.controllers.fuzzy.shapes import SUGENO_SHAPES
 from fuzzyservo.controllers.fuzzy.system import (
     MATLAB_SAMPLE_POINTS,
+    NO_TERM,
     SEMANTICS,
     SHAPES,
     FuzzySystem,
     Rule,
     Term,
     Variable,
+    term_code,
     term_index,
 )
 from fuzzyservo.errors import ConfigError
@@ -352,7 +354,7 @@ def _clause(file: str, line: int, text: str, variables: list[Variable]) -> tuple
     if m[3] not in terms:
         _fail(file, line, f"{m[1]} has no term {m[3]!r}; its terms are {terms}")
     t = terms.index(m[3])
-    return k, (-t - 2 if m[2] else t)
+    return k, term_code(t, negated=bool(m[2]))
 
 
 def read_fcl(path: str | Path, points: int = 201) -> FuzzySystem:
@@ -441,13 +443,13 @@ def fcl_text(system: FuzzySystem) -> str:
     for n, rule in enumerate(system.rules, start=1):
         clauses = []
         for v, idx in zip(system.inputs, rule.antecedent, strict=True):
-            if idx == -1:
+            if idx == NO_TERM:
                 continue
             k, negated = term_index(idx)
             clauses.append(f"{v.name} IS {'NOT ' if negated else ''}{v.terms[k].name}")
         heads = []
         for v, idx in zip(system.outputs, rule.consequents, strict=True):
-            if idx == -1:
+            if idx == NO_TERM:
                 continue
             k, negated = term_index(idx)
             heads.append(f"{v.name} IS {'NOT ' if negated else ''}{v.terms[k].name}")

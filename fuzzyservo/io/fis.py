@@ -73,6 +73,8 @@ from fuzzyservo.controllers.fuzzy.system import (
     Rule,
     Term,
     Variable,
+    from_matlab,
+    to_matlab,
 )
 from fuzzyservo.errors import ConfigError
 
@@ -441,11 +443,6 @@ def _indices(reader: _Reader, text: str, line: _Line) -> list[int]:
     return values
 
 
-def _decode(v: int) -> int:
-    """MATLAB's k > 0 MF k, 0 none, -k NOT MF k as ours: k-1, -1, -(k-1)-2."""
-    return v - 1 if v > 0 else (-1 if v == 0 else v - 1)
-
-
 def _rule(
     reader: _Reader, line: _Line, inputs: list[Variable], outputs: list[Variable], sugeno: bool
 ) -> Rule:
@@ -511,9 +508,9 @@ def _rule(
             where,
             line.number,
         )
-    decoded = [_decode(c) for c in cons]
+    decoded = [from_matlab(c) for c in cons]
     return Rule(
-        tuple(_decode(v) for v in ante),
+        tuple(from_matlab(v) for v in ante),
         decoded[0],
         weight,
         "and" if conn == 1 else "or",
@@ -710,11 +707,6 @@ def _variable_text(section: str, var: Variable, points: int) -> list[str]:
     return [*lines, ""]
 
 
-def _matlab_index(idx: int) -> int:
-    """Our term index (k, -1 none, -(k+2) NOT k) as MATLAB's (k+1, 0, -(k+1))."""
-    return idx + 1 if idx >= 0 else (0 if idx == -1 else idx + 1)
-
-
 def fis_text(system: FuzzySystem) -> str:
     """``system`` as MATLAB ``.fis`` text (R2018b+ layout, ``Version=2.0``).
 
@@ -743,8 +735,8 @@ def fis_text(system: FuzzySystem) -> str:
         lines += _variable_text(f"Output{k}", var, points)
     lines.append("[Rules]")
     for rule in system.rules:
-        ante = " ".join(str(_matlab_index(i)) for i in rule.antecedent)
-        cons = " ".join(str(_matlab_index(i)) for i in rule.consequents)
+        ante = " ".join(str(to_matlab(i)) for i in rule.antecedent)
+        cons = " ".join(str(to_matlab(i)) for i in rule.consequents)
         conn = 1 if rule.connective == "and" else 2
         lines.append(f"{ante}, {cons} ({number_text(rule.weight)}) : {conn}")
     return "\n".join(lines) + "\n"

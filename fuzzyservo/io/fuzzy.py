@@ -45,6 +45,7 @@ from fuzzyservo.controllers.fuzzy.system import (
     IMPLICATIONS,
     MAMDANI_DEFUZZIFICATIONS,
     MATLAB_SAMPLE_POINTS,
+    NO_TERM,
     OR_METHODS,
     SEMANTICS,
     SHAPES,
@@ -52,6 +53,8 @@ from fuzzyservo.controllers.fuzzy.system import (
     Rule,
     Term,
     Variable,
+    term_code,
+    term_index,
 )
 from fuzzyservo.errors import ConfigError
 from fuzzyservo.io._yaml import Node
@@ -257,11 +260,10 @@ def _rules(root: Node, inputs: list[Variable], output: Variable) -> tuple[Rule, 
         antecedent = []
         for var, term in zip(inputs, names, strict=True):
             if term == "-":
-                antecedent.append(-1)
+                antecedent.append(NO_TERM)
                 continue
-            negate = term.startswith("~")
             k = _term_index(root, var, term.lstrip("~"), where)
-            antecedent.append(-k - 2 if negate else k)
+            antecedent.append(term_code(k, negated=term.startswith("~")))
         weight = float(m["w"]) if m["w"] else 1.0
         try:
             rules.append(
@@ -290,18 +292,18 @@ def _term_index(root: Node, var: Variable, term: str, where: str) -> int:
 
 def rule_text(system: FuzzySystem, rule: Rule) -> str:
     """One rule as a rule line ``"NB and PS -> NM 0.5"`` (what :func:`_rules` reads back)."""
-    names = []
-    for var, idx in zip(system.inputs, rule.antecedent, strict=True):
-        if idx == -1:
-            names.append("-")
-        else:
-            k = idx if idx >= 0 else -idx - 2
-            names.append(("~" if idx < -1 else "") + var.terms[k].name)
+    names = [_term_text(v, idx) for v, idx in zip(system.inputs, rule.antecedent, strict=True)]
     weight = f" {rule.weight:g}" if rule.weight != 1.0 else ""
-    return (
-        f" {rule.connective} ".join(names)
-        + f" -> {system.output.terms[rule.consequent].name}{weight}"
-    )
+    then = _term_text(system.output, rule.consequent)
+    return f" {rule.connective} ".join(names) + f" -> {then}{weight}"
+
+
+def _term_text(var: Variable, code: int) -> str:
+    """A term code as a rule line writes it: ``NB``, ``~NB`` (NOT NB) or ``-`` (none)."""
+    if code == NO_TERM:
+        return "-"
+    k, negated = term_index(code)
+    return ("~" if negated else "") + var.terms[k].name
 
 
 def fuzzy_controller_data(controller: FuzzyController) -> dict:

@@ -25,35 +25,53 @@ from fuzzyservo.controllers.base import Controller
 from fuzzyservo.controllers.fuzzy.evaluate import evaluate, pack_system
 from fuzzyservo.controllers.fuzzy.system import FuzzySystem
 from fuzzyservo.controllers.kinds import KIND_FUZZY
+from fuzzyservo.controllers.layout import Slot, layout, pack
 
 if TYPE_CHECKING:
     from fuzzyservo.controllers.fuzzy.design import FuzzyDesign
 
 FORMS = ("p", "pd", "pi")
+_FORM_PI = FORMS.index("pi")
 
-# cp: [form, G_e, G_ė, G_u, u_min, u_max, T_s, n_inputs, <system block>]
-_CP_HEADER = 8
-# cs: [e_prev, u_prev, started, <scratch>]
-_CS_HEADER = 3
+#: cp: these slots, then the packed system (:func:`.evaluate.pack_system`) from ``SYSTEM`` on
+FUZZY_PARAMS = layout(
+    "FuzzyParams",
+    Slot("form", "the index of the form in FORMS"),
+    Slot("input_gain", "G_e"),
+    Slot("rate_gain", "G_ė [s]"),
+    Slot("output_gain", "G_u"),
+    Slot("u_min", "lower output limit [V]"),
+    Slot("u_max", "upper output limit [V]"),
+    Slot("sample_time", "T_s [s]"),
+    Slot("n_inputs", "1: error, 2: error and error rate"),
+)
+SYSTEM = len(FUZZY_PARAMS)
+#: cs: these slots, then the evaluator's scratch space from ``SCRATCH`` on
+FUZZY_STATE = layout(
+    "FuzzyState",
+    Slot("e_prev", "previous error"),
+    Slot("u_prev", "previous command (the integrator of form pi)"),
+    Slot("started", "0 before the first sample: the error rate is 0 there", flag=True),
+)
+SCRATCH = len(FUZZY_STATE)
 
 
 @njit(cache=True)
 def fuzzy_step(cp: np.ndarray, cs: np.ndarray, r: float, y: float) -> float:
     """One sample of the fuzzy control law (module docstring); updates ``cs`` in place."""
-    form = int(cp[0])
-    ts = cp[6]
+    k, st = FUZZY_PARAMS, FUZZY_STATE
+    ts = cp[k.sample_time]
     e = r - y
-    de = (e - cs[0]) / ts if cs[2] > 0.0 else 0.0
-    scratch = cs[_CS_HEADER:]
-    f = evaluate(cp, _CP_HEADER, scratch, cp[1] * e, cp[2] * de)
-    if form == 2:
-        u = cs[1] + ts * cp[3] * f
+    de = (e - cs[st.e_prev]) / ts if cs[st.started] > 0.0 else 0.0
+    f = evaluate(cp, SYSTEM, cs[SCRATCH:], cp[k.input_gain] * e, cp[k.rate_gain] * de)
+    if int(cp[k.form]) == _FORM_PI:
+        u = cs[st.u_prev] + ts * cp[k.output_gain] * f
     else:
-        u = cp[3] * f
-    u = min(max(u, cp[4]), cp[5])
-    cs[0] = e
-    cs[1] = u
-    cs[2] = 1.0
+        u = cp[k.output_gain] * f
+    u = min(max(u, cp[k.u_min]), cp[k.u_max])
+    cs[st.e_prev] = e
+    cs[st.u_prev] = u
+    cs[st.started] = 1.0
     return u
 
 
@@ -127,16 +145,17 @@ class FuzzyController(Controller):
 
     def pack(self, sample_time_s: float) -> tuple[np.ndarray, np.ndarray]:
         block, scratch = pack_system(self.system)
-        head = np.array(
-            [FORMS.index(self.form), self.input_gain, self.rate_gain, self.output_gain,
-             self.u_min, self.u_max, sample_time_s, len(self.system.inputs)]
+        head = pack(
+            FUZZY_PARAMS, form=FORMS.index(self.form), input_gain=self.input_gain,
+            rate_gain=self.rate_gain, output_gain=self.output_gain, u_min=self.u_min,
+            u_max=self.u_max, sample_time=sample_time_s, n_inputs=len(self.system.inputs),
         )  # fmt: skip
-        return np.concatenate([head, block]), np.zeros(_CS_HEADER + scratch)
+        return np.concatenate([head, block]), np.zeros(SCRATCH + scratch)
 
     def curve(self, e: np.ndarray, de: np.ndarray | None = None) -> np.ndarray:
         """The static map ``G_u·F(G_e·e [, G_ė·ė])`` (before limits) on arrays: control curve or surface."""
         cp, cs = self.pack(1.0)
-        scratch = cs[_CS_HEADER:]
+        scratch = cs[SCRATCH:]
         e = np.asarray(e, dtype=float)
         de = (
             np.zeros_like(e)
@@ -153,4 +172,6 @@ def _curve(
     cp: np.ndarray, scratch: np.ndarray, e: np.ndarray, de: np.ndarray, out: np.ndarray
 ) -> None:
     for k in range(e.size):
-        out[k] = cp[3] * evaluate(cp, _CP_HEADER, scratch, cp[1] * e[k], cp[2] * de[k])
+        x0 = cp[FUZZY_PARAMS.input_gain] * e[k]
+        x1 = cp[FUZZY_PARAMS.rate_gain] * de[k]
+        out[k] = cp[FUZZY_PARAMS.output_gain] * evaluate(cp, SYSTEM, scratch, x0, x1)

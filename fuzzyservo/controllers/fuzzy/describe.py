@@ -4,7 +4,7 @@ editor show)."""
 from __future__ import annotations
 
 from fuzzyservo.controllers.fuzzy.controller import FuzzyController
-from fuzzyservo.controllers.fuzzy.system import term_index
+from fuzzyservo.controllers.fuzzy.system import NO_TERM, term_index
 
 
 def describe_fuzzy(controller: FuzzyController) -> str:
@@ -25,10 +25,10 @@ def describe_fuzzy(controller: FuzzyController) -> str:
     for n, rule in enumerate(system.rules, start=1):
         parts = []
         for var, name, idx in zip(system.inputs, names, rule.antecedent, strict=True):
-            if idx == -1:
+            if idx == NO_TERM:
                 continue
-            term = var.terms[idx if idx >= 0 else -idx - 2].name
-            parts.append(f"{name} is {'not ' if idx < -1 else ''}{term}")
+            k, negated = term_index(idx)
+            parts.append(f"{name} is {'not ' if negated else ''}{var.terms[k].name}")
         joined = f" {rule.connective} ".join(parts)
         weight = f" ({rule.weight:g})" if rule.weight != 1 else ""
         k, negated = term_index(rule.consequent)

@@ -37,17 +37,51 @@ from fuzzyservo.controllers.fuzzy.system import (
     AND_METHODS,
     DEFUZZIFICATIONS,
     IMPLICATIONS,
+    NO_TERM,
     OR_METHODS,
     FuzzySystem,
     term_index,
 )
+from fuzzyservo.controllers.layout import Slot, layout, pack
 
-# one output's block header (offsets from the block start)
-_H_NIN, _H_NRULES, _H_AND, _H_OR, _H_IMP, _H_AGG, _H_DEFUZZ = 0, 1, 2, 3, 4, 5, 6
-_H_INS, _H_TSTRIDE, _H_OUT, _H_RULES, _H_NOUT = 7, 8, 9, 10, 11
-_HEADER = 12
-# top block: [semantics, n_inputs, n_outputs, block offset of each output | exact block]
-_T_SEM, _T_NIN, _T_NOUT, _T_BLOCKS = 0, 1, 2, 3
+#: the top of a packed system: these slots, then from ``blocks`` on the offset of each
+#: output's block (``SAMPLED``) or of the exact block (``EXACT``)
+SYSTEM_HEAD = layout(
+    "SystemHead",
+    Slot("semantics", "SAMPLED or EXACT"),
+    Slot("n_inputs"),
+    Slot("n_outputs"),
+    Slot("blocks", "offset of the first block, from the top"),
+)
+#: one output's block header in the ``skfuzzy`` semantics (offsets from the block start)
+OUTPUT_HEAD = layout(
+    "OutputHead",
+    Slot("n_inputs"),
+    Slot("n_rules"),
+    Slot("and_method", "index in AND_METHODS"),
+    Slot("or_method", "index in OR_METHODS"),
+    Slot("implication", "index in IMPLICATIONS"),
+    Slot("aggregation", "index in AGGREGATIONS"),
+    Slot("defuzzification", "index in DEFUZZIFICATIONS"),
+    Slot("inputs", "offset of the table of input offsets"),
+    Slot("term_stride", "the most terms of an input"),
+    Slot("output", "offset of the output variable"),
+    Slot("rules", "offset of the rules"),
+    Slot("n_terms", "the output's (virtual) terms"),
+)
+#: a sampled variable's record: these slots, then its universe (``n_points``) and its
+#: membership table (``n_terms`` rows); an output's then the supports and zero crossings
+SAMPLED_VARIABLE = layout(
+    "SampledVariable", Slot("low"), Slot("high"), Slot("n_points"), Slot("n_terms")
+)
+#: a rule's record: one term code per input, then these slots
+SAMPLED_RULE = layout(
+    "SampledRule",
+    Slot("term", "the output's (virtual) term"),
+    Slot("weight"),
+    Slot("connective", "0 AND, 1 OR"),
+)
+_T, _H, _SV, _SR = SYSTEM_HEAD, OUTPUT_HEAD, SAMPLED_VARIABLE, SAMPLED_RULE
 SAMPLED, EXACT = 0, 1
 
 
@@ -61,20 +95,20 @@ def pack_system(system: FuzzySystem) -> tuple[np.ndarray, int]:
     from fuzzyservo.controllers.fuzzy.exact import pack_exact
 
     n_in, n_out = len(system.inputs), len(system.outputs)
-    head = np.zeros(_T_BLOCKS + n_out)
-    head[_T_NIN] = n_in
-    head[_T_NOUT] = n_out
+    head = np.zeros(_T.blocks + n_out)
+    head[_T.n_inputs] = n_in
+    head[_T.n_outputs] = n_out
     if system.semantics == "matlab" or system.type == "sugeno":
-        head[_T_SEM] = EXACT
+        head[_T.semantics] = EXACT
         block, scratch = pack_exact(system)
-        head[_T_BLOCKS] = head.size
+        head[_T.blocks] = head.size
         return np.concatenate([head, block]), scratch + n_in + n_out
-    head[_T_SEM] = SAMPLED
+    head[_T.semantics] = SAMPLED
     blocks = []
     scratch = 0
     for o in range(n_out):
         block, need = _pack_output(system, o)
-        head[_T_BLOCKS + o] = head.size + sum(b.size for b in blocks)
+        head[_T.blocks + o] = head.size + sum(b.size for b in blocks)
         blocks.append(block)
         scratch = max(scratch, need)
     return np.concatenate([head, *blocks]), scratch + n_in + n_out
@@ -86,7 +120,7 @@ def _pack_output(system: FuzzySystem, output: int) -> tuple[np.ndarray, int]:
     evaluator's per-term accumulation is an implication per rule followed by the
     aggregation (max aggregation commutes with min and product implication)."""
     parts: list[np.ndarray] = []
-    size = _HEADER
+    size = len(_H)
 
     def add(arr) -> int:
         nonlocal size
@@ -103,12 +137,14 @@ def _pack_output(system: FuzzySystem, output: int) -> tuple[np.ndarray, int]:
     for var in system.inputs:
         u, table = var.table()
         t_max = max(t_max, len(var.terms))
-        offsets.append(add([var.low, var.high, u.size, len(var.terms)]))
+        offsets.append(
+            add(pack(_SV, low=var.low, high=var.high, n_points=u.size, n_terms=len(var.terms)))
+        )
         add(u)
         add(table)
     out = system.outputs[output]
     u, term_table = out.table()
-    rules = [r for r in system.rules if r.consequents[output] != -1]
+    rules = [r for r in system.rules if r.consequents[output] != NO_TERM]
     per_rule = system.aggregation != "max"
     virtual: dict[object, int] = {}  # (term, negated) or rule number -> virtual term
     rows = []
@@ -136,7 +172,7 @@ def _pack_output(system: FuzzySystem, output: int) -> tuple[np.ndarray, int]:
             u[idx]
             + (0.0 - table[t][idx]) * (u[idx + 1] - u[idx]) / (table[t][idx + 1] - table[t][idx])
         )
-    off_out = add([out.low, out.high, u.size, n_t])
+    off_out = add(pack(_SV, low=out.low, high=out.high, n_points=u.size, n_terms=n_t))
     add(u)
     add(table)
     add(support_lo)
@@ -151,24 +187,32 @@ def _pack_output(system: FuzzySystem, output: int) -> tuple[np.ndarray, int]:
         [
             v
             for rule, t in zip(rules, rule_terms, strict=True)
-            for v in (*rule.antecedent, t, rule.weight, 0.0 if rule.connective == "and" else 1.0)
+            for v in (
+                *rule.antecedent,
+                *pack(
+                    _SR,
+                    term=t,
+                    weight=rule.weight,
+                    connective=0.0 if rule.connective == "and" else 1.0,
+                ),
+            )
         ]
     )
-    block = np.concatenate([np.zeros(_HEADER), *parts])
+    block = np.concatenate([np.zeros(len(_H)), *parts])
     block[zc_offsets_at : zc_offsets_at + n_t] = zc_starts
     block[ins_at : ins_at + n_in] = offsets
-    block[_H_NIN] = n_in
-    block[_H_NRULES] = len(rules)
-    block[_H_AND] = AND_METHODS.index(system.and_method)
-    block[_H_OR] = OR_METHODS.index(system.or_method)
-    block[_H_IMP] = IMPLICATIONS.index(system.implication)
-    block[_H_AGG] = AGGREGATIONS.index(system.aggregation)
-    block[_H_DEFUZZ] = DEFUZZIFICATIONS.index(system.defuzzification)
-    block[_H_INS] = ins_at
-    block[_H_TSTRIDE] = t_max
-    block[_H_OUT] = off_out
-    block[_H_RULES] = off_rules
-    block[_H_NOUT] = n_t
+    block[_H.n_inputs] = n_in
+    block[_H.n_rules] = len(rules)
+    block[_H.and_method] = AND_METHODS.index(system.and_method)
+    block[_H.or_method] = OR_METHODS.index(system.or_method)
+    block[_H.implication] = IMPLICATIONS.index(system.implication)
+    block[_H.aggregation] = AGGREGATIONS.index(system.aggregation)
+    block[_H.defuzzification] = DEFUZZIFICATIONS.index(system.defuzzification)
+    block[_H.inputs] = ins_at
+    block[_H.term_stride] = t_max
+    block[_H.output] = off_out
+    block[_H.rules] = off_rules
+    block[_H.n_terms] = n_t
     extra = 4 * n_t + 2 * u.size  # cut-level points: at most 2 per unimodal term, with margin
     scratch = n_in * t_max + n_t + extra + 2 * (u.size + extra)
     return block, scratch
@@ -207,8 +251,8 @@ def evaluate(cp: np.ndarray, b: int, scratch: np.ndarray, x0: float, x1: float) 
     """First output of the system packed at ``cp[b:]`` for inputs ``x0`` (and ``x1``): the
     controller's call. NaN when no rule fires in the ``skfuzzy`` semantics (cannot happen
     for a system that passed the coverage check at build time)."""
-    n_in = int(cp[b + _T_NIN])
-    n_out = int(cp[b + _T_NOUT])
+    n_in = int(cp[b + _T.n_inputs])
+    n_out = int(cp[b + _T.n_outputs])
     xs = scratch[:n_in]
     xs[0] = x0
     if n_in > 1:
@@ -224,11 +268,11 @@ def evaluate_point(
 ) -> int:
     """All outputs for the inputs ``xs`` into ``out``; returns how many outputs fired no rule
     (``matlab``: those are mid-range, ``skfuzzy``: NaN)."""
-    if cp[b + _T_SEM] == EXACT:
-        return evaluate_exact(cp, b + int(cp[b + _T_BLOCKS]), scratch, xs, out)
+    if cp[b + _T.semantics] == EXACT:
+        return evaluate_exact(cp, b + int(cp[b + _T.blocks]), scratch, xs, out)
     silent = 0
-    for o in range(int(cp[b + _T_NOUT])):
-        out[o] = _evaluate_output(cp, b + int(cp[b + _T_BLOCKS + o]), scratch, xs)
+    for o in range(int(cp[b + _T.n_outputs])):
+        out[o] = _evaluate_output(cp, b + int(cp[b + _T.blocks + o]), scratch, xs)
         if np.isnan(out[o]):
             silent += 1
     return silent
@@ -247,28 +291,28 @@ def evaluate_many(cp: np.ndarray, scratch: np.ndarray, xs: np.ndarray, out: np.n
 @njit(cache=True)
 def _evaluate_output(cp: np.ndarray, b: int, scratch: np.ndarray, xs: np.ndarray) -> float:
     """One output in the ``skfuzzy`` semantics (module docstring); NaN when no rule fires."""
-    n_in = int(cp[b + _H_NIN])
-    n_rules = int(cp[b + _H_NRULES])
-    and_m = int(cp[b + _H_AND])
-    or_m = int(cp[b + _H_OR])
-    imp_m = int(cp[b + _H_IMP])
-    agg_m = int(cp[b + _H_AGG])
-    defuzz_m = int(cp[b + _H_DEFUZZ])
-    n_t = int(cp[b + _H_NOUT])
-    rule_width = n_in + 3
-    ins = b + int(cp[b + _H_INS])
+    n_in = int(cp[b + _H.n_inputs])
+    n_rules = int(cp[b + _H.n_rules])
+    and_m = int(cp[b + _H.and_method])
+    or_m = int(cp[b + _H.or_method])
+    imp_m = int(cp[b + _H.implication])
+    agg_m = int(cp[b + _H.aggregation])
+    defuzz_m = int(cp[b + _H.defuzzification])
+    n_t = int(cp[b + _H.n_terms])
+    rule_width = n_in + len(_SR)
+    ins = b + int(cp[b + _H.inputs])
 
     # 1. fuzzification: mu[i*t_stride + k]
-    t_stride = int(cp[b + _H_TSTRIDE])
+    t_stride = int(cp[b + _H.term_stride])
     mu = scratch[: n_in * t_stride]
     for i in range(n_in):
         o = b + int(cp[ins + i])
-        lo = cp[o]
-        hi = cp[o + 1]
-        n = int(cp[o + 2])
-        nt = int(cp[o + 3])
+        lo = cp[o + _SV.low]
+        hi = cp[o + _SV.high]
+        n = int(cp[o + _SV.n_points])
+        nt = int(cp[o + _SV.n_terms])
         x = min(max(xs[i], lo), hi)
-        u0 = o + 4
+        u0 = o + len(_SV)
         j = _locate(cp, u0, n, x)
         for k in range(nt):
             mu[i * t_stride + k] = _interp_at(cp, u0, u0 + n + k * n, n, j, x)
@@ -277,12 +321,13 @@ def _evaluate_output(cp: np.ndarray, b: int, scratch: np.ndarray, xs: np.ndarray
     cut = scratch[n_in * t_stride : n_in * t_stride + n_t]
     for t in range(n_t):
         cut[t] = -1.0
-    ro = b + int(cp[b + _H_RULES])
+    ro = b + int(cp[b + _H.rules])
     for r in range(n_rules):
         q = ro + r * rule_width
-        acc = antecedent(cp, q, n_in, cp[q + n_in + 2], mu, t_stride, and_m, or_m)
-        f = acc * cp[q + n_in + 1]
-        t = int(cp[q + n_in])
+        tail = q + n_in
+        acc = antecedent(cp, q, n_in, cp[tail + _SR.connective], mu, t_stride, and_m, or_m)
+        f = acc * cp[tail + _SR.weight]
+        t = int(cp[tail + _SR.term])
         if cut[t] < 0.0:
             cut[t] = f
         elif agg_m == 0:
@@ -293,9 +338,9 @@ def _evaluate_output(cp: np.ndarray, b: int, scratch: np.ndarray, xs: np.ndarray
             cut[t] = cut[t] + f - cut[t] * f
 
     # 3. output universe: the span where the aggregate may be non-zero
-    oo = b + int(cp[b + _H_OUT])
-    n = int(cp[oo + 2])
-    u0 = oo + 4
+    oo = b + int(cp[b + _H.output])
+    n = int(cp[oo + _SV.n_points])
+    u0 = oo + len(_SV)
     m0 = u0 + n
     s_lo = m0 + n_t * n
     s_hi = s_lo + n_t

@@ -31,14 +31,38 @@ from fuzzyservo.controllers.fuzzy.system import (
     AND_METHODS,
     DEFUZZIFICATIONS,
     IMPLICATIONS,
+    NO_TERM,
     OR_METHODS,
     FuzzySystem,
     Variable,
+    term_index,
 )
+from fuzzyservo.controllers.layout import Slot, layout, pack
 
 # header
-_NIN, _NOUT, _NRULES, _SUGENO, _AND, _OR, _IMP, _AGG, _DEFUZZ, _SAMPLES, _VARS, _RULES = range(12)
-_HEADER = 12
+#: the exact block's header (offsets from the block start)
+EXACT_HEAD = layout(
+    "ExactHead",
+    Slot("n_inputs"),
+    Slot("n_outputs"),
+    Slot("n_rules"),
+    Slot("sugeno", "1 for a Sugeno system, 0 for Mamdani", flag=True),
+    Slot("and_method", "index in AND_METHODS"),
+    Slot("or_method", "index in OR_METHODS"),
+    Slot("implication", "index in IMPLICATIONS"),
+    Slot("aggregation", "index in AGGREGATIONS"),
+    Slot("defuzzification", "index in DEFUZZIFICATIONS"),
+    Slot("samples", "points of the output universe (MATLAB's NumSamples)"),
+    Slot("variables", "offset of the table of variable offsets"),
+    Slot("rules", "offset of the rules"),
+)
+#: a variable's record: these slots, then the offset of each of its terms
+EXACT_VARIABLE = layout("ExactVariable", Slot("low"), Slot("high"), Slot("n_terms"))
+#: a term's record: these slots, then its parameters
+EXACT_TERM = layout("ExactTerm", Slot("shape", "the shape's code in SHAPE_CODES"), Slot("n_params"))
+#: a rule's record: one term code per input and per output, then these slots
+EXACT_RULE = layout("ExactRule", Slot("weight"), Slot("connective", "0 AND, 1 OR"))
+_X, _XV, _XT, _XR = EXACT_HEAD, EXACT_VARIABLE, EXACT_TERM, EXACT_RULE
 _LINEAR = SHAPE_CODES["linear"]
 _CONSTANT = SHAPE_CODES["constant"]
 
@@ -46,36 +70,38 @@ _CONSTANT = SHAPE_CODES["constant"]
 def pack_exact(system: FuzzySystem) -> tuple[np.ndarray, int]:
     """Flatten ``system`` for :func:`evaluate_exact`; also the scratch size it needs.
 
-    Layout: header; a table of variable offsets (inputs, then outputs); each variable
-    ``[low, high, n_terms, term offsets…]`` and each term ``[shape code, n, params…]``;
-    the rules, ``n_in + n_out + 2`` numbers each (MATLAB-style indices decoded as in
-    :class:`.Rule`, then weight and connective 0 AND / 1 OR).
+    Layout: :data:`EXACT_HEAD`; a table of variable offsets (inputs, then outputs); each
+    variable :data:`EXACT_VARIABLE` and its term offsets, each term :data:`EXACT_TERM` and
+    its parameters; the rules, the term codes of :class:`.Rule` and :data:`EXACT_RULE`.
     """
-    block: list[float] = [0.0] * _HEADER
+    block: list[float] = [0.0] * len(_X)
     variables: list[Variable] = [*system.inputs, *system.outputs]
     table_at = len(block)
     block += [0.0] * len(variables)
     for v, var in enumerate(variables):
         block[table_at + v] = len(block)
-        head = len(block)
-        block += [var.low, var.high, len(var.terms)] + [0.0] * len(var.terms)
+        terms_at = len(block) + len(_XV)
+        block += [*pack(_XV, low=var.low, high=var.high, n_terms=len(var.terms))]
+        block += [0.0] * len(var.terms)
         for k, term in enumerate(var.terms):
-            block[head + 3 + k] = len(block)
-            block += [SHAPE_CODES[term.shape], len(term.params), *term.params]
+            block[terms_at + k] = len(block)
+            block += [*pack(_XT, shape=SHAPE_CODES[term.shape], n_params=len(term.params))]
+            block += term.params
     rules_at = len(block)
     for rule in system.rules:
-        block += [*rule.antecedent, *rule.consequents, rule.weight]
-        block.append(0.0 if rule.connective == "and" else 1.0)
+        connective = 0.0 if rule.connective == "and" else 1.0
+        block += [*rule.antecedent, *rule.consequents]
+        block += [*pack(_XR, weight=rule.weight, connective=connective)]
     n_in, n_out = len(system.inputs), len(system.outputs)
-    block[_NIN], block[_NOUT], block[_NRULES] = n_in, n_out, len(system.rules)
-    block[_SUGENO] = 1.0 if system.type == "sugeno" else 0.0
-    block[_AND] = AND_METHODS.index(system.and_method)
-    block[_OR] = OR_METHODS.index(system.or_method)
-    block[_IMP] = IMPLICATIONS.index(system.implication)
-    block[_AGG] = AGGREGATIONS.index(system.aggregation)
-    block[_DEFUZZ] = DEFUZZIFICATIONS.index(system.defuzzification)
-    block[_SAMPLES] = system.sample_points
-    block[_VARS], block[_RULES] = table_at, rules_at
+    block[_X.n_inputs], block[_X.n_outputs], block[_X.n_rules] = n_in, n_out, len(system.rules)
+    block[_X.sugeno] = 1.0 if system.type == "sugeno" else 0.0
+    block[_X.and_method] = AND_METHODS.index(system.and_method)
+    block[_X.or_method] = OR_METHODS.index(system.or_method)
+    block[_X.implication] = IMPLICATIONS.index(system.implication)
+    block[_X.aggregation] = AGGREGATIONS.index(system.aggregation)
+    block[_X.defuzzification] = DEFUZZIFICATIONS.index(system.defuzzification)
+    block[_X.samples] = system.sample_points
+    block[_X.variables], block[_X.rules] = table_at, rules_at
     t_max = max(len(v.terms) for v in system.inputs)
     scratch = n_in * t_max + len(system.rules) + n_in + system.sample_points
     return np.asarray(block, dtype=np.float64), scratch
@@ -92,15 +118,16 @@ def antecedent(
     and_m: int,
     or_m: int,
 ) -> float:
-    """A rule's antecedent: its term codes at ``cp[q:q + n_in]`` (k, −1 none, −(k+2) NOT k)
+    """A rule's antecedent: its term codes at ``cp[q:q + n_in]`` (:func:`.term_index`)
     combined by AND (``conn`` 0: min or product) or OR (1: max or probabilistic OR) over the
     memberships ``mu[i*t_stride + k]``. Shared by both semantics."""
     acc = -1.0
     for i in range(n_in):
         a = int(cp[q + i])
-        if a == -1:
+        if a == NO_TERM:
             continue
-        m = mu[i * t_stride + a] if a >= 0 else 1.0 - mu[i * t_stride + (-a - 2)]
+        k, negated = term_index(a)
+        m = 1.0 - mu[i * t_stride + k] if negated else mu[i * t_stride + k]
         if acc < 0.0:
             acc = m
         elif conn == 0.0:
@@ -112,7 +139,7 @@ def antecedent(
 
 @njit(cache=True, inline="always")
 def _term_mu(cp: np.ndarray, t: int, x: float) -> float:
-    return mf_value(int(cp[t]), cp, t + 2, x)
+    return mf_value(int(cp[t + _XT.shape]), cp, t + len(_XT), x)
 
 
 @njit(cache=True)
@@ -123,59 +150,62 @@ def evaluate_exact(
 
     Returns the number of outputs for which no rule fired (set to mid-range).
     """
-    n_in = int(cp[b + _NIN])
-    n_out = int(cp[b + _NOUT])
-    n_rules = int(cp[b + _NRULES])
-    and_m = int(cp[b + _AND])
-    or_m = int(cp[b + _OR])
-    imp_m = int(cp[b + _IMP])
-    agg_m = int(cp[b + _AGG])
-    defuzz_m = int(cp[b + _DEFUZZ])
-    n_s = int(cp[b + _SAMPLES])
-    vt = b + int(cp[b + _VARS])
-    ro = b + int(cp[b + _RULES])
-    width = n_in + n_out + 2
+    n_in = int(cp[b + _X.n_inputs])
+    n_out = int(cp[b + _X.n_outputs])
+    n_rules = int(cp[b + _X.n_rules])
+    and_m = int(cp[b + _X.and_method])
+    or_m = int(cp[b + _X.or_method])
+    imp_m = int(cp[b + _X.implication])
+    agg_m = int(cp[b + _X.aggregation])
+    defuzz_m = int(cp[b + _X.defuzzification])
+    n_s = int(cp[b + _X.samples])
+    vt = b + int(cp[b + _X.variables])
+    ro = b + int(cp[b + _X.rules])
+    width = n_in + n_out + len(_XR)
 
     # 1. inputs clipped, membership in every term
     t_max = 0
     for i in range(n_in):
-        t_max = max(t_max, int(cp[b + int(cp[vt + i]) + 2]))
+        t_max = max(t_max, int(cp[b + int(cp[vt + i]) + _XV.n_terms]))
     mu = scratch[: n_in * t_max]
     x = scratch[n_in * t_max : n_in * t_max + n_in]
     for i in range(n_in):
         v = b + int(cp[vt + i])
-        x[i] = min(max(xs[i], cp[v]), cp[v + 1])
-        for k in range(int(cp[v + 2])):
-            mu[i * t_max + k] = _term_mu(cp, b + int(cp[v + 3 + k]), x[i])
+        x[i] = min(max(xs[i], cp[v + _XV.low]), cp[v + _XV.high])
+        for k in range(int(cp[v + _XV.n_terms])):
+            mu[i * t_max + k] = _term_mu(cp, b + int(cp[v + len(_XV) + k]), x[i])
 
     # 2. firing strengths
     w = scratch[n_in * t_max + n_in : n_in * t_max + n_in + n_rules]
     for r in range(n_rules):
         q = ro + r * width
-        w[r] = antecedent(cp, q, n_in, cp[q + n_in + n_out + 1], mu, t_max, and_m, or_m)
-        w[r] *= cp[q + n_in + n_out]
+        tail = q + n_in + n_out
+        w[r] = antecedent(cp, q, n_in, cp[tail + _XR.connective], mu, t_max, and_m, or_m)
+        w[r] *= cp[tail + _XR.weight]
 
     # 3./4. each output
     ys = scratch[n_in * t_max + n_in + n_rules : n_in * t_max + n_in + n_rules + n_s]
     silent = 0
     for o in range(n_out):
         v = b + int(cp[vt + n_in + o])
-        lo = cp[v]
-        hi = cp[v + 1]
-        if cp[b + _SUGENO] == 1.0:
+        lo = cp[v + _XV.low]
+        hi = cp[v + _XV.high]
+        if cp[b + _X.sugeno] == 1.0:
             num = 0.0
             den = 0.0
             for r in range(n_rules):
                 c = int(cp[ro + r * width + n_in + o])
-                if c < 0 or w[r] == 0.0:
+                k, negated = term_index(c)
+                if c == NO_TERM or negated or w[r] == 0.0:
                     continue
-                t = b + int(cp[v + 3 + c])
-                if int(cp[t]) == _CONSTANT:
-                    z = cp[t + 2]
+                t = b + int(cp[v + len(_XV) + k])
+                coeffs = t + len(_XT)
+                if int(cp[t + _XT.shape]) == _CONSTANT:
+                    z = cp[coeffs]
                 else:
-                    z = cp[t + 2 + n_in]
+                    z = cp[coeffs + n_in]
                     for i in range(n_in):
-                        z += cp[t + 2 + i] * x[i]
+                        z += cp[coeffs + i] * x[i]
                 num += w[r] * z
                 den += w[r]
             if den == 0.0:
@@ -191,10 +221,10 @@ def evaluate_exact(
             ys[k] = 0.0
         for r in range(n_rules):
             c = int(cp[ro + r * width + n_in + o])
-            if c == -1 or w[r] == 0.0:
+            if c == NO_TERM or w[r] == 0.0:
                 continue
-            neg = c < -1
-            t = b + int(cp[v + 3 + (-c - 2 if neg else c)])
+            k, neg = term_index(c)
+            t = b + int(cp[v + len(_XV) + k])
             for k in range(n_s):
                 xk = hi if k == n_s - 1 else lo + k * step
                 m = _term_mu(cp, t, xk)

@@ -18,7 +18,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from fuzzyservo.controllers.fuzzy.system import FuzzySystem
+from fuzzyservo.controllers.fuzzy.system import NO_TERM, FuzzySystem, term_index
 
 
 def _probor(a: np.ndarray, b: np.ndarray) -> np.ndarray:
@@ -58,10 +58,10 @@ class SkfuzzyReference:
         for n, rule in enumerate(system.rules):
             antecedent = None
             for var, a, idx in zip(system.inputs, self.antecedents, rule.antecedent, strict=True):
-                if idx == -1:
+                if idx == NO_TERM:
                     continue
-                term = a[var.terms[idx if idx >= 0 else -idx - 2].name]
-                term = term if idx >= 0 else ~term
+                k, negated = term_index(idx)
+                term = ~a[var.terms[k].name] if negated else a[var.terms[k].name]
                 if antecedent is None:
                     antecedent = term
                 elif rule.connective == "and":

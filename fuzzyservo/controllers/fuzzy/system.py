@@ -32,6 +32,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from fuzzyservo._jit import njit
 from fuzzyservo.controllers.fuzzy.shapes import MF_SHAPES, PIECEWISE_LINEAR, SUGENO_SHAPES, mf_array
 
 #: number of parameters each membership-function shape reads (MATLAB names)
@@ -169,22 +170,48 @@ class Variable:
         return u, np.array([membership(t.shape, t.params, u) for t in self.terms])
 
 
-def term_index(idx: int) -> tuple[int, bool]:
-    """A rule index decoded: ``(term, negated)``; ``-1`` (no term) gives ``(-1, False)``."""
-    if idx == -1:
-        return -1, False
-    return (idx, False) if idx >= 0 else (-idx - 2, True)
+#: the term code of "no condition on this input" / "nothing about this output"
+NO_TERM = -1
+
+
+def term_code(k: int, negated: bool = False) -> int:
+    """Term ``k`` (counted from 0), or NOT term ``k``, as a rule's term code: ``k``, or
+    ``-(k + 2)`` when negated (MATLAB writes NOT as a negative MF number; shifted by one
+    so that ``-1`` stays free for :data:`NO_TERM`). :func:`term_index` is its inverse."""
+    return -k - 2 if negated else k
+
+
+@njit(cache=True, inline="always")
+def term_index(code: int) -> tuple[int, bool]:
+    """A rule's term code decoded: ``(term, negated)``; :data:`NO_TERM` gives ``(-1, False)``.
+
+    The one place that decodes it: compiled, so the evaluators call it too (the generated
+    C has its port, ``term_index`` in :mod:`fuzzyservo.codegen._c_runtime`)."""
+    if code >= NO_TERM:
+        return code, False
+    return -code - 2, True
+
+
+def from_matlab(number: int) -> int:
+    """A rule's MF number as a ``.fis`` file writes it (k > 0: MF k, 0: none, −k: NOT MF k;
+    MFs counted from 1) as a term code."""
+    return NO_TERM if number == 0 else term_code(abs(number) - 1, number < 0)
+
+
+def to_matlab(code: int) -> int:
+    """A term code as the MF number a ``.fis`` file writes (:func:`from_matlab` inverted)."""
+    k, negated = term_index(code)
+    return 0 if code == NO_TERM else (-(k + 1) if negated else k + 1)
 
 
 @dataclass(frozen=True)
 class Rule:
     """``IF in1 is A AND/OR in2 is B … THEN out1 is C, out2 is D … (weight)``.
 
-    ``antecedent`` holds one term index per input: ``k >= 0`` the term, ``-1`` no
-    condition on that input, ``-(k + 2)`` NOT term k (MATLAB writes NOT as a negative
-    index). ``consequent`` is the first output's term index in the same code (``-1``: the
-    rule says nothing about that output, ``-(k + 2)``: NOT term k); ``other_consequents``
-    those of the second, third … outputs.
+    ``antecedent`` holds one term code per input (:func:`term_code`: term k or NOT term k;
+    :data:`NO_TERM`: no condition on that input). ``consequent`` is the first output's
+    term code (:data:`NO_TERM`: the rule says nothing about that output);
+    ``other_consequents`` those of the second, third … outputs.
     """
 
     antecedent: tuple[int, ...]
@@ -280,18 +307,18 @@ class FuzzySystem:
                 )
             for var, idx in zip(self.inputs, rule.antecedent, strict=True):
                 k, _ = term_index(idx)
-                if idx != -1 and not 0 <= k < len(var.terms):
+                if idx != NO_TERM and not 0 <= k < len(var.terms):
                     raise ValueError(f"rule {n}: input {var.name!r} has no term number {k + 1}")
             for var, idx in zip(self.outputs, rule.consequents, strict=True):
                 k, negated = term_index(idx)
-                if idx != -1 and not 0 <= k < len(var.terms):
+                if idx != NO_TERM and not 0 <= k < len(var.terms):
                     raise ValueError(f"rule {n}: output {var.name!r} has no term number {k + 1}")
                 if negated and self.type == "sugeno":
                     raise ValueError(
                         f"rule {n}: a negated consequent (NOT {var.terms[k].name}) has no "
                         "meaning in a Sugeno system; use a term"
                     )
-            if all(i == -1 for i in rule.antecedent):
+            if all(i == NO_TERM for i in rule.antecedent):
                 raise ValueError(f"rule {n}: has no condition on any input")
 
     def uncovered_inputs(self) -> np.ndarray:
@@ -332,9 +359,10 @@ def reference_firing(system: FuzzySystem, points: np.ndarray) -> np.ndarray:
     for r, rule in enumerate(system.rules):
         acc = None
         for i, idx in enumerate(rule.antecedent):
-            if idx == -1:
+            k, negated = term_index(idx)
+            if idx == NO_TERM:
                 continue
-            mu = mus[i][idx] if idx >= 0 else 1.0 - mus[i][-idx - 2]
+            mu = 1.0 - mus[i][k] if negated else mus[i][k]
             if acc is None:
                 acc = mu
             elif rule.connective == "and":

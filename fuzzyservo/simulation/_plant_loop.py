@@ -4,8 +4,8 @@
 defines) one plant's ``plant_rhs``, ``plant_signals`` and ``plant_in_end_stop``, and
 numba compiles and caches that copy. A loop thus inlines exactly one plant, with no
 dispatch on a plant code, and a plant composed from components at run time is as fast
-as a hand-written one. As it stands (bound to the seed-002 cylinder) the file is a
-valid module, so linters and readers see ordinary Python.
+as a hand-written one. As it stands (its binding block empty) the file is a valid
+module, so linters and readers see ordinary Python.
 
 The plant is integrated between samples by an adaptive linearly implicit
 Rosenbrock-W method, ROS34PW2 (order 3, embedded order 2), with a finite-difference
@@ -52,9 +52,8 @@ from fuzzyservo.simulation._loop import (
 
 # isort: split
 # >>> plant binding
-from fuzzyservo.plants.cylinder import in_end_stop as plant_in_end_stop
-from fuzzyservo.plants.cylinder import rhs as plant_rhs
-from fuzzyservo.plants.cylinder import signals as plant_signals
+# (a template: _jit.bind_plant puts each plant's kernels here, PlantModel.binding)
+plant_in_end_stop = plant_rhs = plant_signals = None
 
 # <<< plant binding
 

@@ -677,19 +677,26 @@ def _fmt_values(values) -> str:
     return ", ".join(_fmt(v) for v in values)
 
 
-def _network_file_of(rig_name: str) -> Path:
-    """The weights file a rig names under ``nn_weights`` (relative to the rig file)."""
+def _network_file_of(rig_name: str | None, into_rig: bool) -> Path | None:
+    """The weights file a rig's network_valve names (relative to the rig file); None
+    without ``--rig``."""
     from fuzzyservo.io._yaml import read_yaml
 
+    if rig_name is None:
+        if into_rig:
+            raise ConfigError("--into-rig needs --rig RIG, the rig whose network file to replace")
+        return None
     path = resolve(rig_name, "rigs", "rig")
-    entry = read_yaml(path).get("plant", {}).get("parameters", {}).get("nn_weights")
-    if not isinstance(entry, dict) or "file" not in entry:
-        raise ConfigError(
-            "names no nn_weights file; give --out FILE",
-            file=str(path),
-            key="plant.parameters.nn_weights",
-        )
-    return path.parent / entry["file"]
+    parts = read_yaml(path).get("plant", {}).get("components") or {}
+    for part in parts.values():
+        entry = (part.get("parameters") or {}).get("weights") if isinstance(part, dict) else None
+        if isinstance(entry, dict) and "file" in entry:
+            return path.parent / entry["file"]
+    raise ConfigError(
+        "has no network_valve with a weights file; give --out FILE",
+        file=str(path),
+        key="plant.components",
+    )
 
 
 def cmd_fit_valve(args: argparse.Namespace) -> int:
@@ -701,8 +708,9 @@ def cmd_fit_valve(args: argparse.Namespace) -> int:
     _at_least_one(restarts=args.restarts)
     _out_file(args.out, "--out")
     # the rig's own file (a shipped one too) is replaced only when --into-rig asks for it
-    rig_file = _network_file_of(args.rig)
-    out = Path(args.out) if args.out else rig_file if args.into_rig else Path("out") / rig_file.name
+    rig_file = _network_file_of(args.rig, args.into_rig)
+    name = rig_file.name if rig_file else "valve_network.json"
+    out = Path(args.out) if args.out else rig_file if args.into_rig else Path("out") / name
     data = read_valve_csv(args.data)
     bar = _progress(args.restarts, "restarts")
     try:
@@ -731,9 +739,9 @@ def cmd_fit_valve(args: argparse.Namespace) -> int:
         q_a, q_b = (v * 60e3 for v in values)
         print(f"{label:<10} RMS  Q_A {q_a:.4g} l/min  Q_B {q_b:.4g} l/min")
     print(f"wrote {out}")
-    if out.resolve() != rig_file.resolve():
+    if rig_file is not None and out.resolve() != rig_file.resolve():
         print(
-            f"the rig reads {rig_file}: use --into-rig to replace it, or point its nn_weights at {out}"
+            f"the rig reads {rig_file}: use --into-rig to replace it, or point its weights at {out}"
         )
     return 0
 
@@ -1227,12 +1235,12 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument(
         "--out",
         metavar="FILE",
-        help="network JSON to write (default: out/<the file name the rig gives>)",
+        help="network JSON to write (default: out/<the file name the rig gives>, "
+        "else out/valve_network.json)",
     )
     p.add_argument(
         "--rig",
-        default="hydroprax_pdcv",
-        help="rig whose nn_weights file to write (default: hydroprax_pdcv)",
+        help="rig whose network_valve weights file to write (with --into-rig; default: none)",
     )
     p.add_argument(
         "--seed", type=int, default=0, help="seed of the split and restarts (default: 0)"

@@ -481,13 +481,19 @@ def _cases() -> list[Case]:
         add(Case(f"rig {label}", SIM, {"rig.yaml": text}, needs))
     add(Case("rig not UTF-8", SIM, {"rig.yaml": b"name: \xff\xfe\n"}, ("UTF-8",)))
     hp = _data("rigs", "hydroprax_pdcv")
-    hp["plant"]["parameters"]["nn_weights"]["file"] = "../../nowhere.json"
+    hp["plant"]["components"]["valve"] = {
+        "type": "network_valve",
+        "parameters": {
+            "control_voltage_max": {"value": 6, "unit": "V"},
+            "weights": {"file": "../../nowhere.json"},
+        },
+    }
     add(
         Case(
             "rig weights file missing",
             ("simulate", "{in}/rig.yaml", "pi_hydroprax"),
             {"rig.yaml": yaml.safe_dump(hp, sort_keys=False)},
-            ("nn_weights",),
+            ("weights",),
         )
     )
 

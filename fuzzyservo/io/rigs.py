@@ -209,17 +209,23 @@ def _composition(node: Node, unknowns: dict[str, tuple[float, float]]) -> tuple[
     except CompositionError as exc:
         node.fail(str(exc))
     by_key = fields_by_key(plant.params_cls)
+    vectors = vectors_by_key(plant.params_cls)
     values: dict[str, Any] = {}
     for name, _ in parts:
         params_node = node.child(name).child("parameters", default={})
         prefix = f"{name}."
         keys = {k[len(prefix) :]: f for k, f in by_key.items() if k.startswith(prefix)}
-        params_node.only(keys)
+        files = {k[len(prefix) :]: f for k, f in vectors.items() if k.startswith(prefix)}
+        params_node.only((*keys, *files))
         for key, f in keys.items():
             default = None if f.default is dataclasses.MISSING else f.default
             values[f.name] = _quantity(
                 params_node, key, f.metadata["unit"], f.name, unknowns, default
             )
+        for key, f in files.items():
+            if not params_node.has(key):
+                params_node.fail(f"missing key {key!r}; {f.metadata['doc']}", key=key)
+            values[f.name] = _vector(params_node.child(key), f.metadata["format"])
     return plant, _build_params(plant, values, node)
 
 

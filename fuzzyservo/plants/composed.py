@@ -30,7 +30,7 @@ from fuzzyservo.components._declare import (
     registry,
 )
 from fuzzyservo.components.effects import INPUT_EFFECTS, LIBRARY, EffectParams, Scales
-from fuzzyservo.params import index_of, pack, quantity
+from fuzzyservo.params import index_of, pack, quantity, vector, vector_offset
 
 _PREFIX = re.compile(r"\b(DX|X|P|L|E)\.([A-Za-z_]\w*)")
 _STATIC_FORCE = "static_force"
@@ -90,6 +90,13 @@ def compose(parts: tuple[tuple[str, str], ...]) -> Any:
                 f"it applies to {list(comp.actuators)}"
             )
     mechanics = dict(actuator.mechanics or {"force": "N", "velocity": "m/s", "position": "m"})
+    # the scenario's load input: the actuator's force, unless a load component takes it
+    takers = [c for _, c in instances if c.role == "load" and c.load]
+    if len(takers) > 1:
+        raise CompositionError(
+            f"{len(takers)} loads take the scenario's load input "
+            f"({', '.join(c.type for c in takers)}); keep one of them"
+        )
     input_name, input_unit = valve.input or ("u", "V")
 
     # parameters: one frozen dataclass, fields <instance>__<key>, file keys <instance>.<key>
@@ -98,6 +105,11 @@ def compose(parts: tuple[tuple[str, str], ...]) -> Any:
     for name, comp in instances:
         for prm in comp.params:
             field_name = f"{name}__{prm.key}"
+            if prm.length:  # a vector (e.g. network weights), packed after the scalars
+                field = vector(f"{name}.{prm.key}", prm.length, fmt=prm.fmt, doc=prm.doc)
+                fields.append((field_name, tuple[float, ...], field))
+                owner[field_name] = (name, comp, prm.key)
+                continue
             unit = _resolve_unit(prm.unit, mechanics, input_unit)
             kwargs: dict[str, Any] = {
                 "positive": prm.positive,
@@ -132,10 +144,15 @@ def compose(parts: tuple[tuple[str, str], ...]) -> Any:
     )
     params_cls.__module__ = __name__
     params_cls.__qualname__ = f"ComposedParams[{label}]"
+    # P.key: a scalar's entry p[i]; a vector's start in p (code passes p and it on)
     param_index = {
-        (name, key): index_of(params_cls, f"{name}__{key}")
+        (name, prm.key): (
+            str(vector_offset(params_cls, f"{name}__{prm.key}"))
+            if prm.length
+            else f"p[{index_of(params_cls, f'{name}__{prm.key}')}]"
+        )
         for name, comp in instances
-        for key in (p.key for p in comp.params)
+        for prm in comp.params
     }
 
     # states, grouped in STATE_GROUPS order
@@ -158,7 +175,7 @@ def compose(parts: tuple[tuple[str, str], ...]) -> Any:
                     ) from None
             if prefix == "P":
                 try:
-                    return f"p[{param_index[(name, ident)]}]"
+                    return param_index[(name, ident)]
                 except KeyError:
                     raise CompositionError(
                         f"component {comp.type!r}: code reads undeclared parameter {ident!r}"
@@ -176,7 +193,7 @@ def compose(parts: tuple[tuple[str, str], ...]) -> Any:
         return _PREFIX.sub(repl, text)
 
     # the body: phases in order, instances in file order; defaults where a role is absent
-    body: list[str] = ["mass = 0.0", "f_load = f_ext"]
+    body: list[str] = ["mass = 0.0", "f_load = 0.0" if takers else "f_load = f_ext"]
     has_line = any(c.role == "line" for _, c in instances)
     for phase in PHASES:
         if phase == "line" and not has_line:
@@ -226,7 +243,7 @@ def compose(parts: tuple[tuple[str, str], ...]) -> Any:
         signals=signal_names,
         signal_units=units,
         input=(input_name, input_unit),
-        load=actuator.load or ("f_load", "N"),
+        load=takers[0].load if takers else actuator.load or ("f_load", "N"),
         initial_keys=initial_keys,
         initial_state=lambda params, **kw: _initial_state(model, instances, params, kw),
         state_scale=lambda params: scale.copy(),
@@ -262,8 +279,8 @@ def _stroke(instances: list[tuple[str, Component]]) -> dict[str, Any]:
 
 
 def instance_values(params: Any, name: str, comp: Component) -> dict[str, float]:
-    """One instance's parameter values by key (SI)."""
-    return {p.key: float(getattr(params, f"{name}__{p.key}")) for p in comp.params}
+    """One instance's scalar parameter values by key (SI)."""
+    return {p.key: float(getattr(params, f"{name}__{p.key}")) for p in comp.params if not p.length}
 
 
 def _make_post_init(instances: list[tuple[str, Component]]):

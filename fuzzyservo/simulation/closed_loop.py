@@ -313,6 +313,7 @@ def assemble(
         message=message,
         integration_steps=steps,
         display_units=dict(rig.display_units),
+        actuator_unit=plant.input[1],
     )
 
 

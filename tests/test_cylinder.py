@@ -8,8 +8,8 @@ import math
 
 import numpy as np
 import pytest
-from scipy.optimize import fsolve
 from reference_plants import cylinder, reference_rig
+from scipy.optimize import fsolve
 from support import ideal_sensor
 
 from fuzzyservo.controllers.classical import OpenLoop, P

@@ -12,12 +12,11 @@ from __future__ import annotations
 from pathlib import Path
 from types import ModuleType
 
-from reference_plants import ahc_cylinder, ahc_motor, cylinder, hydroprax, motor
-
 from fuzzyservo.components.effects import INPUT_EFFECTS
 from fuzzyservo.io.rigs import load_rig
 from fuzzyservo.plants import PlantModel
 from fuzzyservo.rig import Rig
+from reference_plants import ahc_cylinder, ahc_motor, cylinder, hydroprax, motor
 
 RIGS = Path(__file__).parent / "rigs"
 

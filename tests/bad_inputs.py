@@ -93,7 +93,7 @@ _MEASURED: dict[str, np.ndarray] = {}
 
 
 def _base_run() -> dict[str, np.ndarray]:
-    """A seed-002 P K=10 `steps` run at 100 Hz: t [s], i [mA], ref, y [cm], p3, p4 [bar]."""
+    """A seed-002 P K=10 `steps` run at 100 Hz: t [s], i [mA], ref, y [cm], p_a, p_b [bar]."""
     if not _MEASURED:
         from support import controller_named, rig_named
 
@@ -104,7 +104,7 @@ def _base_run() -> dict[str, np.ndarray]:
             controller_named("p_k10"),
             "steps",
             {},
-            {"y": 5e-6, "p3": 5e3, "p4": 5e3},
+            {"y": 5e-6, "p_a": 5e3, "p_b": 5e3},
             seed=1,
         )
         _MEASURED.update(
@@ -112,14 +112,16 @@ def _base_run() -> dict[str, np.ndarray]:
             i=data.signals["i"] * 1e3,
             ref=data.signals["ref"] * 100,
             y=data.signals["y"] * 100,
-            p3=data.signals["p3"] / 1e5,
-            p4=data.signals["p4"] / 1e5,
+            p_a=data.signals["p_a"] / 1e5,
+            p_b=data.signals["p_b"] / 1e5,
         )
     return _MEASURED
 
 
-def measured(header: str = "t_s,i_mA,ref_cm,y_cm,p3_bar,p4_bar", **edit) -> Callable[[Path], None]:
-    """A CSV of the base run; ``edit`` maps a column (t, i, ref, y, p3, p4) to a function
+def measured(
+    header: str = "t_s,i_mA,ref_cm,y_cm,p_a_bar,p_b_bar", **edit
+) -> Callable[[Path], None]:
+    """A CSV of the base run; ``edit`` maps a column (t, i, ref, y, p_a, p_b) to a function
     of its values, or to None to drop it."""
 
     def make(path: Path) -> None:
@@ -589,8 +591,8 @@ def _cases() -> list[Case]:
         ("constant (stuck) position", measured(y=lambda y: y * 0 + 1.0), ("y_cm",)),
         (
             "pressure in bar under a Pa header",
-            measured("t_s,i_mA,ref_cm,y_cm,p3_Pa,p4_Pa"),
-            ("p3_Pa",),
+            measured("t_s,i_mA,ref_cm,y_cm,p_a_Pa,p_b_Pa"),
+            ("p_a_Pa",),
         ),
         ("empty file", "", ("empty",)),
         ("header only", "t_s,i_mA,y_cm\n", ("rows",)),
@@ -600,16 +602,16 @@ def _cases() -> list[Case]:
         ("time backwards", measured(t=lambda t: t[::-1].copy()), ("backwards",)),
         ("repeated stamps", measured(t=lambda t: np.round(t, 1)), ("repeated", "--resample")),
         ("uneven sampling", measured(t=lambda t: t**1.2), ("uneven", "--resample")),
-        ("unknown unit", measured("t_s,i_mA,ref_cm,y_furlong,p3_bar,p4_bar"), ("y_furlong",)),
-        ("header without unit", measured("t_s,i_mA,ref_cm,y,p3_bar,p4_bar"), ("'y'",)),
+        ("unknown unit", measured("t_s,i_mA,ref_cm,y_furlong,p_a_bar,p_b_bar"), ("y_furlong",)),
+        ("header without unit", measured("t_s,i_mA,ref_cm,y,p_a_bar,p_b_bar"), ("'y'",)),
         ("too few samples", measured_text(lambda ls: ls[:10]), ("samples",)),
         ("ragged row", measured_text(lambda ls: [*ls[:5], "1,2", *ls[6:]]), ("row 6",)),
-        ("duplicate column", measured("t_s,i_mA,ref_cm,y_cm,p3_bar,p3_bar"), ("p3_bar",)),
+        ("duplicate column", measured("t_s,i_mA,ref_cm,y_cm,p_a_bar,p_a_bar"), ("p_a_bar",)),
         ("not UTF-8", b"t_s,y_cm\n\xff\xfe\n", ("UTF-8",)),
-        ("position in volts", measured("t_s,i_mA,ref_cm,y_V,p3_bar,p4_bar"), ("y",)),
+        ("position in volts", measured("t_s,i_mA,ref_cm,y_V,p_a_bar,p_b_bar"), ("y",)),
         (
             "time 1e307 min",
-            measured("t_min,i_mA,ref_cm,y_cm,p3_bar,p4_bar", t=lambda t: t * 1e307),
+            measured("t_min,i_mA,ref_cm,y_cm,p_a_bar,p_b_bar", t=lambda t: t * 1e307),
             ("t_min",),
         ),
         (

@@ -197,7 +197,7 @@ def test_bad_effect_declarations_fail_with_one_line(
 
 
 def test_with_effect_refuses_what_the_plant_does_not_model() -> None:
-    with pytest.raises(ValueError, match="not meaningful.*pump_supply"):
+    with pytest.raises(ValueError, match=r"not meaningful.*pump_supply"):
         rig_named("hydroprax_pdcv").with_effect("supply_droop", pump_flow=1e-4)
     rig = rig_named("hydroprax_pdcv").with_effect("valve_lag", time_constant=5e-3)
     assert simulate(rig, controller_named("pi_hydroprax")).ok

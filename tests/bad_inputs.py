@@ -337,17 +337,21 @@ def _cases() -> list[Case]:
 
     # -- rig files -------------------------------------------------------------------------
     base = _text("rigs", "dinca_cylinder")
-    pp = "plant__parameters__"
+    sup, cyl = (
+        "plant__components__supply__parameters__",
+        "plant__components__cylinder__parameters__",
+    )
+    oil = "plant__components__oil__parameters__"
     rigs: list[tuple[str, str, tuple[str, ...]]] = [
         ("duplicate top-level key", base + "\nname: other\n", ("name", "twice")),
         (
             "duplicate parameter key",
             _replace(
-                "    piston_mass:",
-                "    supply_pressure: {value: 7, unit: bar}\n    piston_mass:",
+                "        piston_mass:",
+                "        rod_diameter: {value: 7, unit: mm}\n        piston_mass:",
                 base,
             ),
-            ("supply_pressure", "twice"),
+            ("rod_diameter", "twice"),
         ),
         (
             "duplicate scenario",
@@ -356,12 +360,12 @@ def _cases() -> list[Case]:
         ),
         (
             "supply pressure 70 (Pa, no unit)",
-            rig(**{pp + "supply_pressure": 70}),
+            rig(**{sup + "supply_pressure": 70}),
             ("supply_pressure", "bar"),
         ),
         (
             "supply pressure 70 Pa",
-            rig(**{pp + "supply_pressure": {"value": 70, "unit": "Pa"}}),
+            rig(**{sup + "supply_pressure": {"value": 70, "unit": "Pa"}}),
             ("supply_pressure",),
         ),
         (
@@ -412,25 +416,25 @@ def _cases() -> list[Case]:
         ),
         (
             "bulk modulus 1e307 kbar",
-            rig(**{pp + "bulk_modulus": {"value": 1e307, "unit": "kbar"}}),
+            rig(**{oil + "bulk_modulus": {"value": 1e307, "unit": "kbar"}}),
             ("bulk_modulus",),
         ),
         (
             "unknown unit",
-            rig(**{pp + "piston_mass": {"value": 1, "unit": "furlong"}}),
+            rig(**{cyl + "piston_mass": {"value": 1, "unit": "furlong"}}),
             ("piston_mass",),
         ),
         (
             "wrong kind of unit",
-            rig(**{pp + "piston_mass": {"value": 1, "unit": "bar"}}),
+            rig(**{cyl + "piston_mass": {"value": 1, "unit": "bar"}}),
             ("piston_mass",),
         ),
-        ("unknown key", rig(plant__parameters__pistn_mass=1), ("pistn_mass",)),
+        ("unknown key", rig(**{cyl + "pistn_mass": 1}), ("pistn_mass",)),
         ("unknown plant type", rig(plant__type="nope"), ("type",)),
         ("YAML syntax error", base + "\n  : : [\n", ("YAML",)),
         ("top level is a list", "- a\n- b\n", ("mapping",)),
         ("empty file", "", ("mapping",)),
-        ("value as text with a unit", rig(**{pp + "piston_mass": "1 kg"}), ("piston_mass",)),
+        ("value as text with a unit", rig(**{cyl + "piston_mass": "1 kg"}), ("piston_mass",)),
         (
             "value .nan",
             base.replace("piston_mass: {value: 1,", "piston_mass: {value: .nan,"),
@@ -443,7 +447,7 @@ def _cases() -> list[Case]:
         ),
         (
             "negative bulk modulus",
-            rig(**{pp + "bulk_modulus": {"value": -1, "unit": "bar"}}),
+            rig(**{oil + "bulk_modulus": {"value": -1, "unit": "bar"}}),
             ("bulk_modulus",),
         ),
         ("feedback gain zero", rig(feedback__gain={"value": 0, "unit": "V/cm"}), ("gain",)),

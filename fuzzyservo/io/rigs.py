@@ -462,17 +462,19 @@ def _check_plausible(
     to hold in memory, a scenario name that cannot be a file name."""
     if period_problem(sample_time):
         root.fail(period_problem(sample_time), key="controller.sample_time")
-    by_key = fields_by_key(plant.params_cls)
-    for key in _WORKING_PRESSURES:
-        if key in by_key:
-            value = getattr(params, by_key[key].name)
-            if not 1e5 <= value <= 1e9:
-                root.fail(
-                    f"{value:g} Pa ({value / 1e5:g} bar) is no working pressure (1 bar .. "
-                    "10 000 bar); a number without a unit is read in Pa: write it like "
-                    "{value: 70, unit: bar}",
-                    key=f"plant.parameters.{key}",
-                )
+    for key, f in fields_by_key(plant.params_cls).items():
+        instance, _, sub = key.rpartition(".")  # a composition's "supply.supply_pressure"
+        if sub not in _WORKING_PRESSURES:
+            continue
+        value = getattr(params, f.name)
+        if not 1e5 <= value <= 1e9:
+            where = f"components.{instance}.parameters" if instance else "parameters"
+            root.fail(
+                f"{value:g} Pa ({value / 1e5:g} bar) is no working pressure (1 bar .. "
+                "10 000 bar); a number without a unit is read in Pa: write it like "
+                "{value: 70, unit: bar}",
+                key=f"plant.{where}.{sub}",
+            )
     stroke = getattr(params, "stroke_limits_m", None)
     for name, scenario in scenarios.items():
         where = f"scenarios.{name}"
@@ -483,7 +485,8 @@ def _check_plausible(
         if stroke is None:
             continue
         lo, hi = dataclasses.replace(params, **scenario.overrides).stroke_limits_m
-        for key, y in (("plant.initial", initial.get("y_m")), (where + ".initial", scenario.initial.get("y_m"))):  # fmt: skip
+        for key, start in (("plant.initial", initial), (where + ".initial", scenario.initial)):
+            y = start.get("position", start.get("y_m"))  # a composition's, a kernel's name
             if y is not None and not lo <= y <= hi:
                 root.fail(
                     f"{y:g} m lies outside the stroke {lo:g} .. {hi:g} m; give a start "

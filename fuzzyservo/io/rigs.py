@@ -800,9 +800,10 @@ def write_calibrated_rig(
             if isinstance(entry, dict) and "file" in entry:
                 target = (src_dir / entry["file"]).resolve()
                 entry["file"] = os.path.relpath(target, out.parent.resolve())
-    for key, (value, unit, source_text) in parameters.items():
+    for full_key, (value, unit, source_text) in parameters.items():
+        key = full_key
         if composed:  # "valve.rated_flow" lives at components.valve.parameters.rated_flow
-            name, _, key = key.partition(".")
+            name, _, key = full_key.partition(".")
             component = plant["components"][name]
             if not component.get("parameters"):
                 component["parameters"] = {}
@@ -812,7 +813,7 @@ def write_calibrated_rig(
         old = plant_params.get(key, {})
         note = old.get("source") if isinstance(old, dict) else None
         plant_params[key] = {"value": float(value), "unit": unit, "source": source_text}
-        _add_interval(plant_params[key], (intervals or {}).get(key))
+        _add_interval(plant_params[key], (intervals or {}).get(full_key))
         if note:
             plant_params[key]["note"] = f"declared source: {note}"
     section = data.setdefault("effects", {}) or {}

@@ -106,8 +106,8 @@ def compose(parts: tuple[tuple[str, str], ...]) -> Any:
         for prm in comp.params:
             field_name = f"{name}__{prm.key}"
             if prm.length:  # a vector (e.g. network weights), packed after the scalars
-                field = vector(f"{name}.{prm.key}", prm.length, fmt=prm.fmt, doc=prm.doc)
-                fields.append((field_name, tuple[float, ...], field))
+                meta = vector(f"{name}.{prm.key}", prm.length, fmt=prm.fmt, doc=prm.doc).metadata
+                fields.append((field_name, tuple[float, ...], dataclasses.field(metadata=meta)))
                 owner[field_name] = (name, comp, prm.key)
                 continue
             unit = _resolve_unit(prm.unit, mechanics, input_unit)

@@ -11,7 +11,12 @@ composed integrates chamber pressure where reference_plants/cylinder.py integrat
 volume at reference density (seed eq. 8-9); the mass form's factor (1 + p/E) ≈ 1.002
 on the piston's displacement flow moves the pulses by less than 0.1 mm and 0.3 bar
 (rigs/dinca_cylinder.yaml), about the compiled loop's own tolerance (0.31 bar,
-closed_loop.py DEFAULT_TOL).
+closed_loop.py DEFAULT_TOL). The seed's `compare` metrics moved less than 2 % when the
+composition replaced the kernel, but for FLC1 on the pulses (measured, issue 25): its
+overshoot 0.0590 -> 0.0630 % (30.5 -> 32.6 µm on the 51.7 mm steps) and its steady-state
+error 13.37 -> 13.01 µm. Both are what the 1 mV noise and the 16 µm ADC code leave (an
+exact reading gives 0 % and 1 µm for either plant); the two paths part by 0.060 mm and
+0.13 bar at most, which re-times the noise's and the ADC's codes.
 
 Seeds 000 and 001 are the same equations written another way, so their tolerances are
 the compiled loop's own local-error tolerance (DEFAULT_TOL = 0.5 of each state's

@@ -160,7 +160,7 @@ def accuracy(fast: SimResult, tight: SimResult) -> dict[str, float]:
         err["position_mm"] = dev * 1e3
     else:
         err[f"{out}_{unit.replace('/', '_')}"] = dev
-    pressures = [k for k in ("p1", "p2", "p3", "p4", "p_load", "p_a", "p_b") if k in fast.signals]
+    pressures = [k for k in fast.signals if fast.units.get(k) == "Pa"]
     if pressures:
         err["pressure_bar"] = max(
             float(np.nanmax(np.abs(fast.signals[k] - tight.signals[k]))) / 1e5 for k in pressures
@@ -197,7 +197,7 @@ def run_calibrate_case(root: Path | None = None) -> BenchResult:
     root = root or data_root()
     rig = load_rig(root / "rigs" / "dinca_cylinder.yaml")
     controller = load_controller(root / "studies" / "controllers" / "p_k10.yaml")
-    noise = {"y": 5e-6, "p1": 5e3, "p2": 5e3, "p3": 5e3, "p4": 5e3}
+    noise = {"y": 5e-6, "p_s": 5e3, "p_t": 5e3, "p_a": 5e3, "p_b": 5e3}
     data = synthetic_run(
         rig, controller, "pulses", {"coulomb_friction": {"force": 300.0}}, noise, duration_s=30.0
     )

@@ -314,8 +314,11 @@ def cmd_fit_valve(args: argparse.Namespace) -> int:
     _at_least(1, restarts=args.restarts)
     _out_file(args.out, "--out")
     # the rig's own file (a shipped one too) is replaced only when --into-rig asks for it
-    rig_file = network_file(resolve(args.rig, "rigs", "rig"))
-    out = Path(args.out) if args.out else rig_file if args.into_rig else Path("out") / rig_file.name
+    if args.rig is None and args.into_rig:
+        raise ConfigError("--into-rig needs --rig RIG, the rig whose network file to replace")
+    rig_file = network_file(resolve(args.rig, "rigs", "rig")) if args.rig else None
+    name = rig_file.name if rig_file else "valve_network.json"
+    out = Path(args.out) if args.out else rig_file if args.into_rig else Path("out") / name
     bar = progress_bar(args.restarts, "restarts")
     try:
         result = fit_valve(args.data, out, seed=args.seed, restarts=args.restarts,
@@ -323,9 +326,9 @@ def cmd_fit_valve(args: argparse.Namespace) -> int:
     finally:
         bar.close()
     print(result.text())
-    if out.resolve() != rig_file.resolve():
+    if rig_file is not None and out.resolve() != rig_file.resolve():
         print(
-            f"the rig reads {rig_file}: use --into-rig to replace it, or point its nn_weights at {out}"
+            f"the rig reads {rig_file}: use --into-rig to replace it, or point its weights at {out}"
         )
     return 0
 
@@ -519,9 +522,10 @@ CALIBRATE = [
 FIT_VALVE = [
     _arg("data", help="CSV with columns p_s_bar, u_c_V, p_a_bar, p_b_bar, q_a_l_min, q_b_l_min"),
     _arg("--out", metavar="FILE",
-         help="network JSON to write (default: out/<the file name the rig gives>)"),
-    _arg("--rig", default="hydroprax_pdcv",
-         help="rig whose nn_weights file to write (default: hydroprax_pdcv)"),
+         help="network JSON to write (default: out/<the file name the rig gives>, "
+         "else out/valve_network.json)"),
+    _arg("--rig", help="rig whose network_valve weights file to write (with --into-rig; "
+         "default: none)"),
     _arg("--seed", type=int, default=0, help="seed of the split and restarts (default: 0)"),
     _arg("--restarts", type=int, default=6, help="random restarts (default: 6)"),
     _arg("--into-rig", action="store_true",

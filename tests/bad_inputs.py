@@ -93,7 +93,7 @@ _MEASURED: dict[str, np.ndarray] = {}
 
 
 def _base_run() -> dict[str, np.ndarray]:
-    """A seed-002 P K=10 `steps` run at 100 Hz: t [s], i [mA], ref, y [cm], p3, p4 [bar]."""
+    """A seed-002 P K=10 `steps` run at 100 Hz: t [s], i [mA], ref, y [cm], p_a, p_b [bar]."""
     if not _MEASURED:
         from support import controller_named, rig_named
 
@@ -104,7 +104,7 @@ def _base_run() -> dict[str, np.ndarray]:
             controller_named("p_k10"),
             "steps",
             {},
-            {"y": 5e-6, "p3": 5e3, "p4": 5e3},
+            {"y": 5e-6, "p_a": 5e3, "p_b": 5e3},
             seed=1,
         )
         _MEASURED.update(
@@ -112,14 +112,16 @@ def _base_run() -> dict[str, np.ndarray]:
             i=data.signals["i"] * 1e3,
             ref=data.signals["ref"] * 100,
             y=data.signals["y"] * 100,
-            p3=data.signals["p3"] / 1e5,
-            p4=data.signals["p4"] / 1e5,
+            p_a=data.signals["p_a"] / 1e5,
+            p_b=data.signals["p_b"] / 1e5,
         )
     return _MEASURED
 
 
-def measured(header: str = "t_s,i_mA,ref_cm,y_cm,p3_bar,p4_bar", **edit) -> Callable[[Path], None]:
-    """A CSV of the base run; ``edit`` maps a column (t, i, ref, y, p3, p4) to a function
+def measured(
+    header: str = "t_s,i_mA,ref_cm,y_cm,p_a_bar,p_b_bar", **edit
+) -> Callable[[Path], None]:
+    """A CSV of the base run; ``edit`` maps a column (t, i, ref, y, p_a, p_b) to a function
     of its values, or to None to drop it."""
 
     def make(path: Path) -> None:
@@ -335,17 +337,21 @@ def _cases() -> list[Case]:
 
     # -- rig files -------------------------------------------------------------------------
     base = _text("rigs", "dinca_cylinder")
-    pp = "plant__parameters__"
+    sup, cyl = (
+        "plant__components__supply__parameters__",
+        "plant__components__cylinder__parameters__",
+    )
+    oil = "plant__components__oil__parameters__"
     rigs: list[tuple[str, str, tuple[str, ...]]] = [
         ("duplicate top-level key", base + "\nname: other\n", ("name", "twice")),
         (
             "duplicate parameter key",
             _replace(
-                "    piston_mass:",
-                "    supply_pressure: {value: 7, unit: bar}\n    piston_mass:",
+                "        piston_mass:",
+                "        rod_diameter: {value: 7, unit: mm}\n        piston_mass:",
                 base,
             ),
-            ("supply_pressure", "twice"),
+            ("rod_diameter", "twice"),
         ),
         (
             "duplicate scenario",
@@ -354,12 +360,12 @@ def _cases() -> list[Case]:
         ),
         (
             "supply pressure 70 (Pa, no unit)",
-            rig(**{pp + "supply_pressure": 70}),
+            rig(**{sup + "supply_pressure": 70}),
             ("supply_pressure", "bar"),
         ),
         (
             "supply pressure 70 Pa",
-            rig(**{pp + "supply_pressure": {"value": 70, "unit": "Pa"}}),
+            rig(**{sup + "supply_pressure": {"value": 70, "unit": "Pa"}}),
             ("supply_pressure",),
         ),
         (
@@ -410,25 +416,25 @@ def _cases() -> list[Case]:
         ),
         (
             "bulk modulus 1e307 kbar",
-            rig(**{pp + "bulk_modulus": {"value": 1e307, "unit": "kbar"}}),
+            rig(**{oil + "bulk_modulus": {"value": 1e307, "unit": "kbar"}}),
             ("bulk_modulus",),
         ),
         (
             "unknown unit",
-            rig(**{pp + "piston_mass": {"value": 1, "unit": "furlong"}}),
+            rig(**{cyl + "piston_mass": {"value": 1, "unit": "furlong"}}),
             ("piston_mass",),
         ),
         (
             "wrong kind of unit",
-            rig(**{pp + "piston_mass": {"value": 1, "unit": "bar"}}),
+            rig(**{cyl + "piston_mass": {"value": 1, "unit": "bar"}}),
             ("piston_mass",),
         ),
-        ("unknown key", rig(plant__parameters__pistn_mass=1), ("pistn_mass",)),
+        ("unknown key", rig(**{cyl + "pistn_mass": 1}), ("pistn_mass",)),
         ("unknown plant type", rig(plant__type="nope"), ("type",)),
         ("YAML syntax error", base + "\n  : : [\n", ("YAML",)),
         ("top level is a list", "- a\n- b\n", ("mapping",)),
         ("empty file", "", ("mapping",)),
-        ("value as text with a unit", rig(**{pp + "piston_mass": "1 kg"}), ("piston_mass",)),
+        ("value as text with a unit", rig(**{cyl + "piston_mass": "1 kg"}), ("piston_mass",)),
         (
             "value .nan",
             base.replace("piston_mass: {value: 1,", "piston_mass: {value: .nan,"),
@@ -441,7 +447,7 @@ def _cases() -> list[Case]:
         ),
         (
             "negative bulk modulus",
-            rig(**{pp + "bulk_modulus": {"value": -1, "unit": "bar"}}),
+            rig(**{oil + "bulk_modulus": {"value": -1, "unit": "bar"}}),
             ("bulk_modulus",),
         ),
         ("feedback gain zero", rig(feedback__gain={"value": 0, "unit": "V/cm"}), ("gain",)),
@@ -481,13 +487,19 @@ def _cases() -> list[Case]:
         add(Case(f"rig {label}", SIM, {"rig.yaml": text}, needs))
     add(Case("rig not UTF-8", SIM, {"rig.yaml": b"name: \xff\xfe\n"}, ("UTF-8",)))
     hp = _data("rigs", "hydroprax_pdcv")
-    hp["plant"]["parameters"]["nn_weights"]["file"] = "../../nowhere.json"
+    hp["plant"]["components"]["valve"] = {
+        "type": "network_valve",
+        "parameters": {
+            "control_voltage_max": {"value": 6, "unit": "V"},
+            "weights": {"file": "../../nowhere.json"},
+        },
+    }
     add(
         Case(
             "rig weights file missing",
             ("simulate", "{in}/rig.yaml", "pi_hydroprax"),
             {"rig.yaml": yaml.safe_dump(hp, sort_keys=False)},
-            ("nn_weights",),
+            ("weights",),
         )
     )
 
@@ -583,8 +595,8 @@ def _cases() -> list[Case]:
         ("constant (stuck) position", measured(y=lambda y: y * 0 + 1.0), ("y_cm",)),
         (
             "pressure in bar under a Pa header",
-            measured("t_s,i_mA,ref_cm,y_cm,p3_Pa,p4_Pa"),
-            ("p3_Pa",),
+            measured("t_s,i_mA,ref_cm,y_cm,p_a_Pa,p_b_Pa"),
+            ("p_a_Pa",),
         ),
         ("empty file", "", ("empty",)),
         ("header only", "t_s,i_mA,y_cm\n", ("rows",)),
@@ -594,16 +606,16 @@ def _cases() -> list[Case]:
         ("time backwards", measured(t=lambda t: t[::-1].copy()), ("backwards",)),
         ("repeated stamps", measured(t=lambda t: np.round(t, 1)), ("repeated", "--resample")),
         ("uneven sampling", measured(t=lambda t: t**1.2), ("uneven", "--resample")),
-        ("unknown unit", measured("t_s,i_mA,ref_cm,y_furlong,p3_bar,p4_bar"), ("y_furlong",)),
-        ("header without unit", measured("t_s,i_mA,ref_cm,y,p3_bar,p4_bar"), ("'y'",)),
+        ("unknown unit", measured("t_s,i_mA,ref_cm,y_furlong,p_a_bar,p_b_bar"), ("y_furlong",)),
+        ("header without unit", measured("t_s,i_mA,ref_cm,y,p_a_bar,p_b_bar"), ("'y'",)),
         ("too few samples", measured_text(lambda ls: ls[:10]), ("samples",)),
         ("ragged row", measured_text(lambda ls: [*ls[:5], "1,2", *ls[6:]]), ("row 6",)),
-        ("duplicate column", measured("t_s,i_mA,ref_cm,y_cm,p3_bar,p3_bar"), ("p3_bar",)),
+        ("duplicate column", measured("t_s,i_mA,ref_cm,y_cm,p_a_bar,p_a_bar"), ("p_a_bar",)),
         ("not UTF-8", b"t_s,y_cm\n\xff\xfe\n", ("UTF-8",)),
-        ("position in volts", measured("t_s,i_mA,ref_cm,y_V,p3_bar,p4_bar"), ("y",)),
+        ("position in volts", measured("t_s,i_mA,ref_cm,y_V,p_a_bar,p_b_bar"), ("y",)),
         (
             "time 1e307 min",
-            measured("t_min,i_mA,ref_cm,y_cm,p3_bar,p4_bar", t=lambda t: t * 1e307),
+            measured("t_min,i_mA,ref_cm,y_cm,p_a_bar,p_b_bar", t=lambda t: t * 1e307),
             ("t_min",),
         ),
         (

@@ -215,7 +215,7 @@ def independent_run(
             x = sol.y[:, -1]
         i_prev = i_cmd
     rng = np.random.default_rng(seed)
-    names = {"y": 0, "p1": 2, "p2": 3, "p3": 4, "p4": 5}
+    names = {"y": 0, "p_s": 2, "p_t": 3, "p_a": 4, "p_b": 5}  # the rig's names of p1..p4
     signals = {"ref": (refs - FB_OFFSET) / FB_GAIN, "i": currents}
     units = {"ref": "m", "i": "A"}
     for name, sigma in noise.items():

@@ -28,7 +28,7 @@ from fuzzyservo.calibration.synthetic import synthetic_run
 from fuzzyservo.io.controllers import load_controller
 from fuzzyservo.io.rigs import load_rig
 
-NOISE = {"y": 5e-6, "p1": 5e3, "p2": 5e3, "p3": 5e3, "p4": 5e3}
+NOISE = {"y": 5e-6, "p_s": 5e3, "p_t": 5e3, "p_a": 5e3, "p_b": 5e3}
 
 
 def cpu_s() -> float:

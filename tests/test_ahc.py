@@ -1,4 +1,5 @@
-"""Seed-001 AHC stand: equilibria, flow conservation, supply-pressure steps, heave compensation."""
+"""Seed-001 AHC stand: equilibria and flow conservation of the seed's equations as written
+(tests/reference_plants), supply-pressure steps and heave compensation of the shipped rigs."""
 
 from __future__ import annotations
 
@@ -6,12 +7,12 @@ import math
 
 import numpy as np
 import pytest
+from reference_plants import ahc_cylinder, ahc_motor, reference_rig
 from scipy.optimize import fsolve
 from support import controller_named, rig_named
 
 from fuzzyservo.metrics import compensation_pct, heave_metrics, result_metrics
 from fuzzyservo.params import pack
-from fuzzyservo.plants import ahc_cylinder, ahc_motor
 from fuzzyservo.simulation import simulate
 from fuzzyservo.simulation.reference import simulate_reference
 
@@ -26,6 +27,16 @@ def cyl():
 @pytest.fixture(scope="module")
 def mot():
     return rig_named("ahc_motor")
+
+
+@pytest.fixture(scope="module")
+def seed_cyl():
+    return reference_rig("ahc_cylinder")
+
+
+@pytest.fixture(scope="module")
+def seed_mot():
+    return reference_rig("ahc_motor")
 
 
 @pytest.fixture(scope="module")
@@ -45,9 +56,9 @@ def flc_mot():
 
 def test_seed_diameters_are_read_swapped(cyl):
     """Seed 001 §3 prints piston 60 mm / rod 100 mm; the rig reads them swapped."""
-    assert cyl.params.piston_diameter_m == pytest.approx(0.100)
-    assert cyl.params.rod_diameter_m == pytest.approx(0.060)
-    assert cyl.params.area_b_m2 / cyl.params.area_a_m2 == pytest.approx(0.64)
+    piston, rod = cyl.params.cylinder__piston_diameter, cyl.params.cylinder__rod_diameter
+    assert (piston, rod) == (pytest.approx(0.100), pytest.approx(0.060))
+    assert 1 - (rod / piston) ** 2 == pytest.approx(0.64)
 
 
 def _cylinder_rest(params, load_n: float, y: float = 0.2) -> np.ndarray:
@@ -64,9 +75,9 @@ def _cylinder_rest(params, load_n: float, y: float = 0.2) -> np.ndarray:
     return np.array([s, y, 0.0, pa * 1e6, pb * 1e6])
 
 
-def test_cylinder_at_rest_holds_with_leakage_balanced(cyl):
+def test_cylinder_at_rest_holds_with_leakage_balanced(seed_cyl):
     """Seed 001 eq. 1-9 at rest: A·p_a − a·A·p_b = F; valve flows equal the leakages."""
-    params = cyl.params
+    params = seed_cyl.params
     x = _cylinder_rest(params, 415.0)
     p = pack(params)
     dx = np.empty(5)
@@ -86,9 +97,9 @@ def test_cylinder_at_rest_holds_with_leakage_balanced(cyl):
     assert abs(x[0]) < 1e-2
 
 
-def test_motor_holding_the_load_balances_torque(mot):
+def test_motor_holding_the_load_balances_torque(seed_mot):
     """Motor at rest under the 5 kg load: m·g·r = (p_b − p_a)·D_m·η_hm (eq. 15)."""
-    params = mot.params
+    params = seed_mot.params
     p = pack(params)
     dx = np.empty(5)
 
@@ -114,8 +125,8 @@ def test_motor_holding_the_load_balances_torque(mot):
     assert sig["q_b"] == pytest.approx(-sig["q_lea"], rel=1e-6)
 
 
-def test_rhs_is_finite_everywhere(cyl, mot):
-    pc, pm = pack(cyl.params), pack(mot.params)
+def test_rhs_is_finite_everywhere(seed_cyl, seed_mot):
+    pc, pm = pack(seed_cyl.params), pack(seed_mot.params)
     dx = np.empty(5)
     for s in (-1.2, -1.0, -1e-9, 0.0, 1e-9, 1.0, 1.2):
         for pa in (-1e6, 0.0, 5e6, 10e6, 30e6):

@@ -1,7 +1,7 @@
 """The cable-drum load (components/library/cable_drum.py) on a composed motor, and the
 seed-001 options of the motor and valve it rides on: the drum's winding direction, the
 motor's hydro-mechanical efficiency, the servo-valve's land leakage (seed 001 eq. 3-4,
-checked against the hand-written seed-001 valve, components/servo_valve.py)."""
+checked against the hand-written seed-001 valve, tests/reference_plants/kernels.py)."""
 
 from __future__ import annotations
 
@@ -9,8 +9,8 @@ import math
 
 import numpy as np
 import pytest
+from reference_plants.kernels import port_flow
 
-from fuzzyservo.components.servo_valve import port_flow
 from fuzzyservo.params import pack
 from fuzzyservo.plants.composed import CompositionError, compose
 

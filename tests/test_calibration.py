@@ -42,20 +42,14 @@ DINCA_EFFECTS = {
 }
 # Acquisition like the seed's: 100 Hz (the loop's own rate), a position transducer
 # with 5 µm and pressure transducers with 0.05 bar of white noise.
-NOISE = {"y": 5e-6, "p1": 0.05e5, "p2": 0.05e5, "p3": 0.05e5, "p4": 0.05e5}
-HEADER_UNITS = {
-    "ref": "cm",
-    "i": "mA",
-    "y": "cm",
-    "p1": "bar",
-    "p2": "bar",
-    "p3": "bar",
-    "p4": "bar",
-}
+# (seed 002's p1..p4: the valve's supply and return chambers, the cylinder's two)
+PRESSURES = ("p_s", "p_t", "p_a", "p_b")
+NOISE = {"y": 5e-6, **dict.fromkeys(PRESSURES, 0.05e5)}
+HEADER_UNITS = {"ref": "cm", "i": "mA", "y": "cm", **dict.fromkeys(PRESSURES, "bar")}
 
 
 def old_loop(folder: Path, rig: str = "dinca_cylinder") -> Path:
-    """The seed-002 rig file (or its composed twin, ``rig``) as these tests were measured
+    """The seed-002 rig file (or another, ``rig``) as these tests were measured
     on it (before issue 11): no I/O
     delay, an exact reading, ±30 mA, no spool lag (the shipped file declares one, and
     ``valve_lag`` is one of the effects these tests hide in the data). The 20 ms delay
@@ -85,12 +79,12 @@ def dinca_csv(path: Path, effects: dict, seed: int = 7) -> Path:
 
 def motor_csv(path: Path, effects: dict, seed: int = 3) -> Path:
     """A seed-000 EHS 160 P Kb=0.105 `steps` run at 1 kHz: tachometer speed ±0.2 rad/s,
-    load pressure ±0.05 bar."""
-    noise = {"w": 0.2, "p_load": 0.05e5}
+    port pressures ±0.05 bar."""
+    noise = {"w": 0.2, "p_a": 0.05e5, "p_b": 0.05e5}
     data = synthetic_run(
         rig_named("ehs160_motor"), controller_named("p_kb0105"), "steps", effects, noise, seed=seed
     )
-    return write_measured(path, data, {"ref": "rad_s", "w": "rad_s", "p_load": "bar"})
+    return write_measured(path, data, {"ref": "rad_s", "w": "rad_s", "p_a": "bar", "p_b": "bar"})
 
 
 def calibrate_json(tmp_path: Path, rig: str, data: Path, controller: str) -> dict:
@@ -132,7 +126,7 @@ def test_dinca_names_the_undeclared_effect_first(tmp_path: Path, effect: str) ->
     assert summary["candidates"][0]["name"] == effect
     assert _names(summary)[:1] == [effect]
     before, after = summary["fit_before_pct"], summary["fit_after_pct"]
-    for channel in ("y", "p1", "p2", "p3", "p4"):
+    for channel in ("y", *PRESSURES):
         assert after[channel] > before[channel], (channel, before, after)
     # the calibrated rig file declares it with the fitted values, and runs
     rig = load_rig(summary["calibrated_rig"])
@@ -181,7 +175,7 @@ def test_ehs160_names_the_undeclared_effect_first(tmp_path: Path, effect: str) -
     summary = calibrate_json(tmp_path, "ehs160_motor", data, "p_kb0105")
     assert summary["candidates"][0]["name"] == effect
     assert _names(summary)[:1] == [effect]
-    for channel in ("w", "p_load"):
+    for channel in ("w", "p_a", "p_b"):
         assert summary["fit_after_pct"][channel] > summary["fit_before_pct"][channel]
 
 

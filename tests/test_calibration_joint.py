@@ -35,12 +35,14 @@ def records(tmp_path_factory):
     ctl = controller_named("p_k10")
     steps = rig.scenarios["steps"]
     loaded = dataclasses.replace(steps, load=Constant(0.2 * rig.scales().force))
-    bias = rig.params.bias_current_a
+    bias = rig.params.valve__bias_current
     data = [
-        synthetic_run(rig.with_params(bias_current_a=bias + d), ctl, s, FRICTION, NOISE, seed=k)
+        synthetic_run(
+            rig.with_params(valve__bias_current=bias + d), ctl, s, FRICTION, NOISE, seed=k
+        )
         for k, (s, d) in enumerate(zip((steps, loaded), DRIFT, strict=True))
     ]
-    unknown = dataclasses.replace(rig, unknowns={"bias_current_a": (bias - 1e-3, bias + 1e-3)})
+    unknown = dataclasses.replace(rig, unknowns={"valve__bias_current": (bias - 1e-3, bias + 1e-3)})
     return unknown, ctl, [make_replay(unknown, d, ctl) for d in data]
 
 
@@ -50,17 +52,17 @@ def test_shared_effect_and_per_record_null_from_two_records(records) -> None:
     data = [r.data for r in replays]  # the API: a list of records is calibrated together
     effects = ["coulomb_friction", "valve_lag"]
     outcome = api_calibrate(
-        rig, data, ctl, effects=effects, max_effects=1, per_record=["bias_current"]
+        rig, data, ctl, effects=effects, max_effects=1, per_record=["valve.bias_current"]
     )
-    joint = joint_replay(replays, rig, per_record=["bias_current_a"])
+    joint = joint_replay(replays, rig, per_record=["valve__bias_current"])
     assert [c.name for c in outcome.added] == ["coulomb_friction"]
     assert outcome.added[0].params["force"] == pytest.approx(150.0, rel=0.05)
-    bias = rig.params.bias_current_a
-    fitted = np.array(outcome.per_record["bias_current_a"]) - bias
+    bias = rig.params.valve__bias_current
+    fitted = np.array(outcome.per_record["valve__bias_current"]) - bias
     assert fitted == pytest.approx(DRIFT, abs=2e-5)
     assert outcome.cost_final < 1.2  # both records to the noise floor
     summary = summary_data(outcome, joint)
-    assert summary["per_record"]["bias_current"] == pytest.approx(
+    assert summary["per_record"]["valve.bias_current"] == pytest.approx(
         [bias + d for d in DRIFT], abs=2e-5
     )
     # one null shared by both records cannot follow the drift
@@ -73,8 +75,8 @@ def test_records_with_other_channels_are_refused(records, tmp_path: Path) -> Non
     data = replays[0].data
     fewer = dataclasses.replace(
         data,
-        signals={k: v for k, v in data.signals.items() if k != "p1"},
-        units={k: v for k, v in data.units.items() if k != "p1"},
+        signals={k: v for k, v in data.signals.items() if k != "p_s"},
+        units={k: v for k, v in data.units.items() if k != "p_s"},
     )
     with pytest.raises(DataError, match="same channels"):
         joint_replay([replays[0], make_replay(rig, fewer, ctl)], rig)
@@ -82,7 +84,7 @@ def test_records_with_other_channels_are_refused(records, tmp_path: Path) -> Non
 
 @pytest.mark.slow
 def test_cli_calibrates_two_files_with_a_per_record_null(records, tmp_path: Path) -> None:
-    """``fuzzyservo calibrate RIG a.csv b.csv --per-record bias_current``: one run, one
+    """``fuzzyservo calibrate RIG a.csv b.csv --per-record valve.bias_current``: one run, one
     report; a key that is not an unknown is refused on one line."""
     import json
 
@@ -94,7 +96,7 @@ def test_cli_calibrates_two_files_with_a_per_record_null(records, tmp_path: Path
 
     rig, _, replays = records
     text = yaml.safe_load(old_loop(tmp_path / "rig").read_text(encoding="utf-8"))
-    text["plant"]["parameters"]["bias_current"]["fit"] = [1.83, 3.83]  # mA
+    text["plant"]["components"]["valve"]["parameters"]["bias_current"]["fit"] = [1.83, 3.83]  # mA
     rig_file = tmp_path / "rig" / "drifting_null.yaml"
     rig_file.write_text(yaml.safe_dump(text, sort_keys=False), encoding="utf-8")
     files = [
@@ -102,13 +104,13 @@ def test_cli_calibrates_two_files_with_a_per_record_null(records, tmp_path: Path
     ]
     args = ["calibrate", str(rig_file), *map(str, files), "--controller", "p_k10"]
     args += ["--effects", "coulomb_friction", "--max-effects", "1", "--workers", "1"]
-    code = main([*args, "--per-record", "bias_current", "--out", str(tmp_path / "o")])
+    code = main([*args, "--per-record", "valve.bias_current", "--out", str(tmp_path / "o")])
     assert code == 0
     summary = json.loads((tmp_path / "o" / "summary.json").read_text(encoding="utf-8"))
     assert summary["decision"] == "coulomb_friction"
-    fitted = np.array(summary["per_record"]["bias_current"]) - rig.params.bias_current_a
+    fitted = np.array(summary["per_record"]["valve.bias_current"]) - rig.params.valve__bias_current
     assert fitted == pytest.approx(DRIFT, abs=2e-5)
     assert "2 records calibrated together" in (tmp_path / "o" / "report.md").read_text(
         encoding="utf-8"
     )
-    assert main([*args, "--per-record", "closing_current", "--out", str(tmp_path / "p")]) == 2
+    assert main([*args, "--per-record", "valve.closing_current", "--out", str(tmp_path / "p")]) == 2

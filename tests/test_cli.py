@@ -28,7 +28,7 @@ def test_compare_writes_table_plots_json(tmp_path, capsys):
     assert len(run["steps"]) == 4
     assert (out / "dinca_cylinder_pulses_response.png").stat().st_size > 10_000
     header = (out / "dinca_cylinder_pulses_p_k10.csv").read_text().splitlines()[0]
-    assert header.startswith("t_s,ref_V") and "p3_Pa" in header
+    assert header.startswith("t_s,ref_V") and "p_a_Pa" in header
 
 
 def test_compare_defaults_to_the_seed002_baseline(tmp_path, capsys, monkeypatch):

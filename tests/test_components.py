@@ -124,9 +124,7 @@ def test_every_registered_component_type_is_reachable() -> None:
         else:
             base["load"] = name
         plant = compose(tuple(base.items()))
-        p = plant.params_cls(
-            **{f.name: _SIZES.get(f.name.split("__")[1], 1.0) for f in _required(plant.params_cls)}
-        )
+        p = plant.params_cls(**{f.name: _size(f) for f in _required(plant.params_cls)})
         x0 = np.asarray(plant.initial_state(p), dtype=float)
         out = np.empty(len(plant.signals))
         plant.loop.plant_signals(x0, 0.0, 0.0, pack(p), out)
@@ -142,6 +140,13 @@ _SIZES = {
     "supply_pressure": 1e7,
     "relief_cracking_pressure": 9.5e6,
 }
+
+
+def _size(f: dataclasses.Field) -> object:
+    """A value of the right size for a required field (a vector: ones, e.g. the weights)."""
+    if "vector_key" in f.metadata:
+        return (1.0,) * f.metadata["length"]
+    return _SIZES.get(f.name.split("__")[1], 1.0)
 
 
 def _required(cls) -> list:

@@ -1,11 +1,13 @@
 """The external_leakage effect (components/effects.py): K_e·p from each chamber to the
-drain, on composed cylinders and motors; refused in one line where no kernel reads it."""
+drain, on composed cylinders and motors; refused in one line where no kernel reads it
+(the seeds' hand-written equations, tests/reference_plants)."""
 
 from __future__ import annotations
 
 import math
 
 import pytest
+from reference_plants import reference_rig
 from support import rig_named
 
 from fuzzyservo.controllers.classical import P
@@ -31,5 +33,10 @@ def test_external_leakage_lets_the_lift_sink_under_its_weight() -> None:
 
 
 def test_external_leakage_is_refused_where_no_kernel_reads_it() -> None:
+    """Every actuator component reads it, so every shipped rig models it (the seed-002
+    rig too, whose hand-written kernel did not); the seed's equations as written still
+    refuse it in one line."""
+    leaky = rig_named("dinca_cylinder").with_effect("external_leakage", coefficient=1e-12)
+    assert "external_leakage" in leaky.effects
     with pytest.raises(ValueError, match=r"external_leakage.*not modelled"):
-        rig_named("dinca_cylinder").with_effect("external_leakage", coefficient=1e-12)
+        reference_rig("dinca_cylinder").with_effect("external_leakage", coefficient=1e-12)

@@ -1,5 +1,7 @@
 """Seed-003 Hydroprax bench: equilibrium, conservation, robustness, supply sag, the three valve
-models, the seed's PI result, convergence, and the valve-network training path."""
+models, the seed's PI result, convergence, and the valve-network training path, on the seed's
+equations as written (tests/reference_plants/hydroprax.py: its three valve models);
+tests/test_reference_plants.py holds the shipped composition to it."""
 
 from __future__ import annotations
 
@@ -7,7 +9,8 @@ import json
 
 import numpy as np
 import pytest
-from support import DATA, controller_named, rig_named
+from reference_plants import PLANTS, RIGS, hydroprax, reference_rig
+from support import DATA, controller_named
 
 from fuzzyservo.cli import main
 from fuzzyservo.components.nn_fit import predict
@@ -16,7 +19,6 @@ from fuzzyservo.io.rigs import load_rig
 from fuzzyservo.io.valve_data import read_valve_csv, read_valve_network, write_valve_csv
 from fuzzyservo.metrics import result_metrics
 from fuzzyservo.params import pack
-from fuzzyservo.plants import hydroprax
 from fuzzyservo.simulation import simulate
 from fuzzyservo.simulation.reference import simulate_reference
 
@@ -25,7 +27,7 @@ SIG = {name: i for i, name in enumerate(hydroprax.SIGNALS)}
 
 @pytest.fixture(scope="module")
 def rig():
-    return rig_named("hydroprax_pdcv")
+    return reference_rig("hydroprax_pdcv")
 
 
 @pytest.fixture(scope="module")
@@ -246,11 +248,12 @@ def test_missing_valve_data_and_too_few_rows(tmp_path, capsys, rig):
 
 
 def test_bad_network_file_in_rig(tmp_path):
-    text = (DATA / "rigs" / "hydroprax_pdcv.yaml").read_text()
+    network = "../../../fuzzyservo/data/rigs/hydroprax_nn_valve.json"
+    text = (RIGS / "hydroprax_pdcv.yaml").read_text().replace(network, "hydroprax_nn_valve.json")
     (tmp_path / "hydroprax_nn_valve.json").write_text('{"format": "something else"}')
     (tmp_path / "rig.yaml").write_text(text)
     with pytest.raises(ConfigError, match=r"plant\.parameters\.nn_weights\.file: .*format"):
-        load_rig(tmp_path / "rig.yaml")
+        load_rig(tmp_path / "rig.yaml", plants=PLANTS)
     (tmp_path / "rig.yaml").write_text(
         text.replace('value: 1\n      unit: "1"', 'value: 4\n      unit: "1"')
     )
@@ -258,4 +261,4 @@ def test_bad_network_file_in_rig(tmp_path):
         (DATA / "rigs" / "hydroprax_nn_valve.json").read_text()
     )
     with pytest.raises(ConfigError, match="valve_model"):
-        load_rig(tmp_path / "rig.yaml")
+        load_rig(tmp_path / "rig.yaml", plants=PLANTS)

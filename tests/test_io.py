@@ -54,8 +54,17 @@ def expect_error(loader: Callable[[Path], Any], path: Path, key: str | None, *hi
     return message
 
 
+# the seed-002 composition's parameters used below, by the instance that holds them
+INSTANCE = {"piston_mass": "cylinder", "piston_diameter": "cylinder", "supply_pressure": "supply",
+            "supply_volume": "supply", "bulk_modulus": "oil"}  # fmt: skip
+
+
+def params_of(data: dict, key: str) -> dict:
+    return data["plant"]["components"][INSTANCE[key]]["parameters"]
+
+
 def param(data: dict, key: str) -> dict:
-    return data["plant"]["parameters"][key]
+    return params_of(data, key)[key]
 
 
 def rename(mapping: dict, old: str, new: str) -> None:
@@ -68,7 +77,7 @@ def _top_misspelled(d):
 
 
 def _param_misspelled(d):
-    rename(d["plant"]["parameters"], "bulk_modulus", "bulk_modulos")
+    rename(params_of(d, "bulk_modulus"), "bulk_modulus", "bulk_modulos")
 
 
 def _scenario_misspelled(d):
@@ -84,7 +93,7 @@ def _quantity_misspelled(d):
 
 
 def _missing_param(d):
-    del d["plant"]["parameters"]["piston_mass"]
+    del params_of(d, "piston_mass")["piston_mass"]
 
 
 def _text_for_number(d):
@@ -96,7 +105,7 @@ def _number_with_unit_as_text(d):
 
 
 def _negative_volume(d):
-    param(d, "valve_chamber_volume_1")["value"] = -3
+    param(d, "supply_volume")["value"] = -3
 
 
 def _zero_bulk_modulus(d):
@@ -137,11 +146,11 @@ def _warmup_too_long(d):
 
 
 def _override_nonphysical(d):
-    d["scenarios"]["pulses"]["overrides"] = {"bulk_modulus": {"value": -1, "unit": "bar"}}
+    d["scenarios"]["pulses"]["overrides"] = {"oil.bulk_modulus": {"value": -1, "unit": "bar"}}
 
 
 def _override_misspelled(d):
-    d["scenarios"]["pulses"]["overrides"] = {"supply_presure": {"value": 50, "unit": "bar"}}
+    d["scenarios"]["pulses"]["overrides"] = {"supply.supply_presure": {"value": 50, "unit": "bar"}}
 
 
 def _null_section(d):
@@ -149,15 +158,15 @@ def _null_section(d):
 
 
 def _list_for_mapping(d):
-    d["plant"]["parameters"] = list(d["plant"]["parameters"])
+    d["plant"]["components"]["cylinder"]["parameters"] = list(params_of(d, "piston_mass"))
 
 
 def _number_for_text(d):
-    d["plant"]["type"] = 5
+    d["plant"]["components"]["cylinder"]["type"] = 5
 
 
 def _null_value(d):
-    param(d, "density")["value"] = None
+    param(d, "bulk_modulus")["value"] = None
 
 
 def _huge_int(d):
@@ -201,39 +210,63 @@ RIG_CASES = [
     (_top_misspelled, "scenarioss", ["unknown key", "did you mean 'scenarios'?"]),
     (
         _param_misspelled,
-        "plant.parameters.bulk_modulos",
+        "plant.components.oil.parameters.bulk_modulos",
         ["unknown key", "did you mean 'bulk_modulus'?"],
     ),
     (_scenario_misspelled, "scenarios.pulses.duraton", ["did you mean 'duration'?"]),
     (_feedback_misspelled, "feedback.ofset", ["did you mean 'offset'?"]),
-    (_quantity_misspelled, "plant.parameters.piston_mass.units", ["did you mean 'unit'?"]),
-    (_missing_param, "plant.parameters", ["missing key 'piston_mass'", "kg", "add it"]),
+    (
+        _quantity_misspelled,
+        "plant.components.cylinder.parameters.piston_mass.units",
+        ["did you mean 'unit'?"],
+    ),
+    (
+        _missing_param,
+        "plant.components.cylinder.parameters",
+        ["missing key 'piston_mass'", "kg", "add it"],
+    ),
     (
         _text_for_number,
-        "plant.parameters.piston_mass.value",
+        "plant.components.cylinder.parameters.piston_mass.value",
         ["must be a number", "'heavy'", "write a plain number"],
     ),
     (
         _number_with_unit_as_text,
-        "plant.parameters.supply_pressure.value",
+        "plant.components.supply.parameters.supply_pressure.value",
         ["'70 bar'", "'unit:'"],
     ),
     (
         _negative_volume,
-        "plant.parameters.valve_chamber_volume_1",
+        "plant.components.supply.parameters.supply_volume",
         ["must be > 0 m^3", "got -3.0", "positive"],
     ),
-    (_zero_bulk_modulus, "plant.parameters.bulk_modulus", ["must be > 0 Pa", "0.0", "positive"]),
-    (_negative_mass, "plant.parameters.piston_mass", ["must be > 0 kg", "-1.0", "positive"]),
+    (
+        _zero_bulk_modulus,
+        "plant.components.oil.parameters.bulk_modulus",
+        ["must be > 0 Pa", "0.0", "positive"],
+    ),
+    (
+        _negative_mass,
+        "plant.components.cylinder.parameters.piston_mass",
+        ["must be > 0 kg", "-1.0", "positive"],
+    ),
     (_limits_swapped, "actuator", ["`lower < upper` must hold", "lower=0.02", "swap them"]),
     (
         _pressure_in_cm,
-        "plant.parameters.supply_pressure.unit",
+        "plant.components.supply.parameters.supply_pressure.unit",
         ["unit 'cm'", "does not fit", "give it in 'Pa'"],
     ),
-    (_unknown_unit, "plant.parameters.piston_diameter.unit", ["'furlong'", "known units:"]),
-    (_unreadable_unit, "plant.parameters.piston_diameter.unit", ["'m**(1/0)'", "write it like"]),
-    (_unknown_plant, "plant.type", ["'hydraulic_crane'", "open_centre_cylinder", "servo_motor"]),
+    (
+        _unknown_unit,
+        "plant.components.cylinder.parameters.piston_diameter.unit",
+        ["'furlong'", "known units:"],
+    ),
+    (
+        _unreadable_unit,
+        "plant.components.cylinder.parameters.piston_diameter.unit",
+        ["'m**(1/0)'", "write it like"],
+    ),
+    (_unknown_plant, "plant.type", ["'hydraulic_crane'", "plant.components"]),
     (
         _unknown_signal,
         "scenarios.pulses.reference.type",
@@ -242,19 +275,31 @@ RIG_CASES = [
     (_warmup_too_long, "scenarios.pulses.warmup", ["22.0 s", "shorter than the duration"]),
     (
         _override_nonphysical,
-        "scenarios.pulses.overrides.bulk_modulus",
+        "scenarios.pulses.overrides.oil.bulk_modulus",
         ["must be > 0 Pa", "-100000.0", "positive"],
     ),
     (
         _override_misspelled,
-        "scenarios.pulses.overrides.supply_presure",
-        ["did you mean 'supply_pressure'?"],
+        "scenarios.pulses.overrides.supply.supply_presure",
+        ["did you mean 'supply.supply_pressure'?"],
     ),
     (_null_section, "plant", ["must be a mapping", "null", "indented"]),
-    (_list_for_mapping, "plant.parameters", ["must be a mapping", "list", "indented"]),
-    (_number_for_text, "plant.type", ["must be text", "int 5"]),
-    (_null_value, "plant.parameters.density.value", ["must be a number", "null"]),
-    (_huge_int, "plant.parameters.piston_mass.value", ["must be finite", "write a plain number"]),
+    (
+        _list_for_mapping,
+        "plant.components.cylinder.parameters",
+        ["must be a mapping", "list", "indented"],
+    ),
+    (_number_for_text, "plant.components.cylinder.type", ["must be text", "int 5"]),
+    (
+        _null_value,
+        "plant.components.oil.parameters.bulk_modulus.value",
+        ["must be a number", "null"],
+    ),
+    (
+        _huge_int,
+        "plant.components.cylinder.parameters.piston_mass.value",
+        ["must be finite", "write a plain number"],
+    ),
     (_list_for_number, "scenarios.pulses.reference.base", ["must be a number", "[6.2]"]),
     (_text_in_list, "scenarios.steps.reference.values[1]", ["must be a number", "'high'"]),
     (_duty_out_of_range, "scenarios.pulses.reference.duty", ["(0, 1)", "1.5"]),
@@ -334,7 +379,7 @@ def test_invalid_yaml_names_the_line(tmp_path):
 
 def test_tab_indentation_names_the_line(tmp_path):
     path = tmp_path / "tabs.yaml"
-    path.write_text("name: x\nplant:\n  type: servo_motor\n\tparameters: {}\n", encoding="utf-8")
+    path.write_text("name: x\nplant:\n  components: {}\n\tinitial: {}\n", encoding="utf-8")
     assert "line 4" in expect_error(load_rig, path, None, "not valid YAML")
 
 

@@ -11,11 +11,11 @@ import pytest
 control = pytest.importorskip("control")
 
 import linear_plant  # noqa: E402  (tests/ is on sys.path)
+from reference_plants import from_module  # noqa: E402
 
 from fuzzyservo.analysis import frequency_response, gain_margin, oscillation  # noqa: E402
 from fuzzyservo.controllers.classical import P  # noqa: E402
 from fuzzyservo.metrics import command_tv  # noqa: E402
-from fuzzyservo.plants import PlantModel  # noqa: E402
 from fuzzyservo.rig import Actuator, LinearSensor, Rig, Scenario  # noqa: E402
 from fuzzyservo.signals import Steps  # noqa: E402
 from fuzzyservo.simulation import simulate  # noqa: E402
@@ -26,7 +26,7 @@ VALUES = {"force_gain": 1000.0, "force_lag_s": 0.02, "mass_kg": 1.0, "damping": 
 
 
 def _rig() -> Rig:
-    plant = PlantModel.from_module("linear_test", linear_plant, "linear test plant")
+    plant = from_module("linear_test", linear_plant, "linear test plant")
     return Rig(
         name="linear_test",
         plant=plant,

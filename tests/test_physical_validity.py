@@ -26,14 +26,15 @@ def dinca():
 def test_start_away_from_zero_keeps_the_held_pressures(dinca):
     """Seed 002 gives the chamber masses at y = 0 (m30, m40): a scenario starting at 5 cm
     holds the same pressures there, instead of spreading the y = 0 mass over a chamber
-    3.5 times larger (p3 = −12 847 bar, |v| = 198 m/s before issue 11)."""
+    3.5 times larger (p3 = −12 847 bar, |v| = 198 m/s before issue 11; the composition
+    is given the chamber pressures)."""
     base = dinca.scenario("pulses")
     at_zero = simulate(dinca, controller_named("p_k10"), base, duration_s=0.2)
-    moved = dataclasses.replace(base, initial={**base.initial, "y_m": 0.05})
+    moved = dataclasses.replace(base, initial={**base.initial, "position": 0.05})
     r = simulate(dinca, controller_named("p_k10"), moved, duration_s=0.2)
     assert r.status == "ok"
     assert r.signals["y"][0] == pytest.approx(0.05)
-    for p in ("p3", "p4"):
+    for p in ("p_a", "p_b"):
         assert r.signals[p][0] == pytest.approx(at_zero.signals[p][0], rel=1e-9)
         assert 30e5 < r.signals[p][0] < 40e5  # seed 002 §4: p30 = p40 = 36 bar
     assert np.nanmax(np.abs(r.signals["v"])) < 1.0  # m/s: no violent start
@@ -41,7 +42,7 @@ def test_start_away_from_zero_keeps_the_held_pressures(dinca):
 
 def test_a_pressure_below_vapour_pressure_is_not_ok():
     """A run whose chamber goes below vacuum completes, but reports ``cavitation``."""
-    rig = rig_named("dinca_cylinder_composed")
+    rig = rig_named("dinca_cylinder")
     base = rig.scenario("pulses")
     bad = dataclasses.replace(base, initial={"pressure_a": -2e5})
     r = simulate(rig, controller_named("p_k10"), bad, duration_s=0.2)
@@ -60,18 +61,17 @@ def test_pressure_violation_names_the_lowest_pressure():
 
 
 def test_composed_plants_check_every_node_pressure():
-    plant = rig_named("dinca_cylinder_composed").plant
+    plant = rig_named("dinca_cylinder").plant
     assert {"p_a", "p_b"} <= set(plant.pressures)
     assert all(plant.signal_units[p] == "Pa" for p in plant.pressures)
 
 
-@pytest.mark.parametrize("rig", ["ehs160_motor", "ehs160_motor_composed"])
 @pytest.mark.parametrize("controller", ["p_kb0105", "open_loop"])
-def test_brake_never_reverses_the_motor(rig, controller):
+def test_brake_never_reverses_the_motor(controller):
     """Seed 000 §2: the shoe brake is a load that opposes motion. Under P Kb = 0.105 the
     command is about 0.1 V, too little to beat 1 N·m: the brake stops the motor and holds
     it (before issue 11 it drove the motor backwards to −14.5 rad/s)."""
-    r = simulate(rig_named(rig), controller_named(controller), "brake")
+    r = simulate(rig_named("ehs160_motor"), controller_named(controller), "brake")
     assert r.status == "ok"
     w = r.signals["w"]
     assert np.nanmin(w) > -1e-3  # rad/s
@@ -82,15 +82,14 @@ def test_brake_never_reverses_the_motor(rig, controller):
 def test_seed000_rise_time_with_the_flywheel():
     """Seed 000 Fig. 10: open-loop tr = 0.5 s. Table 2's J (0.4e-3, "motor inertia") rises
     in 0.055 s; the rig adds the flywheel of §2 (ehs160_motor.yaml says how it is
-    identified). Both the hand-written plant and its composed twin agree."""
-    for rig in ("ehs160_motor", "ehs160_motor_composed"):
-        m = result_metrics(simulate(rig_named(rig), controller_named("open_loop"), "unit_step"))
-        assert m.aggregate["rise_time_s"] == pytest.approx(0.5, rel=0.05)
+    identified)."""
+    r = simulate(rig_named("ehs160_motor"), controller_named("open_loop"), "unit_step")
+    assert result_metrics(r).aggregate["rise_time_s"] == pytest.approx(0.5, rel=0.05)
 
 
 def test_cli_and_json_report_the_cavitation_status(tmp_path, capsys):
     """The warning reaches the user: `simulate` names it on stderr and in its JSON."""
-    data = yaml.safe_load(shipped("dinca_cylinder_composed").read_text(encoding="utf-8"))
+    data = yaml.safe_load(shipped("dinca_cylinder").read_text(encoding="utf-8"))
     data["scenarios"] = {
         "below_vacuum": {
             **data["scenarios"]["pulses"],
@@ -111,12 +110,11 @@ def test_cli_and_json_report_the_cavitation_status(tmp_path, capsys):
 
 
 def test_every_plant_declares_its_chamber_pressures():
-    """Each hand-written plant names its gauge pressures; the seed-000 motor states only
-    P_x, so it gives its port pressures p_a, p_b = (P_s ± P_x)/2 (symmetric valve, §3 ii)."""
+    """Each seed plant names its gauge pressures; the seed-000 motor's ports hold
+    p_a + p_b = P_s, p_a − p_b = P_x (symmetric valve, §3 ii)."""
     for name in ("dinca_cylinder", "ahc_cylinder", "ahc_motor", "hydroprax_pdcv", "ehs160_motor"):
         plant = rig_named(name).plant
         assert plant.pressures and all(plant.signal_units[p] == "Pa" for p in plant.pressures)
     r = simulate(rig_named("ehs160_motor"), controller_named("open_loop"), "unit_step")
     s = r.signals
-    np.testing.assert_allclose(s["p_a"] - s["p_b"], s["p_load"], atol=1.0)
-    np.testing.assert_allclose(s["p_a"] + s["p_b"], 70e5, rtol=1e-12)
+    np.testing.assert_allclose(s["p_a"] + s["p_b"], 70e5, atol=1.0)

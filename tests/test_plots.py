@@ -24,17 +24,22 @@ def _result(controller: str, *, kind: str, gain: float = 1.0, status: str = "ok"
         actuator = np.clip(gain * 0.02 * (ref_v - shape), -0.03, 0.03)  # A
         limits = (-0.03, 0.03)
         p = 1e5 * np.vstack([100 - 20 * shape, 10 + 5 * shape, 60 + 10 * shape, 40 - 10 * shape])
-        signals = {f"p{k + 1}": p[k] for k in range(4)} | {"y": output}
-        units = {f"p{k + 1}": "Pa" for k in range(4)} | {"y": "m"}
+        pressures = ("p_s", "p_t", "p_a", "p_b")  # seed 002's p1..p4
+        signals = dict(zip(pressures, p, strict=True)) | {"y": output}
+        units = dict.fromkeys(pressures, "Pa") | {"y": "m"}
         names = ("y", "i", "cylinder", {"y": "cm"})
+        input_unit = "A"
     else:
         ref = ref_v * 100.0  # rad/s
         output = 100.0 * shape
         actuator = np.clip(gain * 5.0 * (ref_v - shape), -10.0, 10.0)  # V
         limits = (-10.0, 10.0)
-        signals = {"w": output, "p_load": 1e5 * (50 + 30 * shape), "q_valve": 1e-4 * shape}
-        units = {"w": "rad/s", "p_load": "Pa", "q_valve": "m^3/s"}
-        names = ("w", "u_valve", "motor", {})
+        p_load = 1e5 * (50 + 30 * shape)
+        signals = {"w": output, "p_a": (70e5 + p_load) / 2, "p_b": (70e5 - p_load) / 2}
+        signals["q_a"] = 1e-4 * shape
+        units = {"w": "rad/s", "p_a": "Pa", "p_b": "Pa", "q_a": "m^3/s"}
+        names = ("w", "u_c", "motor", {})
+        input_unit = "V"
     output_name, actuator_name, rig, display_units = names
     return SimResult(
         rig=rig,
@@ -57,6 +62,7 @@ def _result(controller: str, *, kind: str, gain: float = 1.0, status: str = "ok"
         warmup_s=0.2,
         status=status,
         display_units=display_units,
+        actuator_unit=input_unit,
     )
 
 
@@ -82,7 +88,7 @@ def test_response_cylinder_single_shows_four_pressures_in_bar(tmp_path):
     assert len(fig.axes) == 3
     assert _labels(fig) == ["position y [cm]", "valve current i [mA]", "pressure [bar]"]
     assert fig.axes[2].get_xlabel() == "time [s]"
-    assert _legend(fig.axes[2]) == ["p1", "p2", "p3", "p4"]
+    assert _legend(fig.axes[2]) == ["p_s", "p_t", "p_a", "p_b"]
     # SI to display: 5 cm, 30 mA limits, 100 bar
     ax_out, ax_act, ax_p = fig.axes
     assert np.nanmax(ax_out.lines[1].get_ydata()) == pytest.approx(5.0, rel=1e-3)
@@ -94,7 +100,7 @@ def test_response_cylinder_single_shows_four_pressures_in_bar(tmp_path):
     _check_png(fig, tmp_path / "cylinder.png")
 
 
-def test_response_cylinder_two_controllers_compares_p3_p4(tmp_path):
+def test_response_cylinder_two_controllers_compares_p_a_p_b(tmp_path):
     results = [
         _result("P K=10", kind="cylinder", gain=3.0),
         _result("fuzzy", kind="cylinder", status="diverged"),
@@ -103,22 +109,24 @@ def test_response_cylinder_two_controllers_compares_p3_p4(tmp_path):
     assert len(fig.axes) == 3
     ax_out, _, ax_p = fig.axes
     assert _legend(ax_out) == ["reference", "P K=10", "fuzzy (diverged)"]
-    assert _legend(ax_p) == ["p3 P K=10", "p4 P K=10", "p3 fuzzy (diverged)", "p4 fuzzy (diverged)"]
+    assert _legend(ax_p) == [
+        "p_a P K=10", "p_b P K=10", "p_a fuzzy (diverged)", "p_b fuzzy (diverged)"
+    ]  # fmt: skip
     styles = [line.get_linestyle() for line in ax_p.lines]
     assert styles == ["-", "-", "--", "--"]
     _check_png(fig, tmp_path / "sub" / "cylinder_two.png")
 
 
-def test_response_motor_shows_load_pressure_and_actuator_in_volts(tmp_path):
+def test_response_motor_shows_port_pressures_and_actuator_in_volts(tmp_path):
     results = [_result("PI", kind="motor"), _result("fuzzy", kind="motor", gain=2.0)]
     fig = response_figure(results)
     assert len(fig.axes) == 3
     assert _labels(fig) == [
         "speed w [rad/s]",
-        "valve input u_valve [V]",
-        "load pressure p_load [bar]",
+        "valve input u_c [V]",
+        "pressure [bar]",
     ]
-    assert _legend(fig.axes[2]) == ["PI", "fuzzy"]
+    assert _legend(fig.axes[2]) == ["p_a PI", "p_b PI", "p_a fuzzy", "p_b fuzzy"]
     _check_png(fig, tmp_path / "motor.png")
 
 

@@ -56,9 +56,11 @@ def test_shipped_robust_study_loads_with_its_units():
     u = spec.uncertainty
     assert u.samples == 8 and u.aggregate == "worst" and spec.workers == 2
     by = {d.target: d for d in u.parameters}
-    assert by["bulk_modulus"].a == pytest.approx(1.2e9)  # 12000 bar in Pa
+    assert by["oil.bulk_modulus"].a == pytest.approx(1.2e9)  # 12000 bar in Pa
     assert by["io_delay"].b == pytest.approx(0.023)
-    assert by["bias_current"].kind == "normal" and by["bias_current"].b == pytest.approx(5e-5)
+    assert by["valve.bias_current"].kind == "normal" and by[
+        "valve.bias_current"
+    ].b == pytest.approx(5e-5)
 
 
 def _study_with(tmp_path, uncertainty):
@@ -81,23 +83,27 @@ def _study_with(tmp_path, uncertainty):
             "unknown rig parameter",
         ),
         (
-            {"parameters": {"bulk_modulus": {"uniform": [2, 1], "unit": "bar"}}},
+            {"parameters": {"oil.bulk_modulus": {"uniform": [2, 1], "unit": "bar"}}},
             "uniform",
             "low < high",
         ),
         (
-            {"parameters": {"bulk_modulus": {"uniform": [1, 2], "normal": [1, 1]}}},
-            "bulk_modulus",
+            {"parameters": {"oil.bulk_modulus": {"uniform": [1, 2], "normal": [1, 1]}}},
+            "oil.bulk_modulus",
             "exactly one of",
         ),
         (
-            {"parameters": {"piston_mass": {"normal": [1, 1], "unit": "kg"}}},
+            {"parameters": {"cylinder.piston_mass": {"normal": [1, 1], "unit": "kg"}}},
             "parameters",
             "no valid rig",
         ),
         ({"aggregate": "median"}, "aggregate", "choose one of"),
         ({"samples": 0}, "samples", ">= 1"),
-        ({"parameters": {"viscous_friction": {"interval": [1, 2], "unit": "bar"}}}, "unit", "bar"),
+        (
+            {"parameters": {"guides.coefficient": {"interval": [1, 2], "unit": "bar"}}},
+            "unit",
+            "bar",
+        ),
     ],
 )
 def test_bad_uncertainty_sections_name_the_key(tmp_path, uncertainty, key, text):
@@ -116,7 +122,7 @@ def _small(tmp_path, samples=2):
             "seed": 5,
             "margin_scenario": "steps",
             "parameters": {
-                "bulk_modulus": {"uniform": [12000, 18000], "unit": "bar"},
+                "oil.bulk_modulus": {"uniform": [12000, 18000], "unit": "bar"},
                 "io_delay": {"interval": [18, 22], "unit": "ms"},
             },
         },
@@ -129,7 +135,7 @@ def test_a_failing_sample_makes_the_trial_infeasible_with_its_reason(tmp_path):
     ev = evaluator.evaluate(load_controller(DATA / "studies" / "controllers" / "open_loop.yaml"))
     assert not ev.feasible
     assert ev.status in ("end_stop", "diverged", "undefined"), ev
-    assert ev.message.startswith("sample 0 (bulk_modulus="), ev.message
+    assert ev.message.startswith("sample 0 (") and "oil.bulk_modulus=" in ev.message, ev.message
     assert all(v == 1e6 for v in ev.values)
 
 
@@ -211,10 +217,13 @@ def _calibrated_rig(tmp_path):
     return write_calibrated_rig(
         DATA / "rigs" / "dinca_cylinder.yaml",
         tmp_path / "dinca_cylinder_calibrated.yaml",
-        parameters={"bulk_modulus": (1.5e9, "Pa", "fitted")},
+        parameters={"oil.bulk_modulus": (1.5e9, "Pa", "fitted")},
         effects={"coulomb_friction": {"force": (30.0, "N", "fitted")}},
         header="test",
-        intervals={"bulk_modulus": (1.4e9, 1.6e9, False), "coulomb_friction.force": (20, 40, True)},
+        intervals={
+            "oil.bulk_modulus": (1.4e9, 1.6e9, False),
+            "coulomb_friction.force": (20, 40, True),
+        },
     )
 
 
@@ -224,14 +233,17 @@ def test_uncertainty_reads_fitted_intervals_from_a_calibrated_rig(tmp_path):
     rig = _calibrated_rig(tmp_path)
     spec = load_study(_study_with(tmp_path, {"samples": 8, "calibrated": rig.name}))
     by = {d.target: d for d in spec.uncertainty.parameters}
-    assert set(by) == {"bulk_modulus", "coulomb_friction.force"}
-    assert (by["bulk_modulus"].a, by["bulk_modulus"].b) == (1.4e9, 1.6e9)
-    assert by["bulk_modulus"].field == "bulk_modulus_pa" and by["bulk_modulus"].origin == "fitted"
+    assert set(by) == {"oil.bulk_modulus", "coulomb_friction.force"}
+    assert (by["oil.bulk_modulus"].a, by["oil.bulk_modulus"].b) == (1.4e9, 1.6e9)
+    assert (
+        by["oil.bulk_modulus"].field == "oil__bulk_modulus"
+        and by["oil.bulk_modulus"].origin == "fitted"
+    )
     friction = by["coulomb_friction.force"]
     assert (friction.effect, friction.a, friction.b) == ("coulomb_friction", 20.0, 40.0)
     assert "at a bound" in friction.origin and "at a bound" in spec.uncertainty.describe()
     for s in spec.uncertainty.draws:
-        assert 1.4e9 <= s.values["bulk_modulus"] <= 1.6e9
+        assert 1.4e9 <= s.values["oil.bulk_modulus"] <= 1.6e9
         assert 20.0 <= s.values["coulomb_friction.force"] <= 40.0
     from fuzzyservo.tuning.robust import sample_rigs
 
@@ -240,16 +252,24 @@ def test_uncertainty_reads_fitted_intervals_from_a_calibrated_rig(tmp_path):
         spec.uncertainty.draws[0].values["coulomb_friction.force"]
     )
     both = {"calibrated": str(rig),
-            "parameters": {"bulk_modulus": {"uniform": [12000, 18000], "unit": "bar"}}}  # fmt: skip
+            "parameters": {"oil.bulk_modulus": {"uniform": [12000, 18000], "unit": "bar"}}}  # fmt: skip
     by = {d.target: d for d in load_study(_study_with(tmp_path, both)).uncertainty.parameters}
-    assert by["bulk_modulus"].a == pytest.approx(1.2e9) and not by["bulk_modulus"].origin
+    assert by["oil.bulk_modulus"].a == pytest.approx(1.2e9) and not by["oil.bulk_modulus"].origin
 
 
 @pytest.mark.parametrize(
     ("edit", "text"),
     [
-        (lambda d: d["plant"]["parameters"]["bulk_modulus"].pop("interval"), "no fitted interval"),
-        (lambda d: d["plant"]["parameters"]["bulk_modulus"].update(interval=[2, 1]), "[low, high]"),
+        (
+            lambda d: d["plant"]["components"]["oil"]["parameters"]["bulk_modulus"].pop("interval"),
+            "no fitted interval",
+        ),
+        (
+            lambda d: d["plant"]["components"]["oil"]["parameters"]["bulk_modulus"].update(
+                interval=[2, 1]
+            ),
+            "[low, high]",
+        ),
     ],
 )
 def test_bad_calibrated_rig_names_the_file_and_key(tmp_path, edit, text):

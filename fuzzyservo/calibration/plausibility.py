@@ -39,8 +39,8 @@ def check_against_rig(rig: Rig, data: Measured, compared: dict[str, str]) -> Non
     stroke = getattr(rig.params, "stroke_limits_m", None)
     if stroke is not None and compared.get("y") == "y":
         _check_range(data, "y", *stroke, "the rig's stroke")
-    supply = getattr(rig.params, "supply_pressure_pa", None)
-    if supply is not None:
+    supply = rig.scales().pressure  # the supply above the tank [Pa]; NaN when unknown
+    if np.isfinite(supply):
         for channel, signal in compared.items():
             if data.units.get(channel) == "Pa" and signal != "y":
                 _check_pressure(data, channel, supply)

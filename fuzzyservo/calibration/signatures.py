@@ -35,19 +35,15 @@ def signatures(result: SimResult, rig: Rig) -> dict[str, np.ndarray]:
         out["coulomb_friction"] = np.tanh(v / vc)  # tanh(v/vc)
         vs = 0.05 * scales.velocity
         out["stribeck_friction"] = np.exp(-((v / vs) ** 2)) * np.sign(v)  # exp(−(v/vs)²)·sign(v)
-    if "q1" in result.signals and "q2" in result.signals:
+    if "q1" in result.signals and "q2" in result.signals:  # the open-centre valve's slots
         q = result.signals["q1"] - result.signals["q2"]
     else:
-        q = _first(result, ("q_valve",))
+        q = _first(result, ("q_a",))  # a 4-way valve: the flow out of port A
     if q is not None:
         out["line_resistance"] = np.abs(q) * q  # |q|·q
-    dp = None
-    if "p3" in result.signals and "p4" in result.signals:
-        dp = result.signals["p3"] - result.signals["p4"]
-        pa = result.signals["p3"]
-    else:
-        dp = pa = _first(result, ("p_load",))
-    if dp is not None:
+    if "p_a" in result.signals and "p_b" in result.signals:
+        dp = result.signals["p_a"] - result.signals["p_b"]
+        pa = result.signals["p_a"]
         out["internal_leakage"] = dp  # pA − pB
         out["bulk_modulus"] = derivative(pa, dt)  # ṗA
     null = rig.plant.null_input(rig.params)
@@ -55,7 +51,7 @@ def signatures(result: SimResult, rig: Rig) -> dict[str, np.ndarray]:
     out["valve_bias"] = np.ones_like(u)  # constant on u
     out["valve_lag"] = derivative(u, dt)  # u̇
     out["transport_delay"] = derivative(np.asarray(result.output, dtype=float), dt)  # ẏ
-    supply = _first(result, ("q_a",))
+    supply = _first(result, ("q_in", "q_supply"))  # into the supply node, or drawn from it
     if supply is None and q is not None:
         supply = np.abs(q)
     if supply is not None:

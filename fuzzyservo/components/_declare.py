@@ -65,6 +65,8 @@ class Param:
 
     ``unit`` may be a token the composition resolves: ``force``/``velocity``/``position``
     (N or N·m, m/s or rad/s, m or rad) or ``input`` (the valve's input unit).
+    ``length`` > 0 makes it a vector of that many floats, read from a file of format
+    ``fmt`` (e.g. a valve network's weights); code reads ``P.key`` as its start in ``p``.
     """
 
     key: str
@@ -75,6 +77,8 @@ class Param:
     nonnegative: bool = False
     minimum: float | None = None
     maximum: float | None = None
+    length: int = 0
+    fmt: str = ""
 
 
 @dataclass(frozen=True)
@@ -127,7 +131,9 @@ class Component:
     scales: Callable[[dict[str, float]], dict[str, float]] | None = None
     null: Callable[[dict[str, float]], float] | None = None
     input: tuple[str, str] | None = None  # valves: the plant input (name, unit)
-    load: tuple[str, str] | None = None  # actuators: the scenario load (name, unit)
+    # actuators: the scenario load (name, unit), a force on the actuator; a load component
+    # may take that input instead (read as ``f_ext`` by its code)
+    load: tuple[str, str] | None = None
     mechanics: Mapping[str, str] | None = None  # actuators: SI units of force, velocity
     end_stop: str = ""
     check: Callable[[dict[str, float]], str | None] | None = None
@@ -175,5 +181,7 @@ def values_of(component: Component, values: Mapping[str, Any]) -> dict[str, floa
     """The parameter values of one instance by key (defaults filled in)."""
     out = {}
     for p in component.params:
+        if p.length:
+            continue
         out[p.key] = float(values.get(p.key, p.default if p.default is not None else 0.0))
     return out

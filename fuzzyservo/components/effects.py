@@ -433,9 +433,6 @@ def pump_limited(q: float, p: Any) -> float:
 
 
 INPUT_EFFECTS = tuple(name for name, e in LIBRARY.items() if e.stage == "input")
-# The library as the hand-written seed 002 and seed 000 kernels read it (external_leakage
-# came later, with the composed actuators).
-FIRST_EFFECTS = tuple(name for name in LIBRARY if name != "external_leakage")
 
 
 def fixed_defaults(

@@ -15,13 +15,14 @@ from fuzzyservo.components.effects import (
     pump_limited,
 )
 from fuzzyservo.components.orifice import signed_sqrt_flow
-from fuzzyservo.components.valves import metering_edges, polynomial_flow
+from fuzzyservo.components.valves import metering_edges, nn_forward, polynomial_flow
 
 __all__ = [
     "bulk_modulus",
     "friction_force",
     "math",
     "metering_edges",
+    "nn_forward",
     "polynomial_flow",
     "pump_limited",
     "signed_sqrt_flow",

@@ -54,27 +54,6 @@ def polynomial_flow(
 
 
 @njit(cache=True, inline="always")
-def four_way_flows(
-    k: float, ps: float, pa: float, pb: float, pt: float, p_lam: float
-) -> tuple[float, float, float, float]:
-    """Metering-edge flows of a critically lapped 4-way valve [m³/s].
-
-    ``k`` [m³/(s·√Pa)] is the signed opening: k > 0 opens P→A and B→T, k < 0 opens
-    P→B and A→T; each edge is the regularised orifice law of
-    :func:`~fuzzyservo.components.orifice.signed_sqrt_flow`. Returns
-    (q_PA, q_BT, q_PB, q_AT), each positive in the direction of its name.
-    """
-    kp = max(k, 0.0)
-    kn = max(-k, 0.0)
-    return (
-        signed_sqrt_flow(kp, ps - pa, p_lam),
-        signed_sqrt_flow(kp, pb - pt, p_lam),
-        signed_sqrt_flow(kn, ps - pb, p_lam),
-        signed_sqrt_flow(kn, pa - pt, p_lam),
-    )
-
-
-@njit(cache=True, inline="always")
 def metering_edges(
     c_pa: float,
     c_at: float,

@@ -5,9 +5,8 @@ Layout of a rig file (every number as ``{value, unit, source}``; see ``rigs/``):
     name: dinca_cylinder
     title: ...
     source: ...
-    plant:    {type: open_centre_cylinder, parameters: {...}, initial: {...}}
-      # or a composition of components (fuzzyservo.components.library):
     plant:    {components: {valve: {type: servo_valve, parameters: {...}}, ...}, initial: {...}}
+      # a composition of components (fuzzyservo.components.library)
     feedback: {signal: y, offset: ..., gain: ..., ratio: ...,
                noise: ..., adc_bits: ..., adc_lower: ..., adc_upper: ...}  # noise: std dev
     sensors:  {name: {signal, offset, gain, ratio}}          # optional extra readings
@@ -31,6 +30,7 @@ Effects are off unless declared; the names and parameters are those of
 from __future__ import annotations
 
 import dataclasses
+from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
@@ -42,7 +42,7 @@ from fuzzyservo.io.measured import ColumnScaling
 from fuzzyservo.io.paths import name_problem
 from fuzzyservo.limits import duration_problem, period_problem
 from fuzzyservo.params import check, fields_by_key, vectors_by_key
-from fuzzyservo.plants import PLANTS, PlantModel
+from fuzzyservo.plants import PlantModel
 from fuzzyservo.rig import Actuator, LinearSensor, MeasuredFormat, Rig, Scenario
 from fuzzyservo.signals import Affine, Constant, Pulse, Signal, Sines, Steps
 from fuzzyservo.units import parse_unit
@@ -63,26 +63,31 @@ _TOP = (
 )
 
 
-def load_rig(path: str | Path) -> Rig:
-    """Read and validate a rig file; raise :class:`ConfigError` naming file and key."""
+def load_rig(path: str | Path, *, plants: Mapping[str, PlantModel] | None = None) -> Rig:
+    """Read and validate a rig file; raise :class:`ConfigError` naming file and key.
+
+    ``plants``: plants a file may name under ``plant.type`` with flat ``parameters``
+    instead of composing one (none ship; the tests hold the compositions to the seeds'
+    hand-written equations so).
+    """
     file = str(path)
     root = Node(read_yaml(path), file)
     root.only(_TOP)
     plant_node = root.child("plant")
     unknowns: dict[str, tuple[float, float]] = {}
-    if plant_node.has("components"):
+    plants = plants or {}
+    if plant_node.has("type") and plant_node.data.get("type") not in plants:
+        plant_node.fail(
+            f"{plant_node.data.get('type')!r}: hand-written plant types are gone; compose "
+            "the plant from components under 'plant.components' (e.g. rigs/dinca_cylinder.yaml)",
+            key="type",
+        )
+    if plant_node.has("components") or not plant_node.has("type"):
         plant_node.only(("components", "initial"))
         plant, params = _composition(plant_node.child("components"), unknowns)
     else:
         plant_node.only(("type", "parameters", "initial"))
-        type_name = plant_node.str("type")
-        if type_name not in PLANTS:
-            plant_node.fail(
-                f"unknown plant type {type_name!r}; choose one of {sorted(PLANTS)} "
-                "or compose one under 'components:'",
-                key="type",
-            )
-        plant = PLANTS[type_name]
+        plant = plants[plant_node.str("type")]
         params = _params(plant, plant_node.child("parameters"), unknowns)
     initial = _initial(plant, plant_node.child("initial", default={}))
 
@@ -204,17 +209,23 @@ def _composition(node: Node, unknowns: dict[str, tuple[float, float]]) -> tuple[
     except CompositionError as exc:
         node.fail(str(exc))
     by_key = fields_by_key(plant.params_cls)
+    vectors = vectors_by_key(plant.params_cls)
     values: dict[str, Any] = {}
     for name, _ in parts:
         params_node = node.child(name).child("parameters", default={})
         prefix = f"{name}."
         keys = {k[len(prefix) :]: f for k, f in by_key.items() if k.startswith(prefix)}
-        params_node.only(keys)
+        files = {k[len(prefix) :]: f for k, f in vectors.items() if k.startswith(prefix)}
+        params_node.only((*keys, *files))
         for key, f in keys.items():
             default = None if f.default is dataclasses.MISSING else f.default
             values[f.name] = _quantity(
                 params_node, key, f.metadata["unit"], f.name, unknowns, default
             )
+        for key, f in files.items():
+            if not params_node.has(key):
+                params_node.fail(f"missing key {key!r}; {f.metadata['doc']}", key=key)
+            values[f.name] = _vector(params_node.child(key), f.metadata["format"])
     return plant, _build_params(plant, values, node)
 
 
@@ -451,17 +462,19 @@ def _check_plausible(
     to hold in memory, a scenario name that cannot be a file name."""
     if period_problem(sample_time):
         root.fail(period_problem(sample_time), key="controller.sample_time")
-    by_key = fields_by_key(plant.params_cls)
-    for key in _WORKING_PRESSURES:
-        if key in by_key:
-            value = getattr(params, by_key[key].name)
-            if not 1e5 <= value <= 1e9:
-                root.fail(
-                    f"{value:g} Pa ({value / 1e5:g} bar) is no working pressure (1 bar .. "
-                    "10 000 bar); a number without a unit is read in Pa: write it like "
-                    "{value: 70, unit: bar}",
-                    key=f"plant.parameters.{key}",
-                )
+    for key, f in fields_by_key(plant.params_cls).items():
+        instance, _, sub = key.rpartition(".")  # a composition's "supply.supply_pressure"
+        if sub not in _WORKING_PRESSURES:
+            continue
+        value = getattr(params, f.name)
+        if not 1e5 <= value <= 1e9:
+            where = f"components.{instance}.parameters" if instance else "parameters"
+            root.fail(
+                f"{value:g} Pa ({value / 1e5:g} bar) is no working pressure (1 bar .. "
+                "10 000 bar); a number without a unit is read in Pa: write it like "
+                "{value: 70, unit: bar}",
+                key=f"plant.{where}.{sub}",
+            )
     stroke = getattr(params, "stroke_limits_m", None)
     for name, scenario in scenarios.items():
         where = f"scenarios.{name}"
@@ -472,7 +485,8 @@ def _check_plausible(
         if stroke is None:
             continue
         lo, hi = dataclasses.replace(params, **scenario.overrides).stroke_limits_m
-        for key, y in (("plant.initial", initial.get("y_m")), (where + ".initial", scenario.initial.get("y_m"))):  # fmt: skip
+        for key, start in (("plant.initial", initial), (where + ".initial", scenario.initial)):
+            y = start.get("position", start.get("y_m"))  # a composition's, a kernel's name
             if y is not None and not lo <= y <= hi:
                 root.fail(
                     f"{y:g} m lies outside the stroke {lo:g} .. {hi:g} m; give a start "
@@ -786,9 +800,10 @@ def write_calibrated_rig(
             if isinstance(entry, dict) and "file" in entry:
                 target = (src_dir / entry["file"]).resolve()
                 entry["file"] = os.path.relpath(target, out.parent.resolve())
-    for key, (value, unit, source_text) in parameters.items():
+    for full_key, (value, unit, source_text) in parameters.items():
+        key = full_key
         if composed:  # "valve.rated_flow" lives at components.valve.parameters.rated_flow
-            name, _, key = key.partition(".")
+            name, _, key = full_key.partition(".")
             component = plant["components"][name]
             if not component.get("parameters"):
                 component["parameters"] = {}
@@ -798,7 +813,7 @@ def write_calibrated_rig(
         old = plant_params.get(key, {})
         note = old.get("source") if isinstance(old, dict) else None
         plant_params[key] = {"value": float(value), "unit": unit, "source": source_text}
-        _add_interval(plant_params[key], (intervals or {}).get(key))
+        _add_interval(plant_params[key], (intervals or {}).get(full_key))
         if note:
             plant_params[key]["note"] = f"declared source: {note}"
     section = data.setdefault("effects", {}) or {}

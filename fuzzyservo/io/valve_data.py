@@ -224,19 +224,21 @@ def read_valve_network(path: str | Path) -> ValveNetwork:
 
 
 def network_file(rig_path: str | Path) -> Path:
-    """The weights file a rig file names under ``nn_weights`` (relative to the rig file)."""
+    """The weights file a rig file's network_valve names (relative to the rig file)."""
     from fuzzyservo.errors import ConfigError
     from fuzzyservo.io._yaml import read_yaml
 
     path = Path(rig_path)
-    entry = read_yaml(path).get("plant", {}).get("parameters", {}).get("nn_weights")
-    if not isinstance(entry, dict) or "file" not in entry:
-        raise ConfigError(
-            "names no nn_weights file; give --out FILE",
-            file=str(path),
-            key="plant.parameters.nn_weights",
-        )
-    return path.parent / entry["file"]
+    parts = read_yaml(path).get("plant", {}).get("components") or {}
+    for part in parts.values():
+        entry = (part.get("parameters") or {}).get("weights") if isinstance(part, dict) else None
+        if isinstance(entry, dict) and "file" in entry:
+            return path.parent / entry["file"]
+    raise ConfigError(
+        "has no network_valve with a weights file; give --out FILE",
+        file=str(path),
+        key="plant.components",
+    )
 
 
 @dataclass(frozen=True)

@@ -1,6 +1,8 @@
-"""Plant families: pure right-hand sides of named states with frozen, unit-named parameters.
+"""Plants: pure right-hand sides of named states with frozen, unit-named parameters.
 
-:data:`PLANTS` maps the ``plant.type`` a rig file names to its :class:`PlantModel`.
+Every plant is a composition of declared components (``plant.components`` in a rig
+file, :func:`fuzzyservo.plants.composed.compose`); :class:`PlantModel` is what the
+simulator and the file reader need to know about one.
 """
 
 from __future__ import annotations
@@ -12,13 +14,16 @@ from typing import Any
 
 import numpy as np
 
-from fuzzyservo.components.effects import INPUT_EFFECTS, Scales
-from fuzzyservo.plants import ahc_cylinder, ahc_motor, cylinder, hydroprax, motor
+from fuzzyservo.components.effects import Scales
 
 
 @dataclass(frozen=True)
 class PlantModel:
-    """Everything the simulator and the file reader need to know about a plant family."""
+    """Everything the simulator and the file reader need to know about a plant.
+
+    Built by :func:`~fuzzyservo.plants.composed.compose`; ``binding`` may also import
+    kernels written by hand (``tests/reference_plants`` holds the seeds' equations so).
+    """
 
     type_name: str
     binding: str  # source that binds plant_rhs/plant_signals/plant_in_end_stop (_jit.bind_plant)
@@ -42,35 +47,10 @@ class PlantModel:
     # pressure after every run (simulation/validity.py)
     pressures: tuple[str, ...] = ()
 
-    @classmethod
-    def from_module(cls, type_name: str, module: ModuleType, description: str) -> PlantModel:
-        """Collect a plant module's declarations (STATES, SIGNALS, ..., initial_state)."""
-        return cls(
-            type_name=type_name,
-            binding=_binding(module.__name__),
-            params_cls=module.PARAMS,
-            states=module.STATES,
-            signals=module.SIGNALS,
-            signal_units=module.SIGNAL_UNITS,
-            input=module.INPUT,
-            load=module.LOAD,
-            initial_keys=module.INITIAL_KEYS,
-            initial_state=module.initial_state,
-            state_scale=module.state_scale,
-            typical_state=module.typical_state,
-            description=description,
-            # a plant whose kernels read no plant-side effect takes only the input effects
-            effects=getattr(module, "EFFECTS", INPUT_EFFECTS),
-            mechanics=getattr(module, "MECHANICS", {"force": "N", "velocity": "m/s"}),
-            null_input=getattr(module, "null_input", _zero_null),
-            effect_scales=getattr(module, "effect_scales", None),
-            pressures=getattr(module, "PRESSURES", ()),
-        )
-
     def __reduce_ex__(self, protocol: int) -> Any:
         """A composition pickles as its parts (its functions are closures made at load
-        time; :func:`~fuzzyservo.plants.composed.compose` rebuilds the same plant), a
-        hand-written plant as its fields."""
+        time; :func:`~fuzzyservo.plants.composed.compose` rebuilds the same plant), any
+        other plant as its fields."""
         if self.components:
             from fuzzyservo.plants.composed import compose
 
@@ -121,47 +101,4 @@ class PlantModel:
         )
 
 
-def _binding(module: str) -> str:
-    return "\n".join(
-        f"from {module} import {name} as plant_{alias}"
-        for name, alias in (("in_end_stop", "in_end_stop"), ("rhs", "rhs"), ("signals", "signals"))
-    )
-
-
-def _zero_null(params: Any) -> float:
-    """The plant input of hydraulic null: zero."""
-    return 0.0
-
-
-PLANTS: dict[str, PlantModel] = {
-    model.type_name: model
-    for model in (
-        PlantModel.from_module(
-            "open_centre_cylinder",
-            cylinder,
-            "open-centre servo-valve + asymmetric cylinder (seed 002)",
-        ),
-        PlantModel.from_module(
-            "servo_motor",
-            motor,
-            "servo-valve + axial-piston motor, velocity loop (seed 000)",
-        ),
-        PlantModel.from_module(
-            "hydroprax_pdcv",
-            hydroprax,
-            "proportional valve + single-rod cylinder, spring load, pump with relief (seed 003)",
-        ),
-        PlantModel.from_module(
-            "ahc_cylinder",
-            ahc_cylinder,
-            "servo-valve + double-acting cylinder, AHC wave simulator (seed 001)",
-        ),
-        PlantModel.from_module(
-            "ahc_motor",
-            ahc_motor,
-            "servo-valve + hydraulic motor with cable drum and load, AHC compensator (seed 001)",
-        ),
-    )
-}
-
-__all__ = ["PLANTS", "PlantModel"]
+__all__ = ["PlantModel"]

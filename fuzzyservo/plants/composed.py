@@ -31,7 +31,7 @@ from fuzzyservo.components._declare import (
     registry,
 )
 from fuzzyservo.components.effects import INPUT_EFFECTS, LIBRARY, E, EffectParams, Scales
-from fuzzyservo.params import index_of, pack, quantity
+from fuzzyservo.params import index_of, pack, quantity, vector, vector_offset
 
 _STATIC_FORCE = "static_force"
 
@@ -90,6 +90,13 @@ def compose(parts: tuple[tuple[str, str], ...]) -> Any:
                 f"it applies to {list(comp.actuators)}"
             )
     mechanics = dict(actuator.mechanics or {"force": "N", "velocity": "m/s", "position": "m"})
+    # the scenario's load input: the actuator's force, unless a load component takes it
+    takers = [c for _, c in instances if c.role == "load" and c.load]
+    if len(takers) > 1:
+        raise CompositionError(
+            f"{len(takers)} loads take the scenario's load input "
+            f"({', '.join(c.type for c in takers)}); keep one of them"
+        )
     input_name, input_unit = valve.input or ("u", "V")
 
     # parameters: one frozen dataclass, fields <instance>__<key>, file keys <instance>.<key>
@@ -98,6 +105,11 @@ def compose(parts: tuple[tuple[str, str], ...]) -> Any:
     for name, comp in instances:
         for prm in comp.params:
             field_name = f"{name}__{prm.key}"
+            if prm.length:  # a vector (e.g. network weights), packed after the scalars
+                meta = vector(f"{name}.{prm.key}", prm.length, fmt=prm.fmt, doc=prm.doc).metadata
+                fields.append((field_name, tuple[float, ...], dataclasses.field(metadata=meta)))
+                owner[field_name] = (name, comp, prm.key)
+                continue
             unit = _resolve_unit(prm.unit, mechanics, input_unit)
             kwargs: dict[str, Any] = {
                 "positive": prm.positive,
@@ -132,10 +144,15 @@ def compose(parts: tuple[tuple[str, str], ...]) -> Any:
     )
     params_cls.__module__ = __name__
     params_cls.__qualname__ = f"ComposedParams[{label}]"
+    # P.key: a scalar's entry p[i]; a vector's start in p (code passes p and it on)
     param_index = {
-        (name, key): index_of(params_cls, f"{name}__{key}")
+        (name, prm.key): (
+            (True, vector_offset(params_cls, f"{name}__{prm.key}"))
+            if prm.length
+            else (False, index_of(params_cls, f"{name}__{prm.key}"))
+        )
         for name, comp in instances
-        for key in (p.key for p in comp.params)
+        for prm in comp.params
     }
 
     # states, grouped in STATE_GROUPS order
@@ -150,7 +167,7 @@ def compose(parts: tuple[tuple[str, str], ...]) -> Any:
         return _Vocabulary(name, comp, param_index, state_index).resolve(text)
 
     # the body: phases in order, instances in file order; defaults where a role is absent
-    body: list[str] = ["mass = 0.0", "f_load = f_ext"]
+    body: list[str] = ["mass = 0.0", "f_load = 0.0" if takers else "f_load = f_ext"]
     has_line = any(c.role == "line" for _, c in instances)
     for phase in PHASES:
         if phase == "line" and not has_line:
@@ -200,7 +217,7 @@ def compose(parts: tuple[tuple[str, str], ...]) -> Any:
         signals=signal_names,
         signal_units=units,
         input=(input_name, input_unit),
-        load=actuator.load or ("f_load", "N"),
+        load=takers[0].load if takers else actuator.load or ("f_load", "N"),
         initial_keys=initial_keys,
         initial_state=lambda params, **kw: _initial_state(model, instances, params, kw),
         state_scale=lambda params: scale.copy(),
@@ -219,7 +236,7 @@ def compose(parts: tuple[tuple[str, str], ...]) -> Any:
 
 class _Vocabulary(ast.NodeTransformer):
     """One instance's code with its vocabulary resolved (components/_declare.py): the
-    attribute ``P.key`` becomes ``p[i]``, ``X.name``/``DX.name`` become ``x[i]``/``dx[i]``,
+    attribute ``P.key`` becomes ``p[i]`` (a vector parameter: its start ``i`` in p), ``X.name``/``DX.name`` become ``x[i]``/``dx[i]``,
     ``E.field`` the effect's ``p[i]`` and ``L.name`` the local ``<instance>_name``, with
     every ``i`` the position the declarations give. The code is parsed, rewritten as a
     syntax tree and printed back, so only names in the code (not in its strings or
@@ -229,7 +246,7 @@ class _Vocabulary(ast.NodeTransformer):
         self,
         name: str,
         comp: Component,
-        param_index: Mapping[tuple[str, str], int],
+        param_index: Mapping[tuple[str, str], tuple[bool, int]],
         state_index: Mapping[tuple[str, str], int],
     ) -> None:
         self.name, self.comp = name, comp
@@ -251,6 +268,10 @@ class _Vocabulary(ast.NodeTransformer):
         prefix, ident = node.value.id, node.attr
         if prefix == "L":
             return ast.copy_location(ast.Name(f"{self.name}_{ident}", node.ctx), node)
+        if prefix == "P" and self.param_index.get((self.name, ident), (False, 0))[0]:
+            # a vector parameter: its start in p (the code passes p and it on)
+            offset = self.param_index[(self.name, ident)][1]
+            return ast.copy_location(ast.Constant(offset), node)
         vector, at = self._position(prefix, ident)
         index = ast.Subscript(ast.Name(vector, ast.Load()), ast.Constant(at), node.ctx)
         return ast.copy_location(index, node)
@@ -261,7 +282,7 @@ class _Vocabulary(ast.NodeTransformer):
         if prefix == "E":
             at = getattr(E, ident) if ident in E._fields else None
         elif prefix == "P":
-            at = self.param_index.get((self.name, ident))
+            at = self.param_index.get((self.name, ident), (False, None))[1]
         else:
             at = self.state_index.get((self.name, ident))
         if at is None:
@@ -294,8 +315,8 @@ def _stroke(instances: list[tuple[str, Component]]) -> dict[str, Any]:
 
 
 def instance_values(params: Any, name: str, comp: Component) -> dict[str, float]:
-    """One instance's parameter values by key (SI)."""
-    return {p.key: float(getattr(params, f"{name}__{p.key}")) for p in comp.params}
+    """One instance's scalar parameter values by key (SI)."""
+    return {p.key: float(getattr(params, f"{name}__{p.key}")) for p in comp.params if not p.length}
 
 
 def _make_post_init(instances: list[tuple[str, Component]]):

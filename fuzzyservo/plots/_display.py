@@ -8,7 +8,6 @@ import numpy as np
 from matplotlib.axes import Axes
 from matplotlib.figure import Figure
 
-from fuzzyservo.plants import PLANTS
 from fuzzyservo.simulation.result import SimResult
 from fuzzyservo.units import parse_unit, to_si
 
@@ -23,15 +22,11 @@ _QUANTITY = {
     "w": "speed",
     "theta": "angle",
     "i": "valve current",
-    "u_valve": "valve input",
-    "p_load": "load pressure",
+    "u_c": "valve input",
 }
 
-# The plant input's SI unit (a SimResult records plant signal units, not the input's).
-_INPUT_UNITS = {model.input[0]: model.input[1] for model in PLANTS.values()}
-
 # Controllers are told apart by colour. Green is left to the reference (the command is
-# green in seed 002 Fig. 6.a), red and magenta to p4 and p3 of panel (c); black is the
+# green in seed 002 Fig. 6.a), red and magenta to p_b and p_a (p4, p3) of panel (c); black is the
 # simulated current of Fig. 6.b.
 CONTROLLER_COLOURS = (
     "tab:blue",
@@ -63,7 +58,7 @@ def signal_unit(result: SimResult, name: str) -> str:
     """The SI unit of a plant signal or of the actuator ("" when unknown)."""
     if name in result.units:
         return result.units[name]
-    return _INPUT_UNITS.get(name, "")
+    return result.actuator_unit if name == result.actuator_name else ""
 
 
 def to_display(result: SimResult, name: str, values: np.ndarray) -> tuple[np.ndarray, str]:

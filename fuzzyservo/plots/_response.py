@@ -11,22 +11,19 @@ from matplotlib.figure import Figure
 from fuzzyservo.plots._display import axis_label, controller_colour, label_span, to_display
 from fuzzyservo.simulation.result import SimResult
 
-# Seed 002 Fig. 6.c: p1 green, p2 blue, p3 magenta, p4 red; other rigs' pressures
-# (any signal in Pa) take the next colours of this cycle.
+# Seed 002 Fig. 6.c: p1 green, p2 blue, p3 magenta, p4 red (the supply and return
+# chambers p_s, p_t, the cylinder chambers p_a, p_b); other rigs' pressures (any signal
+# in Pa) take the next colours of this cycle.
 _PRESSURE_COLOURS = {
-    "p1": "tab:green",
-    "p2": "tab:blue",
-    "p3": "magenta",
-    "p4": "tab:red",
-    "p_load": "black",
+    "p_s": "tab:green",
+    "p_t": "tab:blue",
     "p_a": "magenta",
     "p_b": "tab:red",
-    "p_s": "tab:green",
 }
 _OTHER_COLOURS = ("tab:purple", "tab:brown", "tab:olive", "tab:cyan")
 # With several controllers, the actuator chamber pressures (the ones that move the
 # piston) are enough; every pressure per controller would not read.
-_PRESSURES_COMPARED = (("p3", "p4"), ("p_a", "p_b"))
+_PRESSURES_COMPARED = ("p_a", "p_b")
 _LINE_STYLES = ("-", "--", "-.", ":")
 _REFERENCE_COLOUR = "tab:green"
 
@@ -38,7 +35,7 @@ def response_figure(results: Sequence[SimResult]) -> Figure:
     once) and every controller's output; (b) every actuator signal with the actuator
     limits (dotted) and the first result's saturated intervals shaded; (c) the
     pressures the rig records (every signal in Pa for one result, the actuator
-    chambers ``p3``/``p4`` or ``p_a``/``p_b`` per controller when comparing). Signals are shown in the
+    chambers ``p_a``/``p_b`` per controller when comparing). Signals are shown in the
     rig's display unit, else bar, mA and l/min, else SI. The warm-up (``t <
     warmup_s``) is shaded grey. All results must come from one rig and scenario.
     """
@@ -162,10 +159,8 @@ def _pressure_panel(ax: Axes, results: list[SimResult]) -> None:
         for k, n in enumerate(recorded)
     }
     if len(results) > 1:
-        for pair in _PRESSURES_COMPARED:
-            if all(n in recorded for n in pair):
-                recorded = list(pair)
-                break
+        if all(n in recorded for n in _PRESSURES_COMPARED):
+            recorded = list(_PRESSURES_COMPARED)
     if not recorded:
         ax.text(0.5, 0.5, "no pressures recorded", transform=ax.transAxes, ha="center")
         ax.set_ylabel("pressure")

@@ -2,13 +2,12 @@
 the plant's kernels by the names of :data:`PLANT_SLOTS`.
 
 :func:`fuzzyservo._jit.bind_plant` generates, for one plant, a module from this file:
-every statement as it is, but those that bind the plant slots (the default plant
-below) give way to the plant's binding (imports of a plant module's kernels, or the
-source generated for a composition); numba compiles and caches that module. A loop
-thus inlines exactly one plant, with no dispatch on a plant code, and a plant composed
-from components at run time is as fast as a hand-written one. As it stands (bound to
-its default plant) this file is an ordinary module, so linters and readers see
-ordinary Python.
+every statement as it is, but those that bind the plant slots (bound to None below)
+give way to the plant's binding (the source generated for a composition, or imports of
+a plant module's kernels); numba compiles and caches that module. A loop thus inlines
+exactly one plant, with no dispatch on a plant code, and a plant composed from
+components at run time is as fast as a hand-written one. As it stands this file is an
+ordinary module, so linters and readers see ordinary Python.
 
 The plant is integrated between samples by an adaptive linearly implicit
 Rosenbrock-W method, ROS34PW2 (order 3, embedded order 2), with a finite-difference
@@ -54,10 +53,8 @@ from fuzzyservo.simulation._loop import (
 )
 
 # isort: split
-# the default plant; each generated loop module binds its own (bind_plant)
-from fuzzyservo.plants.cylinder import in_end_stop as plant_in_end_stop
-from fuzzyservo.plants.cylinder import rhs as plant_rhs
-from fuzzyservo.plants.cylinder import signals as plant_signals
+# no default plant: each generated loop module binds its own (bind_plant)
+plant_in_end_stop = plant_rhs = plant_signals = None
 
 # The names the loop calls its plant by: what a plant's binding must define.
 PLANT_SLOTS = ("plant_rhs", "plant_signals", "plant_in_end_stop")

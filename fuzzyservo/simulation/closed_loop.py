@@ -301,6 +301,7 @@ def assemble(
         message=message,
         integration_steps=steps,
         display_units=dict(rig.display_units),
+        actuator_unit=plant.input[1],
     )
 
 

@@ -48,6 +48,7 @@ class SimResult:
     message: str = ""
     integration_steps: int = 0
     display_units: dict[str, str] = field(default_factory=dict)
+    actuator_unit: str = ""  # SI unit of the plant input (``actuator``)
     measured: np.ndarray | None = None
 
     @property

@@ -4,11 +4,40 @@ The curve Q(U) = c4·U⁴ + c3·U³ + c2·U² + c1·U + c0 was measured at a pre
 per metering edge, with U clipped to ±U_max; each edge passes Q(U)·√(Δp/Δp_nom) (the
 orifice law), U > 0 opening P→A and B→T, U < 0 P→B and A→T. ``line_resistance`` puts
 a laminar line behind ports A and B.
+
+``orifice_valve`` is the ideal valve on the same four edges, opening linearly in U:
+each passes C·(U/U_max)·√Δp (seed 003's third valve model, C from eq. 7 at ±U_max).
 """
 
 from __future__ import annotations
 
 from fuzzyservo.components._declare import Component, Param, Signal
+
+_SIGNALS = (
+    Signal("q_a", "m^3/s", "q_va", "flow out of port A"),
+    Signal("q_b", "m^3/s", "q_vb", "flow out of port B"),
+    Signal("q_supply", "m^3/s", "q_supply", "flow drawn from P"),
+    Signal("q_tank", "m^3/s", "q_tank", "flow returned to T"),
+)
+
+# L.k: the edges' coefficient at the clipped command L.uc (positive opens P→A, B→T)
+_EDGES = """
+    L.kp = max(L.k, 0.0)
+    L.kn = max(-L.k, 0.0)
+    L.q_pa, L.q_at, L.q_pb, L.q_bt = metering_edges(
+        L.kp, L.kn, L.kn, L.kp, p_s, p_t, p_a_port, p_b_port,
+        E.line_resistance_pa_s_m3, p_lam,
+    )
+    q_va = L.q_pa - L.q_at
+    q_vb = L.q_pb - L.q_bt
+    q_supply = L.q_pa + L.q_pb
+    q_tank = L.q_at + L.q_bt
+"""
+_CLIP = """
+    L.umax = P.control_voltage_max
+    L.uc = min(max(u, -L.umax), L.umax)
+"""
+_RANGE = Param("control_voltage_max", "V", "U_max: the curve's range", positive=True)
 
 COMPONENTS = (
     Component(
@@ -17,7 +46,7 @@ COMPONENTS = (
         doc="proportional valve given by a measured flow polynomial in its voltage",
         source="seed 003 eq. 7 and §3 (Hydroprax, Rexroth 4WRE 6)",
         params=(
-            Param("control_voltage_max", "V", "U_max: the curve's range", positive=True),
+            _RANGE,
             Param("flow_c0", "m^3/s", "c0", default=0.0),
             Param("flow_c1", "m^3/(s*V)", "c1"),
             Param("flow_c2", "m^3/(s*V^2)", "c2", default=0.0),
@@ -30,30 +59,13 @@ COMPONENTS = (
                 positive=True,
             ),
         ),
-        signals=(
-            Signal("q_a", "m^3/s", "q_va", "flow out of port A"),
-            Signal("q_b", "m^3/s", "q_vb", "flow out of port B"),
-            Signal("q_supply", "m^3/s", "q_supply", "flow drawn from P"),
-            Signal("q_tank", "m^3/s", "q_tank", "flow returned to T"),
-        ),
+        signals=_SIGNALS,
         code={
-            "valve": """
-                L.umax = P.control_voltage_max
-                L.uc = min(max(u, -L.umax), L.umax)
-                L.k = polynomial_flow(
-                    L.uc, L.umax, P.flow_c0, P.flow_c1, P.flow_c2, P.flow_c3, P.flow_c4
-                ) / math.sqrt(P.nominal_pressure_drop)
-                L.kp = max(L.k, 0.0)
-                L.kn = max(-L.k, 0.0)
-                L.q_pa, L.q_at, L.q_pb, L.q_bt = metering_edges(
-                    L.kp, L.kn, L.kn, L.kp, p_s, p_t, p_a_port, p_b_port,
-                    E.line_resistance_pa_s_m3, p_lam,
-                )
-                q_va = L.q_pa - L.q_at
-                q_vb = L.q_pb - L.q_bt
-                q_supply = L.q_pa + L.q_pb
-                q_tank = L.q_at + L.q_bt
-            """
+            "valve": _CLIP
+            + """    L.k = polynomial_flow(
+        L.uc, L.umax, P.flow_c0, P.flow_c1, P.flow_c2, P.flow_c3, P.flow_c4
+    ) / math.sqrt(P.nominal_pressure_drop)"""
+            + _EDGES
         },
         effects=("line_resistance",),
         scales=lambda v: {
@@ -61,6 +73,29 @@ COMPONENTS = (
                 v["flow_c1"] * v["control_voltage_max"]
                 + v["flow_c3"] * v["control_voltage_max"] ** 3
             ),
+            "input": v["control_voltage_max"],
+        },
+        input=("u_c", "V"),
+    ),
+    Component(
+        type="orifice_valve",
+        role="valve",
+        doc="ideal proportional valve: each edge C·(U/U_max)·√Δp",
+        source="seed 003 §2 (the ideal orifice valve model)",
+        params=(
+            _RANGE,
+            Param(
+                "orifice_coefficient",
+                "m^3/(s*sqrt(Pa))",
+                "C: an edge's flow per √Pa at U_max",
+                positive=True,
+            ),
+        ),
+        signals=_SIGNALS,
+        code={"valve": _CLIP + "    L.k = P.orifice_coefficient * L.uc / L.umax\n" + _EDGES},
+        effects=("line_resistance",),
+        scales=lambda v: {
+            "flow_coefficient": v["orifice_coefficient"],
             "input": v["control_voltage_max"],
         },
         input=("u_c", "V"),

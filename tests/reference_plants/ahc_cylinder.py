@@ -13,7 +13,7 @@ piston-side and rod-side chamber pressures [Pa].
     V_a = V_a0 + A·y,   V_b = V_b0 + a·A·(stroke − y)
 
 ``port_flow`` is the critically lapped 4-way valve of
-:mod:`fuzzyservo.components.servo_valve` (regularised orifice law and the K_l land
+:mod:`reference_plants.kernels` (regularised orifice law and the K_l land
 leakage). The supply is an ideal pressure source (seed 001 §4: a 100 dm³/min, 37 kW
 unit; pressure droop is not modelled). End stops: a stiff spring-damper beyond the
 stroke; the chamber volumes never fall below a fraction of the dead volumes.
@@ -28,9 +28,8 @@ import numpy as np
 
 from fuzzyservo._jit import njit
 from fuzzyservo.components.effects import EffectParams
-from fuzzyservo.components.geometry import circle_area
-from fuzzyservo.components.servo_valve import port_flow, return_flow, supply_flow
 from fuzzyservo.params import name_index, param_index, quantity
+from reference_plants.kernels import circle_area, port_flow, return_flow, supply_flow
 
 STATES = ("spool", "y", "v", "p_a", "p_b")
 SIGNALS = (

@@ -35,7 +35,6 @@ import numpy as np
 
 from fuzzyservo._jit import njit
 from fuzzyservo.components.effects import (
-    FIRST_EFFECTS,
     E,
     EffectParams,
     Scales,
@@ -44,6 +43,7 @@ from fuzzyservo.components.effects import (
     pump_limited,
 )
 from fuzzyservo.params import name_index, param_index, quantity
+from reference_plants.kernels import FIRST_EFFECTS
 
 STATES = ("spool", "w", "theta", "p_load")
 SIGNALS = ("spool", "w", "theta", "p_load", "q_valve", "t_friction", "q_leak", "p_a", "p_b")

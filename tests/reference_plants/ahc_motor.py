@@ -35,8 +35,8 @@ import numpy as np
 
 from fuzzyservo._jit import njit
 from fuzzyservo.components.effects import EffectParams
-from fuzzyservo.components.servo_valve import port_flow, return_flow, supply_flow
 from fuzzyservo.params import name_index, param_index, quantity
+from reference_plants.kernels import port_flow, return_flow, supply_flow
 
 STATES = ("spool", "w", "theta", "p_a", "p_b")
 SIGNALS = (

@@ -48,7 +48,6 @@ import numpy as np
 
 from fuzzyservo._jit import njit
 from fuzzyservo.components.effects import (
-    FIRST_EFFECTS,
     E,
     EffectParams,
     Scales,
@@ -58,9 +57,9 @@ from fuzzyservo.components.effects import (
     port_pressure,
     pump_limited,
 )
-from fuzzyservo.components.geometry import circle_area
 from fuzzyservo.components.orifice import signed_sqrt_flow
 from fuzzyservo.params import name_index, param_index, quantity
+from reference_plants.kernels import FIRST_EFFECTS, circle_area
 
 STATES = ("y", "v", "xi1", "xi2", "xi3", "xi4")
 SIGNALS = (

@@ -40,9 +40,9 @@ import numpy as np
 
 from fuzzyservo._jit import njit
 from fuzzyservo.components.effects import EffectParams
-from fuzzyservo.components.geometry import circle_area
-from fuzzyservo.components.valves import NN_SIZE, four_way_flows, nn_forward, polynomial_flow
+from fuzzyservo.components.valves import NN_SIZE, nn_forward, polynomial_flow
 from fuzzyservo.params import name_index, pack, param_index, quantity, vector, vector_offset
+from reference_plants.kernels import circle_area, four_way_flows
 
 STATES = ("y", "v", "p_s", "p_a", "p_b")
 SIGNALS = (

@@ -1,13 +1,47 @@
-"""Critically lapped four-way servo-valve: the flow into one load port, a pure map.
+"""Maps only the seeds' hand-written plants use (they left the package with them).
 
-Used by the seed-001 plants (``ahc_cylinder``, ``ahc_motor``). No integration here:
-the spool lag is a state of the plant that owns the valve.
+``circle_area`` (cylinder geometry), ``four_way_flows`` (seed 003's critically lapped
+valve) and the seed-001 servo-valve's ``port_flow``/``supply_flow``/``return_flow``
+(the flow into one load port: the spool lag is a state of the plant that owns the
+valve).
 """
 
 from __future__ import annotations
 
+import math
+
 from fuzzyservo._jit import njit
+from fuzzyservo.components.effects import LIBRARY
 from fuzzyservo.components.orifice import signed_sqrt_flow
+
+_QUARTER_PI = math.pi / 4.0
+
+
+@njit(cache=True, inline="always")
+def circle_area(diameter: float) -> float:
+    """Area of a circle ``π·d²/4`` [m²] for a diameter ``d`` [m] (piston or rod)."""
+    return _QUARTER_PI * diameter * diameter
+
+
+@njit(cache=True, inline="always")
+def four_way_flows(
+    k: float, ps: float, pa: float, pb: float, pt: float, p_lam: float
+) -> tuple[float, float, float, float]:
+    """Metering-edge flows of a critically lapped 4-way valve [m³/s].
+
+    ``k`` [m³/(s·√Pa)] is the signed opening: k > 0 opens P→A and B→T, k < 0 opens
+    P→B and A→T; each edge is the regularised orifice law of
+    :func:`~fuzzyservo.components.orifice.signed_sqrt_flow`. Returns
+    (q_PA, q_BT, q_PB, q_AT), each positive in the direction of its name.
+    """
+    kp = max(k, 0.0)
+    kn = max(-k, 0.0)
+    return (
+        signed_sqrt_flow(kp, ps - pa, p_lam),
+        signed_sqrt_flow(kp, pb - pt, p_lam),
+        signed_sqrt_flow(kn, ps - pb, p_lam),
+        signed_sqrt_flow(kn, pa - pt, p_lam),
+    )
 
 
 @njit(cache=True, inline="always")
@@ -64,3 +98,8 @@ def return_flow(
     if opening < 0.0:
         q += signed_sqrt_flow(-coeff * opening, p_port - p_tank, p_lam)
     return q
+
+
+# The effect library as the hand-written seed 002 and seed 000 kernels read it
+# (external_leakage came later, with the composed actuators).
+FIRST_EFFECTS = tuple(name for name in LIBRARY if name != "external_leakage")

@@ -351,6 +351,6 @@ def _unit_of(plant: PlantModel, key: str) -> str:
 
 def component_types() -> dict[str, str]:
     """Every component type a rig can compose, with what it models."""
-    from fuzzyservo.components._declare import registry
+    from fuzzyservo.components.declare import registry
 
     return {name: f"{c.role}: {c.doc}" for name, c in sorted(registry().items())}

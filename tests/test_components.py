@@ -21,7 +21,7 @@ from support import DATA, controller_named, rig_named
 
 from fuzzyservo.calibration.synthetic import synthetic_run
 from fuzzyservo.cli import main
-from fuzzyservo.components._declare import registry
+from fuzzyservo.components.declare import registry
 from fuzzyservo.components.effects import LIBRARY
 from fuzzyservo.errors import ConfigError
 from fuzzyservo.io.measured import write_measured
@@ -167,7 +167,7 @@ def test_compositions_refuse_in_one_line() -> None:
 
 
 def test_component_code_vocabulary_resolves_to_declared_positions() -> None:
-    from fuzzyservo.components._declare import Component, Param
+    from fuzzyservo.components.declare import Component, Param
     from fuzzyservo.components.effects import E
     from fuzzyservo.plants.composed import _Vocabulary
 

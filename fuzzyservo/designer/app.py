@@ -31,10 +31,15 @@ from matplotlib.colors import to_hex
 
 from fuzzyservo.designer.files import Folders
 from fuzzyservo.designer.session import Session, StudyView, metrics_rows
+from fuzzyservo.display import (
+    PRESSURE_COLOURS,
+    axis_label,
+    controller_colour,
+    saturated_spans,
+    to_display,
+)
 from fuzzyservo.errors import FuzzyservoError
 from fuzzyservo.metrics import METRIC_DOCS
-from fuzzyservo.plots._display import axis_label, controller_colour, to_display
-from fuzzyservo.plots._response import _PRESSURE_COLOURS, saturated_spans
 from fuzzyservo.tuning import MAIN_STUDY
 
 TERM_COLOURS = ("#1f77b4", "#ff7f0e", "#2ca02c", "#d62728", "#9467bd", "#8c564b", "#e377c2",
@@ -202,7 +207,7 @@ class Designer:
             span.location = float(limit) if np.isfinite(limit) else None
         for k, name in enumerate(pressures):
             if name not in self.pressure_renderers:
-                colour = to_hex(_PRESSURE_COLOURS.get(name, TERM_COLOURS[k % len(TERM_COLOURS)]))
+                colour = to_hex(PRESSURE_COLOURS.get(name, TERM_COLOURS[k % len(TERM_COLOURS)]))
                 self.pressure_renderers[name] = self.fig_p.line(
                     "t", name, source=self.src_p, color=colour, legend_label=name, line_width=1.2
                 )

@@ -184,7 +184,7 @@ def _params(
 
 def _composition(node: Node, unknowns: dict[str, tuple[float, float]]) -> tuple[PlantModel, Any]:
     """``plant.components``: instance name -> {type, parameters, source, note}."""
-    from fuzzyservo.components._declare import registry
+    from fuzzyservo.components.declare import registry
     from fuzzyservo.plants.composed import CompositionError, compose
 
     if not isinstance(node.data, dict) or not node.data:

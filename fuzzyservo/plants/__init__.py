@@ -83,7 +83,7 @@ class PlantModel:
         if effect in self.effects:
             return None
         if self.components:
-            from fuzzyservo.components._declare import registry
+            from fuzzyservo.components.declare import registry
 
             types = registry()
             for name, type_name in self.components:

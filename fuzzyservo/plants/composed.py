@@ -1,6 +1,6 @@
 """A plant composed from components (``plant.components`` in a rig file).
 
-:func:`compose` turns instances of component types (:mod:`fuzzyservo.components._declare`)
+:func:`compose` turns instances of component types (:mod:`fuzzyservo.components.declare`)
 into a :class:`~fuzzyservo.plants.PlantModel`: a frozen parameter class whose fields
 are the instances' parameters (file key ``<instance>.<key>``), the state vector laid
 out by state group, and the Python source of one flat right-hand side, which the
@@ -8,7 +8,7 @@ closed loop is compiled against (:func:`fuzzyservo._jit.bind_plant`). Every inde
 that source is generated from the declarations; none is written by hand.
 
 The circuit has one fluid, one supply, one 4-way valve, at most one pair of lines,
-one actuator and any number of loads; the phases of :data:`~fuzzyservo.components._declare.PHASES`
+one actuator and any number of loads; the phases of :data:`~fuzzyservo.components.declare.PHASES`
 run in order, each instance's code in the order the rig file lists them.
 """
 
@@ -23,7 +23,7 @@ from typing import Any
 
 import numpy as np
 
-from fuzzyservo.components._declare import (
+from fuzzyservo.components.declare import (
     PHASES,
     ROLES,
     STATE_GROUPS,
@@ -235,7 +235,7 @@ def compose(parts: tuple[tuple[str, str], ...]) -> Any:
 
 
 class _Vocabulary(ast.NodeTransformer):
-    """One instance's code with its vocabulary resolved (components/_declare.py): the
+    """One instance's code with its vocabulary resolved (components/declare.py): the
     attribute ``P.key`` becomes ``p[i]`` (a vector parameter: its start ``i`` in p), ``X.name``/``DX.name`` become ``x[i]``/``dx[i]``,
     ``E.field`` the effect's ``p[i]`` and ``L.name`` the local ``<instance>_name``, with
     every ``i`` the position the declarations give. The code is parsed, rewritten as a
@@ -292,7 +292,7 @@ class _Vocabulary(ast.NodeTransformer):
         return {"E": "p", "P": "p", "X": "x", "DX": "dx"}[prefix], at
 
 
-# the prefixes of a component's code (components/_declare.py)
+# the prefixes of a component's code (components/declare.py)
 _VOCABULARY = ("P", "X", "DX", "L", "E")
 
 
@@ -402,7 +402,7 @@ def _indent(lines: list[str]) -> str:
 
 
 # the signal every composition records: what the loads push back with (incl. f_ext)
-from fuzzyservo.components._declare import Signal as _Signal  # noqa: E402
+from fuzzyservo.components.declare import Signal as _Signal  # noqa: E402
 
 _LOAD_SIGNAL = _Signal("f_loads", "force", "f_load", "every load's force opposing +pos")
 

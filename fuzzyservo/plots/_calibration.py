@@ -13,7 +13,8 @@ import numpy as np
 from matplotlib.axes import Axes
 from matplotlib.figure import Figure
 
-from fuzzyservo.plots._display import axis_label, label_span
+from fuzzyservo.display import axis_label
+from fuzzyservo.plots._display import label_span
 
 _MEASURED = "black"
 _BEFORE = "tab:blue"

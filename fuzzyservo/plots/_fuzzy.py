@@ -17,7 +17,7 @@ from matplotlib.ticker import MaxNLocator
 
 from fuzzyservo.controllers.fuzzy.controller import FuzzyController
 from fuzzyservo.controllers.fuzzy.system import Variable
-from fuzzyservo.plots._display import controller_colour
+from fuzzyservo.display import controller_colour
 
 # Names the error rate goes by in controller files; shown as ė.
 _RATE_NAMES = frozenset({"de", "edot", "e_dot", "dedt", "de_dt", "ce"})

@@ -8,18 +8,16 @@ import numpy as np
 from matplotlib.axes import Axes
 from matplotlib.figure import Figure
 
-from fuzzyservo.plots._display import axis_label, controller_colour, label_span, to_display
+from fuzzyservo.display import (
+    PRESSURE_COLOURS,
+    axis_label,
+    controller_colour,
+    saturated_spans,
+    to_display,
+)
+from fuzzyservo.plots._display import label_span
 from fuzzyservo.simulation.result import SimResult
 
-# Seed 002 Fig. 6.c: p1 green, p2 blue, p3 magenta, p4 red (the supply and return
-# chambers p_s, p_t, the cylinder chambers p_a, p_b); other rigs' pressures (any signal
-# in Pa) take the next colours of this cycle.
-_PRESSURE_COLOURS = {
-    "p_s": "tab:green",
-    "p_t": "tab:blue",
-    "p_a": "magenta",
-    "p_b": "tab:red",
-}
 _OTHER_COLOURS = ("tab:purple", "tab:brown", "tab:olive", "tab:cyan")
 # With several controllers, the actuator chamber pressures (the ones that move the
 # piston) are enough; every pressure per controller would not read.
@@ -111,24 +109,6 @@ def _actuator_panel(ax: Axes, results: list[SimResult]) -> None:
     ax.legend(loc="best", fontsize=8)
 
 
-def saturated_spans(result: SimResult) -> list[tuple[float, float]]:
-    """``(start, end)`` times of the intervals where the actuator sits at a limit.
-
-    Each sample holds until the next one (zero-order hold of the controller).
-    """
-    sat = np.asarray(result.saturated, dtype=bool)
-    t = np.asarray(result.t, dtype=float)
-    if not sat.any():
-        return []
-    edges = np.diff(np.concatenate(([0], sat.astype(np.int8), [0])))
-    starts = np.flatnonzero(edges == 1)
-    stops = np.flatnonzero(edges == -1)  # index one past each run's last sample
-    t_ends = np.where(
-        stops < t.size, t[np.minimum(stops, t.size - 1)], t[-1] + result.sample_time_s
-    )
-    return [(float(t[a]), float(e)) for a, e in zip(starts, t_ends, strict=True)]
-
-
 def _shade_saturation(ax: Axes, result: SimResult) -> None:
     """Shade the intervals where ``result``'s actuator sits at a limit (one sample wide each)."""
     spans = [(a, e - a) for a, e in saturated_spans(result)]
@@ -155,7 +135,7 @@ def _pressure_panel(ax: Axes, results: list[SimResult]) -> None:
         if first.units.get(n) == "Pa" and all(n in r.signals for r in results)
     ]
     colours = {
-        n: _PRESSURE_COLOURS.get(n, _OTHER_COLOURS[k % len(_OTHER_COLOURS)])
+        n: PRESSURE_COLOURS.get(n, _OTHER_COLOURS[k % len(_OTHER_COLOURS)])
         for k, n in enumerate(recorded)
     }
     if len(results) > 1:

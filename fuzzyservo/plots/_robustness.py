@@ -8,7 +8,7 @@ from collections.abc import Mapping, Sequence
 import numpy as np
 from matplotlib.figure import Figure
 
-from fuzzyservo.plots._display import controller_colour
+from fuzzyservo.display import controller_colour
 
 _MAX_COLUMNS = 2
 

@@ -16,7 +16,7 @@ falls below p_0; it only charges again once p_s exceeds p_0.
 
 from __future__ import annotations
 
-from fuzzyservo.components._declare import Component, Param, Signal, State
+from fuzzyservo.components.declare import Component, Param, Signal, State
 
 
 def _charged(v: dict[str, float], ctx: dict[str, float]) -> dict[str, float]:

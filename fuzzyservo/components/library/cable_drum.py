@@ -16,7 +16,7 @@ platform's acceleration is left out of the cable tension (below 2 % of g for the
 
 from __future__ import annotations
 
-from fuzzyservo.components._declare import Component, Param, Signal
+from fuzzyservo.components.declare import Component, Param, Signal
 
 
 def _drum(type_name: str, doc: str, platform: bool) -> Component:

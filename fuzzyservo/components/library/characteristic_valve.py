@@ -11,7 +11,7 @@ each passes C·(U/U_max)·√Δp (seed 003's third valve model, C from eq. 7 at 
 
 from __future__ import annotations
 
-from fuzzyservo.components._declare import Component, Param, Signal
+from fuzzyservo.components.declare import Component, Param, Signal
 
 _SIGNALS = (
     Signal("q_a", "m^3/s", "q_va", "flow out of port A"),

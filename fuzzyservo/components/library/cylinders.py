@@ -18,7 +18,7 @@ from __future__ import annotations
 
 import math
 
-from fuzzyservo.components._declare import Component, Param, Signal, State
+from fuzzyservo.components.declare import Component, Param, Signal, State
 
 _COMMON = (
     Param("stroke", "m", "stroke L", positive=True),

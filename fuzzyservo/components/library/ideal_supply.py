@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from fuzzyservo.components._declare import Component, Param, Signal
+from fuzzyservo.components.declare import Component, Param, Signal
 
 COMPONENTS = (
     Component(

@@ -8,7 +8,7 @@ actuator chamber (Hopsan's volume-restriction chain; docs/modelling.md "line los
 
 from __future__ import annotations
 
-from fuzzyservo.components._declare import Component, Param, Signal, State
+from fuzzyservo.components.declare import Component, Param, Signal, State
 
 COMPONENTS = (
     Component(

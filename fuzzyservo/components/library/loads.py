@@ -7,7 +7,7 @@ motor). A load force measured on the rig is the scenario's ``load`` (any signal 
 
 from __future__ import annotations
 
-from fuzzyservo.components._declare import Component, Param, Signal
+from fuzzyservo.components.declare import Component, Param, Signal
 
 _STANDARD_GRAVITY = 9.80665  # m/s², ISO 80000-3
 

@@ -16,7 +16,7 @@ from each port).
 
 from __future__ import annotations
 
-from fuzzyservo.components._declare import Component, Param, Signal, State
+from fuzzyservo.components.declare import Component, Param, Signal, State
 
 
 def _initial(v: dict[str, float], ctx: dict[str, float]) -> dict[str, float]:

@@ -9,7 +9,7 @@ measured valve data and writes the file the rig names under ``weights``.
 
 from __future__ import annotations
 
-from fuzzyservo.components._declare import Component, Param, Signal
+from fuzzyservo.components.declare import Component, Param, Signal
 from fuzzyservo.components.valves import NN_SIZE
 
 COMPONENTS = (

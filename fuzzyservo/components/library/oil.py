@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from fuzzyservo.components._declare import Component, Param
+from fuzzyservo.components.declare import Component, Param
 
 COMPONENTS = (
     Component(

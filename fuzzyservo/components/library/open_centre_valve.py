@@ -13,7 +13,7 @@ A and B. The valve's null is the bias current.
 
 from __future__ import annotations
 
-from fuzzyservo.components._declare import Component, Param, Signal
+from fuzzyservo.components.declare import Component, Param, Signal
 
 COMPONENTS = (
     Component(

@@ -9,7 +9,7 @@ nominal pressure; when the valve draws more than the pump delivers, p_s sags.
 
 from __future__ import annotations
 
-from fuzzyservo.components._declare import Component, Param, Signal, State
+from fuzzyservo.components.declare import Component, Param, Signal, State
 
 
 def _resting(v: dict[str, float]) -> float:

@@ -22,7 +22,7 @@ laminar flow, is taken at the pressure behind that line.
 
 from __future__ import annotations
 
-from fuzzyservo.components._declare import Component, Param, Signal, State
+from fuzzyservo.components.declare import Component, Param, Signal, State
 
 _PARAMS = (
     Param("rated_flow", "m^3/s", "Q_N at rated signal and rated pressure drop", positive=True),

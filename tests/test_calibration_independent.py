@@ -27,7 +27,14 @@ from fuzzyservo.calibration.replay import make_replay
 from fuzzyservo.calibration.search import calibrate
 from fuzzyservo.io.rigs import load_rig
 
-MISSES: dict[str, str] = {}  # effect -> why it is not found (an xfail)
+# effect -> why it is not found (an xfail). Measured when the seed-002 rig became the
+# composition (issue 25; before, on the hand-written mass-form kernel, both were named
+# first): the pressure-form chambers, right about this generator's, leave these
+# look-alike pairs to the residual's finer shape, and round 1 ranks the other one first.
+MISSES: dict[str, str] = {
+    "stribeck_friction": "the LuGre data: coulomb_friction ranks first on the composition",
+    "valve_lag": "the 100 Hz second-order spool: transport_delay ranks first on the composition",
+}
 
 
 @pytest.mark.slow

@@ -172,7 +172,7 @@ def test_component_code_vocabulary_resolves_to_declared_positions() -> None:
     from fuzzyservo.plants.composed import _Vocabulary
 
     load = Component("spring", "load", "a test load", "test", params=(Param("k", "N/m", "k"),))
-    vocabulary = _Vocabulary("ld", load, {("ld", "k"): 20}, {("ld", "y"): 0})
+    vocabulary = _Vocabulary("ld", load, {("ld", "k"): (False, 20)}, {("ld", "y"): 0})
     code = "L.f = P.k * X.y + E.valve_lag_s  # comments are dropped\nf_load += L.f"
     assert vocabulary.resolve(code) == (f"ld_f = p[20] * x[0] + p[{E.valve_lag_s}]\nf_load += ld_f")
     assert vocabulary.resolve("DX.y = 'P.k'") == "dx[0] = 'P.k'"

@@ -8,6 +8,10 @@ follows the command ``x_c = clip(u/u_N, ±x_max)``:
     first order (τ > 0):     τ·ẋ = x_c − x
     static (both 0):         x = x_c
 
+``servo_valve`` and ``proportional_valve`` take every order and integrate the spool's
+position and velocity; ``servo_valve_first_order`` and ``proportional_valve_first_order``
+take a first-order or static spool and integrate its position only (one state fewer, in
+the state vector and in the loop's Jacobian: the seed-000 and seed-001 valves).
 and the openings are limited to the stroke ±x_max. The four metering edges with lap
 ``o`` (fraction of rated stroke: > 0 overlapped, 0 critically lapped, < 0 underlapped)
 open as a_PA = a_BT = max(x − o, 0) and a_PB = a_AT = max(−x − o, 0); each passes
@@ -42,8 +46,10 @@ _PARAMS = (
           default=0.0, nonnegative=True),
 )  # fmt: skip
 
-_CODE = {
-    "valve": """
+# The spool, by order: a second-order type keeps the spool velocity as a state; a
+# first-order one does without (one state fewer to integrate and to difference in the
+# Jacobian: the seed-000 and seed-001 valves are first order).
+_SPOOL_SECOND_ORDER = """
         L.lim = P.stroke_limit
         L.xc = min(max(u / P.rated_signal, -L.lim), L.lim)
         if P.spool_natural_frequency > 0.0:
@@ -59,6 +65,18 @@ _CODE = {
             DX.xs = 0.0
             DX.vs = 0.0
             L.x = L.xc
+"""
+_SPOOL_FIRST_ORDER = """
+        L.lim = P.stroke_limit
+        L.xc = min(max(u / P.rated_signal, -L.lim), L.lim)
+        if P.spool_time_constant > 0.0:
+            DX.xs = (L.xc - X.xs) / P.spool_time_constant
+            L.x = min(max(X.xs, -L.lim), L.lim)
+        else:
+            DX.xs = 0.0
+            L.x = L.xc
+"""
+_EDGES = """
         L.k = P.rated_flow / ((1.0 - P.overlap) * math.sqrt(0.5 * P.rated_pressure_drop))
         L.c_pa = L.k * max(L.x - P.overlap, 0.0)
         L.c_pb = L.k * max(-L.x - P.overlap, 0.0)
@@ -74,13 +92,10 @@ _CODE = {
         q_vb = L.q_pb - L.q_bt
         q_supply = L.q_pa + L.q_pb
         q_tank = L.q_at + L.q_bt
-    """
-}
+"""
 
-_STATES = (
-    State("xs", "1", "spool position (1 = rated opening)", "valve", 1e-5, 1.0),
-    State("vs", "1/s", "spool velocity", "valve", 1e-2, 100.0),
-)
+_POSITION = State("xs", "1", "spool position (1 = rated opening)", "valve", 1e-5, 1.0)
+_VELOCITY = State("vs", "1/s", "spool velocity", "valve", 1e-2, 100.0)
 _SIGNALS = (
     Signal("x_spool", "1", "L.x", "spool opening, limited to the stroke"),
     Signal("q_a", "m^3/s", "q_va", "flow out of port A"),
@@ -90,7 +105,13 @@ _SIGNALS = (
 )
 
 
-def _valve(type_name: str, input_: tuple[str, str], doc: str) -> Component:
+def _valve(type_name: str, input_: tuple[str, str], doc: str, second_order: bool) -> Component:
+    params = (
+        _PARAMS
+        if second_order
+        else tuple(p for p in _PARAMS if p.key not in ("spool_natural_frequency", "spool_damping"))
+    )
+    spool = _SPOOL_SECOND_ORDER if second_order else _SPOOL_FIRST_ORDER
     return Component(
         type=type_name,
         role="valve",
@@ -98,12 +119,14 @@ def _valve(type_name: str, input_: tuple[str, str], doc: str) -> Component:
         source="Hopsan Hydraulic43Valve (four edges with overlaps, second-order spool with a "
         "stroke limit); ISO 10770-1 rated flow at 70 bar valve drop; seed 001 eq. 3-4 "
         "(land leakage K_l)",
-        params=_PARAMS,
-        states=_STATES,
+        params=params,
+        states=(_POSITION, _VELOCITY) if second_order else (_POSITION,),
         signals=_SIGNALS,
-        code=_CODE,
+        code={"valve": spool + _EDGES},
         effects=("line_resistance",),
-        initial=lambda v, ctx: {"xs": 0.0, "vs": 0.0},
+        initial=(lambda v, ctx: {"xs": 0.0, "vs": 0.0})
+        if second_order
+        else (lambda v, ctx: {"xs": 0.0}),
         scales=lambda v: {
             "flow": v["rated_flow"] * v["stroke_limit"],
             "input": v["rated_signal"],
@@ -118,11 +141,25 @@ COMPONENTS = (
         ("i", "A"),
         "4-way servo-valve driven by a current: rated flow, pressure drop and current, "
         "lap, first- or second-order spool, stroke limit",
+        second_order=True,
     ),
     _valve(
         "proportional_valve",
         ("u_c", "V"),
         "4-way proportional valve driven by a voltage (the amplifier's input): rated flow, "
         "pressure drop and voltage, lap, first- or second-order spool, stroke limit",
+        second_order=True,
+    ),
+    _valve(
+        "servo_valve_first_order",
+        ("i", "A"),
+        "servo_valve with a first-order (or static) spool: one state fewer",
+        second_order=False,
+    ),
+    _valve(
+        "proportional_valve_first_order",
+        ("u_c", "V"),
+        "proportional_valve with a first-order (or static) spool: one state fewer",
+        second_order=False,
     ),
 )

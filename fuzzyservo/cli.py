@@ -262,10 +262,11 @@ def cmd_tune(args: argparse.Namespace) -> int:
     print(metrics_table(["baseline", "best"], [base.metrics, best.metrics], {}))
     values = [", ".join(format_value(v) for v in e.values) for e in (best, base)]
     print(f"objective: best {values[0]} against baseline {values[1]}")
+    summary = read_json(paths["summary"])  # as written
     if bar is not None:
-        print(comparison_text(read_json(paths["summary"])["comparison"]))
+        print(comparison_text(summary["comparison"]))
     print(f"report: {paths['report']}")
-    _json(args.json, read_json(paths["summary"]))  # summary.json as written
+    _json(args.json, summary)
     return 0
 
 

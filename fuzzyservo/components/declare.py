@@ -26,7 +26,6 @@ import pkgutil
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from functools import cache
-from typing import Any
 
 # Phases in the order the composed right-hand side runs them, and what each defines.
 PHASES = (
@@ -175,13 +174,3 @@ def registry() -> dict[str, Component]:
                 raise ValueError(f"component type {component.type!r} is declared twice")
             found[component.type] = component
     return found
-
-
-def values_of(component: Component, values: Mapping[str, Any]) -> dict[str, float]:
-    """The parameter values of one instance by key (defaults filled in)."""
-    out = {}
-    for p in component.params:
-        if p.length:
-            continue
-        out[p.key] = float(values.get(p.key, p.default if p.default is not None else 0.0))
-    return out

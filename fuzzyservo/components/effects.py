@@ -315,11 +315,6 @@ EffectIndex = NamedTuple("EffectIndex", [(name, int) for name in _declared_field
 E = EffectIndex(*(index_of(EffectParams, name) for name in _declared_fields()))
 
 
-def effective_bulk_modulus(params: Any) -> float:
-    """The bulk modulus the plant uses [Pa]: the effect's E_eff when set, else the oil's."""
-    return params.effective_bulk_modulus_pa or params.bulk_modulus_pa
-
-
 # --------------------------------------------------------------------------- kernels
 
 

@@ -52,14 +52,13 @@ from fuzzyservo.components.effects import (
     EffectParams,
     Scales,
     bulk_modulus,
-    effective_bulk_modulus,
     friction_force,
     port_pressure,
     pump_limited,
 )
 from fuzzyservo.components.orifice import signed_sqrt_flow
 from fuzzyservo.params import name_index, param_index, quantity
-from reference_plants.kernels import FIRST_EFFECTS, circle_area
+from reference_plants.kernels import FIRST_EFFECTS, circle_area, effective_bulk_modulus
 
 STATES = ("y", "v", "xi1", "xi2", "xi3", "xi4")
 SIGNALS = (

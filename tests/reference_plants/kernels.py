@@ -9,6 +9,7 @@ valve).
 from __future__ import annotations
 
 import math
+from typing import Any
 
 from fuzzyservo._jit import njit
 from fuzzyservo.components.effects import LIBRARY
@@ -103,3 +104,9 @@ def return_flow(
 # The effect library as the hand-written seed 002 and seed 000 kernels read it
 # (external_leakage came later, with the composed actuators).
 FIRST_EFFECTS = tuple(name for name in LIBRARY if name != "external_leakage")
+
+
+def effective_bulk_modulus(params: Any) -> float:
+    """The bulk modulus the seed-002 kernel uses [Pa]: the effect's E_eff when set, else
+    the oil's (a composition reads the same through ``components.effects.bulk_modulus``)."""
+    return params.effective_bulk_modulus_pa or params.bulk_modulus_pa

@@ -8,15 +8,13 @@ Tolerances: seed 003 (pump, characteristic valve, single-rod cylinder, spring an
 friction loads) is the same set of equations, so only rounding and the bore given as a
 diameter (39.99941 mm for A_p = 12.566 cm²) separate the runs: 1 µm and 10 Pa. Seed 002
 composed integrates chamber pressure where reference_plants/cylinder.py integrates the liquid
-volume at reference density (seed eq. 8-9); the mass form's factor (1 + p/E) ≈ 1.002
-on the piston's displacement flow moves the pulses by less than 0.1 mm and 0.3 bar
-(rigs/dinca_cylinder.yaml), about the compiled loop's own tolerance (0.31 bar,
-closed_loop.py DEFAULT_TOL). The seed's `compare` metrics moved less than 2 % when the
-composition replaced the kernel, but for FLC1 on the pulses (measured, issue 25): its
-overshoot 0.0590 -> 0.0630 % (30.5 -> 32.6 µm on the 51.7 mm steps) and its steady-state
-error 13.37 -> 13.01 µm. Both are what the 1 mV noise and the 16 µm ADC code leave (an
-exact reading gives 0 % and 1 µm for either plant); the two paths part by 0.060 mm and
-0.13 bar at most, which re-times the noise's and the ADC's codes.
+volume at reference density (seed eq. 8-9); the oil's ``mass_form`` keeps that law's factor
+(1 + p/E) on the piston's displacement flow, so the two differ only by the integrator's
+error control on states laid out differently: 0.03 µm of position with P K=10 and 0.17 µm
+with FLC1 on the pulses, pressures to 0.6 kPa (P) and 13 kPa (FLC1, in the 3 cm³ valve
+chambers), inside the compiled loop's own tolerance (0.31 bar, closed_loop.py
+DEFAULT_TOL). Without the factor (the pressure form, issue 25's first composition) the
+pulses moved by 0.06 mm and FLC1's overshoot on them by 7 % (0.0590 -> 0.0630 %).
 
 Seeds 000 and 001 are the same equations written another way, so their tolerances are
 the compiled loop's own local-error tolerance (DEFAULT_TOL = 0.5 of each state's
@@ -70,7 +68,7 @@ def test_seed002_reproduces_the_open_centre_cylinder() -> None:
     p10 = controller_named("p_k10")
     a, b = simulate(hand, p10, "pulses"), simulate(composed, p10, "pulses")
     assert b.status == "ok"
-    np.testing.assert_allclose(b.signals["y"], a.signals["y"], atol=0.1e-3)
+    np.testing.assert_allclose(b.signals["y"], a.signals["y"], atol=1e-6)
     for mine, theirs in (("p_s", "p1"), ("p_t", "p2"), ("p_a", "p3"), ("p_b", "p4")):
         np.testing.assert_allclose(b.signals[mine], a.signals[theirs], atol=0.3e5)
     np.testing.assert_array_equal(b.saturated, a.saturated)

@@ -29,7 +29,7 @@ from functools import cache
 
 # Phases in the order the composed right-hand side runs them, and what each defines.
 PHASES = (
-    "fluid",  # beta (effective bulk modulus) [Pa], p_lam (orifice regularisation) [Pa]
+    "fluid",  # beta (effective bulk modulus) [Pa], p_lam (orifice regularisation) [Pa], mass_form
     "supply",  # p_s, p_t: pressures at the valve's P and T ports [Pa]
     "actuator",  # pos, vel; p_a, p_b [Pa]; area_a, area_b [m² or m³/rad]; f_stop
     "line",  # p_a_port, p_b_port: the pressures the valve's A and B ports see [Pa]

@@ -4,7 +4,8 @@ States: position ``y`` [m] (0 at ``zero_position`` from the retracted end), velo
 pressures ``p_a`` (piston side, +y extends) and ``p_b`` [Pa]:
 
     V_a = V_0a + A_a·y_e,  V_b = V_0b + A_b·(L − y_e),  y_e = y + y_0   (floored at 5 % of V_0)
-    dp_a/dt = E/V_a·(q_a − A_a·v − q_leak),  dp_b/dt = E/V_b·(q_b + A_b·v + q_leak)
+    dp_a/dt = E/V_a·(q_a − A_a·v·c_a − q_leak),  dp_b/dt = E/V_b·(q_b + A_b·v·c_b + q_leak)
+    c = 1 + p/E in the oil's mass form (flows at reference density), else 1
     m·dv/dt = p_a·A_a − p_b·A_b − F_fric(v) − F_loads + F_stop
 
 ``m`` is the piston's mass plus every ``mass`` load; F_loads every load's force and
@@ -74,8 +75,8 @@ _ACTUATOR = """
 _MOTION = """
     DX.y = vel
     DX.v = (p_a * area_a - p_b * area_b - L.f_fric - f_load + f_stop) / mass
-    DX.p_a = beta / L.va * (q_a - area_a * vel - L.q_leak - E.external_leakage_m3_s_pa * p_a)
-    DX.p_b = beta / L.vb * (q_b + area_b * vel + L.q_leak - E.external_leakage_m3_s_pa * p_b)
+    DX.p_a = beta / L.va * (q_a - area_a * vel * (1.0 + mass_form * p_a / beta) - L.q_leak - E.external_leakage_m3_s_pa * p_a)
+    DX.p_b = beta / L.vb * (q_b + area_b * vel * (1.0 + mass_form * p_b / beta) + L.q_leak - E.external_leakage_m3_s_pa * p_b)
 """
 
 

@@ -78,11 +78,17 @@ def metering_edges(
         pa = port_pressure(c_pa, ps, c_at, pt, pa, r_line, p_lam)
         pb = port_pressure(c_pb, ps, c_bt, pt, pb, r_line, p_lam)
     return (
-        signed_sqrt_flow(c_pa, ps - pa, p_lam),
-        signed_sqrt_flow(c_at, pa - pt, p_lam),
-        signed_sqrt_flow(c_pb, ps - pb, p_lam),
-        signed_sqrt_flow(c_bt, pb - pt, p_lam),
+        _edge(c_pa, ps - pa, p_lam),
+        _edge(c_at, pa - pt, p_lam),
+        _edge(c_pb, ps - pb, p_lam),
+        _edge(c_bt, pb - pt, p_lam),
     )
+
+
+@njit(cache=True, inline="always")
+def _edge(coeff: float, dp: float, p_lam: float) -> float:
+    """One edge's flow; a closed edge (a lapped spool's far side) costs no square root."""
+    return 0.0 if coeff == 0.0 else signed_sqrt_flow(coeff, dp, p_lam)
 
 
 @njit(cache=True, inline="always")

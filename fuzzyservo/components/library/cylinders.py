@@ -75,8 +75,8 @@ _ACTUATOR = """
 _MOTION = """
     DX.y = vel
     DX.v = (p_a * area_a - p_b * area_b - L.f_fric - f_load + f_stop) / mass
-    DX.p_a = beta / L.va * (q_a - area_a * vel * (1.0 + mass_form * p_a / beta) - L.q_leak - E.external_leakage_m3_s_pa * p_a)
-    DX.p_b = beta / L.vb * (q_b + area_b * vel * (1.0 + mass_form * p_b / beta) + L.q_leak - E.external_leakage_m3_s_pa * p_b)
+    DX.p_a = (beta * (q_a - area_a * vel - L.q_leak - E.external_leakage_m3_s_pa * p_a) - mass_form * area_a * vel * p_a) / L.va
+    DX.p_b = (beta * (q_b + area_b * vel + L.q_leak - E.external_leakage_m3_s_pa * p_b) + mass_form * area_b * vel * p_b) / L.vb
 """
 
 

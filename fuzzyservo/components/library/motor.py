@@ -85,8 +85,8 @@ COMPONENTS = (
                 DX.theta = vel
                 DX.w = (P.hydromechanical_efficiency * (p_a - p_b) * area_a - L.f_fric - f_load) / mass
                 L.ke = E.external_leakage_m3_s_pa
-                DX.p_a = beta / P.volume_a * (q_a - area_a * vel * (1.0 + mass_form * p_a / beta) - L.q_leak - L.ke * p_a)
-                DX.p_b = beta / P.volume_b * (q_b + area_b * vel * (1.0 + mass_form * p_b / beta) + L.q_leak - L.ke * p_b)
+                DX.p_a = (beta * (q_a - area_a * vel - L.q_leak - L.ke * p_a) - mass_form * area_a * vel * p_a) / P.volume_a
+                DX.p_b = (beta * (q_b + area_b * vel + L.q_leak - L.ke * p_b) + mass_form * area_b * vel * p_b) / P.volume_b
             """,
         },
         effects=("coulomb_friction", "stribeck_friction", "internal_leakage", "external_leakage"),

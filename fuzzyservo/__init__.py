@@ -73,7 +73,8 @@ __all__ = sorted(_LAZY)
 
 
 def __dir__() -> list[str]:
-    return sorted({*globals(), *_LAZY})
+    """The API only (what ``from fuzzyservo import *`` gives), and the version."""
+    return [*__all__, "__version__"]
 
 
 def __getattr__(name: str) -> Any:

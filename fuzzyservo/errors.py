@@ -5,6 +5,9 @@ Every message says what is wrong, where (file and key), the value, and the fix, 
 
 from __future__ import annotations
 
+import importlib
+from types import ModuleType
+
 
 class FuzzyservoError(Exception):
     """Base class of the errors the command line turns into one line and exit status 2."""
@@ -33,3 +36,21 @@ class ConfigError(FuzzyservoError, ValueError):
 
 class DataError(FuzzyservoError, ValueError):
     """A measured-data file that cannot be used (unknown unit, bad time column, NaN ...)."""
+
+
+class MissingExtraError(FuzzyservoError, ImportError):
+    """A feature whose optional dependencies (an install extra) are not installed."""
+
+
+def require(module: str, extra: str, purpose: str) -> ModuleType:
+    """Import ``module``, or raise :class:`MissingExtraError` naming the extra to install.
+
+    ``purpose`` says what needs it: ``require("panel", "designer", "the designer")``.
+    """
+    try:
+        return importlib.import_module(module)
+    except ImportError as exc:
+        raise MissingExtraError(
+            f"{purpose} needs the '{extra}' extra, which is not installed ({exc.name or module} "
+            f"missing): pip install 'fuzzyservo[{extra}]' (or -e '.[{extra}]' in a clone)"
+        ) from None

@@ -26,7 +26,7 @@ def test_compare_writes_table_plots_json(tmp_path, capsys):
     assert run["controller"] == "p_k10" and run["status"] == "ok"
     assert set(METRIC_NAMES) <= set(run["metrics"])
     assert len(run["steps"]) == 4
-    assert (out / "dinca_cylinder_pulses_response.png").stat().st_size > 10_000
+    assert (out / "dinca_cylinder_pulses_p_k10_response.png").stat().st_size > 10_000
     header = (out / "dinca_cylinder_pulses_p_k10.csv").read_text().splitlines()[0]
     assert header.startswith("t_s,ref_V") and "p_a_Pa" in header
 
@@ -42,7 +42,7 @@ def test_simulate_by_name_on_the_motor(tmp_path, capsys):
         ["simulate", "ehs160_motor", "p_kb0105", "--scenario", "brake", "--out", str(tmp_path)]
     )
     assert code == 0
-    assert (tmp_path / "ehs160_motor_brake_response.png").exists()
+    assert (tmp_path / "ehs160_motor_brake_p_kb0105_response.png").exists()
 
 
 def test_bench_json(tmp_path):

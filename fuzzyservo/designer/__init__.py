@@ -27,6 +27,9 @@ def serve(
     ``rig`` and ``controller`` are files (already resolved by the caller); ``ready`` is
     called with the server once it listens (tests use it to learn the port).
     """
+    from fuzzyservo.errors import require
+
+    require("panel", "designer", "the designer")
     from fuzzyservo.designer.app import run_server
 
     return run_server(

@@ -27,14 +27,18 @@ def write_signals_csv(path: str | Path, result: SimResult) -> Path:
 
 
 def save_comparison(comparison: ComparisonResult, out: str | Path) -> list[Path]:
-    """The runs' response figure and each run's signals (CSV) into the folder ``out``."""
+    """The runs' response figure and each run's signals (CSV) into the folder ``out``.
+
+    Files are named after the rig, the scenario and the controllers
+    (``dinca_cylinder_pulses_p_k10+flc2_reshaped_response.png``), so comparing other
+    controllers on the same scenario writes beside an earlier comparison, not over it."""
     from fuzzyservo import plots
 
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     stem = f"{comparison.rig}_{comparison.scenario}"
     fig = plots.response_figure(list(comparison.values()))
-    paths = [plots.save(fig, out / f"{stem}_response.png")]
+    paths = [plots.save(fig, out / f"{stem}_{'+'.join(comparison)}_response.png")]
     for name, r in comparison.items():
         paths.append(write_signals_csv(out / f"{stem}_{name}.csv", r))
     return paths

@@ -20,6 +20,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, NoReturn
 
+from fuzzyservo.errors import require
 from fuzzyservo.rig import Rig
 from fuzzyservo.tuning.evaluation import Evaluation
 from fuzzyservo.tuning.integrity import check_definition, die_with_parent, per_trial_seeded
@@ -80,6 +81,7 @@ def _storage(url: str):
         # several local workers share the file: wait for the lock rather than fail
         kwargs = {"connect_args": {"timeout": 60}}
     else:
+        require("psycopg2", "postgres", "a PostgreSQL storage")
         kwargs = {"pool_pre_ping": True}
     storage = optuna.storages.RDBStorage(
         driver_url(url), engine_kwargs=kwargs, heartbeat_interval=HEARTBEAT_S, grace_period=GRACE_S

@@ -38,14 +38,16 @@ _KINDS = {
 
 
 def load_controller(path: str | Path) -> Controller:
-    """Read and validate a controller file (YAML, or a MATLAB ``.fis``); raise
+    """Read and validate a controller file (YAML, a MATLAB ``.fis`` or an FCL file); raise
     :class:`ConfigError` naming file and key."""
     file = str(path)
-    if Path(file).suffix.lower() == ".fis":
+    suffix = Path(file).suffix.lower()
+    if suffix in (".fis", ".fcl"):
+        from fuzzyservo.io.fcl import controller_from_fcl
         from fuzzyservo.io.fis import controller_from_fis
         from fuzzyservo.io.paths import name_problem
 
-        controller = controller_from_fis(path)
+        controller = (controller_from_fis if suffix == ".fis" else controller_from_fcl)(path)
         if name_problem(controller.name):
             raise ConfigError(name_problem(controller.name), file=file, key="[System] Name")
         return controller
@@ -153,12 +155,11 @@ def controller_data_from_text(text: str, filename: str) -> dict:
     """The mapping of a controller file's text (an upload): ``.yaml``/``.yml`` or ``.fis``."""
     suffix = Path(filename).suffix.lower()
     if suffix == ".fis":
-        from fuzzyservo.controllers.fuzzy import FuzzyController
-        from fuzzyservo.io.fis import parse_fis
+        from fuzzyservo.io.fis import parse_fis_controller
         from fuzzyservo.io.fuzzy import fuzzy_controller_data
 
-        system = parse_fis(text, filename)
-        return fuzzy_controller_data(FuzzyController(system=system, name=system.name))
+        controller = parse_fis_controller(text, filename)
+        return fuzzy_controller_data(controller.renamed(controller.system.name))
     if suffix in (".yaml", ".yml"):
         return parse_yaml(text, filename)
     raise ConfigError("a controller file ends in .yaml or .fis", file=filename)

@@ -48,22 +48,21 @@ def export(
     the evaluator, its largest error reported."""
     from fuzzyservo.codegen import lut_error, write_c, write_st
     from fuzzyservo.io.fcl import write_fcl
-    from fuzzyservo.io.fis import write_fis
+    from fuzzyservo.io.fis import law_text, write_fis
 
     name, lines, notes, paths = controller.name, [], [], []
     for file in (fis, fcl, st):  # a file in a folder not made yet: make it
         if file:
             Path(file).parent.mkdir(parents=True, exist_ok=True)
-    gains = (controller.input_gain, controller.rate_gain, controller.output_gain)
-    if (fis or fcl) and (any(g != 1.0 for g in gains) or controller.form == "pi"):
-        notes.append(f"note: a .fis/.fcl holds the inference system only; form "
-                     f"{controller.form!r} and gains (input, rate, output) = {gains} stay in "
-                     "the YAML file")  # fmt: skip
+    law = law_text(controller)
+    if fis or fcl:
+        notes.append(f"note: MATLAB and other FCL tools read the inference system; the control "
+                     f"law ({law}) is in a fuzzyservo comment that fuzzyservo reads back")  # fmt: skip
     if fis:
-        paths.append(write_fis(controller.system, fis))
+        paths.append(write_fis(controller.system, fis, law))
         lines.append(f"{name} written to {fis}")
     if fcl:
-        paths.append(write_fcl(controller.system, fcl))
+        paths.append(write_fcl(controller.system, fcl, law))
         lines.append(f"{name} written to {fcl} (IEC 61131-7 FCL)")
 
     def table(n: int) -> str:

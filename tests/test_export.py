@@ -7,14 +7,25 @@ rig's actuator range applied instead)."""
 from __future__ import annotations
 
 import dataclasses
+import importlib.util
+import subprocess
+import zipfile
+from pathlib import Path
 
 import numpy as np
 import pytest
-from support import controller_named, rig_named
+from support import SHARED, controller_named, rig_named
 
 from fuzzyservo.analysis.compare import compare
+from fuzzyservo.cli import main
+from fuzzyservo.codegen import identifier
+from fuzzyservo.controllers.fuzzy.evaluate import evaluate_inputs
+from fuzzyservo.controllers.fuzzy.system import FuzzySystem
 from fuzzyservo.io.controllers import load_controller
 from fuzzyservo.io.export import export
+from fuzzyservo.io.fcl import read_fcl
+from fuzzyservo.io.fis import parse_fis, read_fis
+from fuzzyservo.io.fmu import c_compiler
 
 
 def test_flc2_from_its_fis_and_fcl_gives_identical_metrics(tmp_path):
@@ -42,3 +53,202 @@ def test_every_law_survives_the_round_trip(tmp_path):
         back = load_controller(tmp_path / file)
         fields = ("form", "input_gain", "rate_gain", "output_gain", "u_min", "u_max", "system")
         assert [getattr(back, f) for f in fields] == [getattr(c, f) for f in fields], file
+
+
+# --------------------------------------------------------------------------- every system
+CONFORMANCE = SHARED / "conformance" / "fuzzylite" / "examples"
+#: the 22 MATLAB originals (fuzzylite's copies; sltbu.fis only in its original/ folder)
+MATLAB = sorted(
+    [*CONFORMANCE.glob("mamdani/matlab/*.fis"), *CONFORMANCE.glob("takagi-sugeno/matlab/*.fis"),
+     *CONFORMANCE.glob("original/takagi-sugeno/matlab/sltbu.fis")]
+)  # fmt: skip
+CC = c_compiler()
+HARNESS = r"""#include <stdio.h>
+#include "@P@.h"
+int main(void)
+{
+    @P@_state s;
+    double x[@PU@_INPUTS], y[@PU@_OUTPUTS];
+    int i;
+    for (;;) {
+        for (i = 0; i < @PU@_INPUTS; i++)
+            if (scanf("%lf", &x[i]) != 1) return 0;
+        @P@_evaluate(&s, x, y);
+        for (i = 0; i < @PU@_OUTPUTS; i++) printf("%.17g\n", y[i]);
+    }
+}
+"""
+
+
+def sweep(system: FuzzySystem, n: int = 400, seed: int = 3) -> np.ndarray:
+    """Inputs over each range and 5 % beyond (clipped), the corners included."""
+    rng = np.random.default_rng(seed)
+    cols = []
+    for v in system.inputs:
+        pad = 0.05 * (v.high - v.low)
+        x = rng.uniform(v.low - pad, v.high + pad, n)
+        x[:2] = v.low, v.high
+        cols.append(x)
+    return np.column_stack(cols)
+
+
+def run_c(folder: Path, system: FuzzySystem, xs: np.ndarray) -> np.ndarray:
+    name = identifier(system.name)
+    main_c = folder / "main.c"
+    main_c.write_text(HARNESS.replace("@PU@", name.upper()).replace("@P@", name), encoding="utf-8")
+    exe = folder / "run"
+    subprocess.run([CC, "-std=c99", "-Wall", "-Wextra", "-Werror", "-O1", "-o", str(exe),
+                    str(main_c), str(folder / f"{name}.c"), "-lm"], check=True,
+                   capture_output=True, text=True)  # fmt: skip
+    text = "\n".join(" ".join(repr(float(v)) for v in row) for row in xs) + "\n"
+    out = subprocess.run([str(exe)], input=text, capture_output=True, text=True, check=True)
+    return np.array([float(v) for v in out.stdout.split()]).reshape(len(xs), -1)
+
+
+def assert_same(got: np.ndarray, expected: np.ndarray, system: FuzzySystem, rel: float) -> None:
+    spans = [max(1.0, v.high - v.low) for v in system.outputs]
+    np.testing.assert_array_equal(np.isnan(got), np.isnan(expected))
+    ok = ~np.isnan(expected)
+    np.testing.assert_allclose(got[ok], expected[ok], rtol=0, atol=rel * max(spans))
+
+
+@pytest.mark.skipif(not MATLAB, reason=f"conformance data absent ({CONFORMANCE}); see ../shared")
+@pytest.mark.skipif(CC is None, reason="no C compiler (cc/gcc) on PATH")
+def test_every_matlab_original_exports_and_its_c_equals_evaluate(tmp_path, capsys):
+    assert len(MATLAB) == 22
+    for path in MATLAB:
+        out = tmp_path / path.stem
+        assert main(["export", str(path), "--fis", str(out / "s.fis"), "--fcl",
+                     str(out / "s.fcl"), "--c", str(out / "c")]) == 0, path  # fmt: skip
+        system = read_fis(path)
+        assert parse_fis((out / "s.fis").read_text(encoding="utf-8")) == system, path.name
+        assert read_fcl(out / "s.fcl").rules == system.rules
+        for semantics in ("skfuzzy", "matlab"):  # the C of both semantics
+            s = dataclasses.replace(system, semantics=semantics)
+            folder = out / semantics
+            export(s, c_dir=folder)
+            xs = sweep(s)
+            assert_same(run_c(folder, s, xs), evaluate_inputs(s, xs)[0], s, 1e-12)
+    assert "written" in capsys.readouterr().out
+
+
+# --------------------------------------------------------------------------- FMUs
+needs_fmpy = pytest.mark.skipif(
+    importlib.util.find_spec("fmpy") is None, reason="FMPy (the [fmi] extra) not installed"
+)
+
+
+class Slave:
+    """An FMU instantiated with FMPy, stepped by hand (FMI 3.0 or 2.0)."""
+
+    def __init__(self, path: Path, name: str = "a"):
+        from fmpy import extract, read_model_description
+        from fmpy.fmi2 import FMU2Slave
+        from fmpy.fmi3 import FMU3Slave
+
+        md = read_model_description(str(path))
+        self.v3 = md.fmiVersion.startswith("3")
+        self.refs = {v.name: v.valueReference for v in md.modelVariables}
+        cls = FMU3Slave if self.v3 else FMU2Slave
+        self.fmu = cls(guid=md.guid, unzipDirectory=extract(str(path)), instanceName=name,
+                       modelIdentifier=md.coSimulation.modelIdentifier)  # fmt: skip
+        self.fmu.instantiate()
+        self.start()
+        self.t = 0.0
+
+    def start(self) -> None:
+        if self.v3:
+            self.fmu.enterInitializationMode(startTime=0.0)
+        else:
+            self.fmu.setupExperiment(startTime=0.0)
+            self.fmu.enterInitializationMode()
+        self.fmu.exitInitializationMode()
+
+    def set(self, **values: float) -> None:
+        refs, vals = [self.refs[k] for k in values], [float(v) for v in values.values()]
+        (self.fmu.setFloat64 if self.v3 else self.fmu.setReal)(refs, vals)
+
+    def get(self, *names: str) -> list[float]:
+        return (self.fmu.getFloat64 if self.v3 else self.fmu.getReal)([self.refs[n] for n in names])
+
+    def step(self, h: float) -> None:
+        self.fmu.doStep(self.t, h)
+        self.t += h
+
+    def close(self) -> None:
+        self.fmu.terminate()
+        self.fmu.freeInstance()
+
+
+def shower() -> Path:
+    return CONFORMANCE / "mamdani" / "matlab" / "shower.fis"
+
+
+@needs_fmpy
+@pytest.mark.skipif(CC is None, reason="no C compiler (cc/gcc) on PATH")
+@pytest.mark.parametrize("fmi", [3, 2])
+def test_flc2_fmu_validates_and_runs_as_the_controller(tmp_path, fmi):
+    from fmpy.validation import validate_fmu
+
+    flc2 = controller_named("flc2_reshaped")
+    fmu = tmp_path / "flc2.fmu"
+    assert main(["export", "flc2_reshaped", "--fmu", str(fmu), "--fmi", str(fmi)]) == 0
+    assert validate_fmu(str(fmu)) == []
+    with zipfile.ZipFile(fmu) as z:
+        names = z.namelist()
+    assert "sources/flc2_reshaped.c" in names and "sources/fmu.c" in names
+    assert any(n.startswith("binaries/") for n in names)
+    # swept over the error's range: the static map, reference e and measurement 0
+    a, b = Slave(fmu, "a"), Slave(fmu, "b")  # two instances, independent
+    e = np.linspace(-2.2, 2.2, 441)
+    got = []
+    for x in e:
+        a.set(reference=x, measurement=0.0)
+        a.step(0.01)
+        got += a.get("command")
+    np.testing.assert_allclose(got, flc2.curve(e), rtol=0, atol=1e-9)
+    # the control law over time, the gain changed as a tunable parameter
+    changed = dataclasses.replace(flc2, output_gain=0.5, design=None)
+    b.set(output_gain=0.5)
+    state, t = changed.init(0.01), np.arange(300) * 0.01
+    for r, y in zip(np.sin(5 * t) * 2.5, np.sin(5 * t - 0.3) * 2.4, strict=True):
+        u, state = changed.step(state, r, y)
+        b.set(reference=r, measurement=y)
+        b.step(0.01)
+        assert b.get("command")[0] == pytest.approx(u, abs=1e-12)
+    a.close()
+    b.close()
+
+
+@pytest.mark.skipif(not MATLAB, reason=f"conformance data absent ({CONFORMANCE}); see ../shared")
+@needs_fmpy
+@pytest.mark.skipif(CC is None, reason="no C compiler (cc/gcc) on PATH")
+@pytest.mark.parametrize("fmi", [3, 2])
+def test_shower_fmu_has_two_outputs_equal_to_evaluate(tmp_path, fmi):
+    from fmpy import read_model_description
+    from fmpy.validation import validate_fmu
+
+    fmu = tmp_path / "shower.fmu"
+    assert main(["export", str(shower()), "--fmu", str(fmu), "--fmi", str(fmi)]) == 0
+    assert validate_fmu(str(fmu)) == []
+    system = read_fis(shower())
+    declared = {v.name: v for v in read_model_description(str(fmu)).modelVariables}
+    for v in system.inputs:  # each input's range as its min/max
+        assert (float(declared[v.name].min), float(declared[v.name].max)) == (v.low, v.high)
+    slave = Slave(fmu)
+    xs = sweep(system, 300)[2:]
+    xs = np.clip(xs, [v.low for v in system.inputs], [v.high for v in system.inputs])
+    got = []
+    for row in xs:
+        slave.set(**{v.name: x for v, x in zip(system.inputs, row, strict=True)})
+        slave.step(0.01)
+        got.append(slave.get(*(v.name for v in system.outputs)))
+    slave.close()
+    assert_same(np.array(got), evaluate_inputs(system, xs)[0], system, 1e-9)
+
+
+def test_fmu_option_errors_are_one_line(tmp_path, capsys):
+    assert main(["export", "flc2_reshaped", "--fmu", str(tmp_path / "x.zip")]) == 2
+    assert main(["export", "flc2_reshaped", "--fmu", str(tmp_path)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 2 and all("--fmu" in line for line in err)

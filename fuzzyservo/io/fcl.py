@@ -66,7 +66,9 @@ from fuzzyservo.errors import ConfigError
 from fuzzyservo.io.fis import LAW_KEYS, controller_from_law
 from fuzzyservo.io.fis import number_text as _num
 
-__all__ = ["controller_from_fcl", "fcl_text", "parse_fcl", "read_fcl", "write_fcl"]
+__all__ = [
+    "controller_from_fcl", "fcl_text", "parse_fcl", "read_fcl", "read_fcl_law", "write_fcl",
+]  # fmt: skip
 
 _AND = {"MIN": "min", "PROD": "prod"}
 _OR = {"MAX": "max", "ASUM": "probor", "PROBOR": "probor"}
@@ -371,12 +373,18 @@ def _read_text(path: str | Path) -> str:
     return p.read_text(encoding="utf-8", errors="replace")
 
 
+def read_fcl_law(path: str | Path) -> tuple[FuzzySystem, dict[str, str]]:
+    """The system of an FCL file and the control law its ``(* fuzzyservo: … *)`` comment
+    gives (empty when it gives none)."""
+    text = _read_text(path)
+    law = {k: v for k, v in _strip_comments(text)[1].items() if k in LAW_KEYS}
+    return parse_fcl(text, str(path)), law
+
+
 def controller_from_fcl(path: str | Path) -> FuzzyController:
     """A controller from an FCL file: the control law of its ``(* fuzzyservo: … *)``
     comment, else the defaults of :func:`~fuzzyservo.io.fis.controller_from_fis`."""
-    text = _read_text(path)
-    law = {k: v for k, v in _strip_comments(text)[1].items() if k in LAW_KEYS}
-    return controller_from_law(parse_fcl(text, str(path)), law, Path(path), "line 1")
+    return controller_from_law(*read_fcl_law(path), Path(path), "line 1")
 
 
 # --------------------------------------------------------------------------- writing

@@ -80,7 +80,7 @@ from fuzzyservo.errors import ConfigError
 
 __all__ = [
     "controller_from_fis", "controller_from_law", "fis_text", "law_text", "parse_fis",
-    "parse_fis_controller", "read_fis", "write_fis",
+    "parse_fis_controller", "read_fis", "read_fis_law", "write_fis",
 ]  # fmt: skip
 
 #: the ``Version`` written by :func:`fis_text` (MATLAB R2018b and later)
@@ -651,6 +651,12 @@ def read_fis(path: str | Path, points: int = 201) -> FuzzySystem:
     Raises :class:`ConfigError` naming the file, the section and line, and the fix.
     """
     return _parse(_read_text(path), str(path), points)[0]
+
+
+def read_fis_law(path: str | Path) -> tuple[FuzzySystem, dict[str, str]]:
+    """The system of a ``.fis`` file and the control law (:data:`LAW_KEYS`, as text) its
+    ``% fuzzyservo:`` line gives (empty when it gives none)."""
+    return _parse(_read_text(path), str(path), 201)
 
 
 def _read_text(path: str | Path) -> str:

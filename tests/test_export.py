@@ -252,3 +252,32 @@ def test_fmu_option_errors_are_one_line(tmp_path, capsys):
     assert main(["export", "flc2_reshaped", "--fmu", str(tmp_path)]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 2 and all("--fmu" in line for line in err)
+
+
+# --------------------------------------------------------------------------- FMU controllers
+@needs_fmpy
+@pytest.mark.skipif(CC is None, reason="no C compiler (cc/gcc) on PATH")
+def test_an_fmu_controller_in_compare_reproduces_the_native_run(tmp_path, capsys):
+    """FLC2 → FMU → back into the loop (kind: fmu): the same run as the YAML controller."""
+    assert main(["export", "flc2_reshaped", "--fmu", str(tmp_path / "flc2.fmu")]) == 0
+    file = tmp_path / "flc2_fmu.yaml"
+    file.write_text("name: flc2_fmu\nkind: fmu\nfile: flc2.fmu\noutput_limits: [-10, 10]\n"
+                    "reference: reference\nmeasurement: measurement\ncommand: command\n",
+                    encoding="utf-8")  # fmt: skip
+    rig = rig_named("dinca_cylinder")
+    result = compare(rig, [controller_named("flc2_reshaped"), load_controller(file)])
+    native, fmu = result["flc2_reshaped"], result["flc2_fmu"]
+    assert (
+        fmu.ok and result.metrics["flc2_fmu"].aggregate == result.metrics["flc2_reshaped"].aggregate
+    )
+    np.testing.assert_allclose(fmu.command, native.command, rtol=0, atol=1e-9)
+    np.testing.assert_allclose(fmu.output, native.output, rtol=0, atol=1e-9)
+    # the command line too, and a mapping that does not match is one clear line
+    assert main(["compare", "dinca_cylinder", str(file), "--out", str(tmp_path / "o")]) == 0
+    bad = tmp_path / "bad.yaml"
+    bad.write_text(file.read_text(encoding="utf-8").replace("measurement: measurement",
+                                                            "measurement: y"), encoding="utf-8")  # fmt: skip
+    capsys.readouterr()
+    assert main(["compare", "dinca_cylinder", str(bad)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "'y' is not an input" in err[0] and "bad.yaml" in err[0]

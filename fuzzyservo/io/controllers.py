@@ -34,6 +34,7 @@ _KINDS = {
     "PIDF": ("kp", "ki", "kd", "filter_time", "form"),
     "open_loop": ("gain",),
     "fuzzy": KEYS,
+    "fmu": ("file", "reference", "measurement", "command", "sample_time"),
 }
 
 
@@ -80,6 +81,8 @@ def controller_from_data(data: dict, file: str) -> Controller:
         limits = {"u_min": lo_hi[0], "u_max": lo_hi[1]}
     if kind == "fuzzy":
         return fuzzy_from_node(root, name, limits, root.str("description", default=""))
+    if kind == "fmu":
+        return _fmu_controller(root, name, limits)
     # read every number first: ConfigErrors from the reads keep their own key
     unknowns: list[tuple[str, float, float]] = []
     if kind == "P":
@@ -102,6 +105,30 @@ def controller_from_data(data: dict, file: str) -> Controller:
         return make(**gains, name=name, unknowns=tuple(unknowns), **limits)
     except ValueError as exc:
         raise ConfigError(f"{exc}; fix the controller file", file=file) from None
+
+
+def _fmu_controller(root: Node, name: str, limits: dict[str, float]) -> Controller:
+    """``kind: fmu``: a co-simulation FMU (``file``, relative to the controller file) and
+    the names of its reference and measurement inputs and its command output."""
+    from fuzzyservo.controllers.fmu import FmuController
+
+    if not root.has("file"):
+        root.fail("missing key 'file'; give the FMU, e.g. file: controller.fmu")
+    path = Path(root.str("file"))
+    if not path.is_absolute():
+        path = Path(root.file).parent / path
+    if path.suffix.lower() != ".fmu" or not path.is_file():
+        root.fail(f"{path} is not an FMU file (.fmu) that exists; check the path", key="file")
+    period = root.number("sample_time", default=None) if root.has("sample_time") else None
+    names = {k: root.str(k, default=k) for k in ("reference", "measurement", "command")}
+    try:
+        controller = FmuController(file=str(path), sample_time_s=period, name=name,
+                                   description=root.str("description", default=""),
+                                   **names, **limits)  # fmt: skip
+        controller.start(period or 0.01).close()  # the FMU opens and its variables match
+    except ValueError as exc:
+        raise ConfigError(f"{exc}", file=root.file, key="file") from None
+    return controller
 
 
 def _gain(

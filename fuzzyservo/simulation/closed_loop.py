@@ -126,8 +126,14 @@ def simulate(
     sees the feedback sensor's reading with its noise (seeded by ``noise_seed``; ``noise``
     False or True overrides the scenario's switch) and ADC quantisation, one I/O delay
     (``rig.io_delay_s``) before its command reaches the actuator. Never raises for a run
-    that fails: the result's ``status`` and ``message`` say what happened.
+    that fails: the result's ``status`` and ``message`` say what happened. A controller
+    that is not compiled (an FMU) runs sample by sample (:mod:`.stepped`).
     """
+    if getattr(controller, "stepped", False):
+        from fuzzyservo.simulation.stepped import simulate_stepped
+
+        return simulate_stepped(rig, controller, scenario, duration_s=duration_s, tol=tol,
+                                noise=noise, noise_seed=noise_seed)  # fmt: skip
     prep = prepare(rig, controller, scenario, duration_s, noise=noise, noise_seed=noise_seed)
     n = prep.t.size
     nx = prep.x0.size
@@ -174,6 +180,9 @@ def simulate_batch(
     the one :func:`simulate` gives for that rig and seed. The rigs must share their plant
     model, loop settings and scenario signals (sampled versions of one rig do); otherwise
     they run one by one."""
+    if getattr(controller, "stepped", False):
+        return [simulate(r, controller, scenario, tol=tol, noise_seed=n)
+                for r, n in zip(rigs, noise_seeds, strict=True)]  # fmt: skip
     preps = [prepare(r, controller, scenario, noise_seed=n) for r, n in zip(rigs, noise_seeds,
                                                                              strict=True)]  # fmt: skip
     if not preps:

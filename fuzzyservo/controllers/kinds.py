@@ -16,5 +16,5 @@ KIND_P = KINDS["P"]
 KIND_PI = KINDS["PI"]
 KIND_FUZZY = KINDS["fuzzy"]
 KIND_PIDF = KINDS["PIDF"]
-#: an FMU: no compiled kernel, run sample by sample (simulation.stepped)
+#: an FMU: no compiled kernel, run sample by sample (simulation.closed_loop.simulate_stepped)
 KIND_FMU = KINDS["fmu"]

@@ -281,3 +281,94 @@ def test_an_fmu_controller_in_compare_reproduces_the_native_run(tmp_path, capsys
     assert main(["compare", "dinca_cylinder", str(bad)]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "'y' is not an input" in err[0] and "bad.yaml" in err[0]
+
+
+# --------------------------------------------------------------------------- Structured Text
+def st_to_python(text: str) -> dict:
+    """The Structured Text of an exported system run as Python: a literal translation of
+    the subset it uses (FUNCTIONs, one FUNCTION_BLOCK, IF/ELSIF/ELSE, MIN/MAX/EXP/ABS/
+    EXPT/TRUNC, constant arrays); ``ns["block"](**inputs)`` returns the outputs."""
+    import math
+    import re
+
+    text = re.sub(r"\(\*.*?\*\)", "", text, flags=re.S)
+
+    def expr(e: str) -> str:
+        e = e.replace("<>", "!=").replace(":=", "\0")
+        e = re.sub(r"(?<![<>!=])=(?!=)", "==", e).replace("\0", "=")
+        e = re.sub(r"\bOR\b", "or", re.sub(r"\bAND\b", "and", e))
+        for st, py in (("MIN", "min"), ("MAX", "max"), ("EXPT", "pow"), ("EXP", "math.exp"),
+                       ("ABS", "abs"), ("LREAL_TO_DINT", "int"), ("TRUNC", "math.trunc"),
+                       ("DINT_TO_LREAL", "float")):  # fmt: skip
+            e = re.sub(rf"\b{st}\(", f"{py}(", e)
+        return e
+
+    def body(code: str, indent: int) -> list[str]:
+        code = re.sub(r"\bTHEN\b", "THEN;", code)
+        code = re.sub(r"\b(ELSIF|ELSE|END_IF)\b", r";\1", code)
+        code = re.sub(r"\bELSE\b", "ELSE;", code)
+        out = []
+        for piece in (p.strip() for p in code.split(";")):
+            if not piece:
+                continue
+            if piece.startswith("IF "):
+                out.append("    " * indent + f"if {expr(piece[3:-5])}:")
+                indent += 1
+            elif piece.startswith("ELSIF "):
+                out.append("    " * (indent - 1) + f"elif {expr(piece[6:-5])}:")
+            elif piece == "ELSE":
+                out.append("    " * (indent - 1) + "else:")
+            elif piece == "END_IF":
+                indent -= 1
+            else:
+                out.append("    " * indent + expr(piece))
+        return out
+
+    py = []
+    for m in re.finditer(r"FUNCTION (\w+) : LREAL\s*VAR_INPUT(.*?)END_VAR\s*VAR.*?END_VAR(.*?)END_FUNCTION\b", text, flags=re.S):  # fmt: skip
+        args = re.findall(r"(\w+) : LREAL", m[2])
+        py += [f"def {m[1]}({', '.join(args)}):", *body(m[3], 1), f"    return {m[1]}"]
+    fb = re.search(r"FUNCTION_BLOCK (\w+)(.*?)END_FUNCTION_BLOCK", text, flags=re.S)[2]
+    ins = re.findall(r"(\w+) : LREAL", re.search(r"VAR_INPUT(.*?)END_VAR", fb, re.S)[1])
+    outs = re.findall(r"(\w+) : LREAL", re.search(r"VAR_OUTPUT(.*?)END_VAR", fb, re.S)[1])
+    code = fb[fb.rindex("END_VAR") + len("END_VAR") :]
+    consts = [f"    {n} = {v.strip()}" for n, v in re.findall(r"(\w+) : [^:;]*?:= (\[[^\]]*\]|[^;]+);",
+                                                              fb[: fb.rindex("END_VAR")])]  # fmt: skip
+    py += [f"def block({', '.join(ins)}):", *consts, *body(code, 1),
+           f"    return [{', '.join(outs)}]"]  # fmt: skip
+    ns: dict = {"math": math}
+    exec("\n".join(py), ns)
+    return ns
+
+
+@pytest.mark.skipif(not MATLAB, reason=f"conformance data absent ({CONFORMANCE}); see ../shared")
+def test_structured_text_of_every_matlab_original(tmp_path):
+    """Sugeno systems: the evaluator written out, equal to evaluate to rounding; Mamdani:
+    lookup tables holding evaluate's values at their points. blark (an IEC 61131-3
+    parser), when installed, accepts every file."""
+    from fuzzyservo.codegen import lut_interp
+
+    try:
+        from blark.parse import parse_source_code
+    except ImportError:
+        parse_source_code = None
+    for path in MATLAB:
+        system = read_fis(path)
+        st = tmp_path / f"{path.stem}.st"
+        export(system, st=st)
+        text = st.read_text(encoding="utf-8")
+        if parse_source_code is not None and path.stem in ("slcp1", "sugeno1"):
+            assert parse_source_code(text).exception is None, path.name
+        block = st_to_python(text)["block"]
+        xs = sweep(system, 60)
+        got = np.array([block(*row) for row in xs])
+        if system.type == "sugeno":
+            assert_same(got, evaluate_inputs(system, xs)[0], system, 1e-12)
+            continue
+        n = 257 if len(system.inputs) == 1 else 65
+        grids = [np.linspace(v.low, v.high, n) for v in system.inputs]
+        mesh = np.meshgrid(*grids, indexing="ij")
+        table = evaluate_inputs(system, np.column_stack([m.ravel() for m in mesh]))[0]
+        for o in range(len(system.outputs)):
+            expected = lut_interp(grids, table[:, o].reshape(mesh[0].shape), list(xs.T))
+            np.testing.assert_allclose(got[:, o], expected, rtol=0, atol=1e-9, err_msg=path.name)

@@ -22,6 +22,7 @@ import numpy as np
 
 from fuzzyservo.codegen._c_runtime import RUNTIME
 from fuzzyservo.codegen._fmi import fmu_model, fmu_sources, model_description
+from fuzzyservo.codegen._st_system import system_st_source
 from fuzzyservo.controllers.fuzzy.controller import (
     FORMS,
     FUZZY_PARAMS,
@@ -45,7 +46,8 @@ from fuzzyservo.controllers.layout import slots
 
 __all__ = [
     "LutError", "c_sources", "fmu_model", "fmu_sources", "identifier", "lut_error",
-    "lut_table", "model_description", "system_c_sources", "write_c", "write_st",
+    "lut_table", "model_description", "system_c_sources", "system_st_source", "write_c",
+    "write_st",
 ]  # fmt: skip
 
 REALS = ("double", "float")

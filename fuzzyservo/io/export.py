@@ -180,8 +180,9 @@ def export(
         if st:
             path = Path(st)
             path.write_text(_system_st(system), encoding="utf-8")
+            how = "exact" if system.type == "sugeno" else "lookup tables"
             paths.append(path)
-            lines.append(f"{name}: IEC 61131-3 Structured Text written to {path}")
+            lines.append(f"{name}: IEC 61131-3 Structured Text ({how}) written to {path}")
     if fmu:
         from fuzzyservo.io.fmu import write_fmu
 
@@ -192,11 +193,9 @@ def export(
 
 
 def _system_st(system: FuzzySystem) -> str:
-    raise ConfigError(
-        f"{system.name!r} is an inference system, not a controller: Structured Text is "
-        "written for controllers (a lookup table of the map in a control law); export the "
-        "system with --c DIR or --fmu FILE, or give a controller file"
-    )
+    from fuzzyservo.codegen import identifier, system_st_source
+
+    return system_st_source(system, identifier(system.name))
 
 
 def _write_files(files: dict[str, str], folder: str | Path) -> list[Path]:

@@ -119,7 +119,7 @@ def test_every_matlab_original_exports_and_its_c_equals_evaluate(tmp_path, capsy
     for path in MATLAB:
         out = tmp_path / path.stem
         assert main(["export", str(path), "--fis", str(out / "s.fis"), "--fcl",
-                     str(out / "s.fcl"), "--c", str(out / "c")]) == 0, path  # fmt: skip
+                     str(out / "s.fcl"), "--c", str(out / "c"), "--st", str(out / "s.st")]) == 0, path  # fmt: skip
         system = read_fis(path)
         assert parse_fis((out / "s.fis").read_text(encoding="utf-8")) == system, path.name
         assert read_fcl(out / "s.fcl").rules == system.rules
@@ -372,3 +372,12 @@ def test_structured_text_of_every_matlab_original(tmp_path):
         for o in range(len(system.outputs)):
             expected = lut_interp(grids, table[:, o].reshape(mesh[0].shape), list(xs.T))
             np.testing.assert_allclose(got[:, o], expected, rtol=0, atol=1e-9, err_msg=path.name)
+
+
+@pytest.mark.skipif(not MATLAB, reason=f"conformance data absent ({CONFORMANCE}); see ../shared")
+@pytest.mark.skipif(CC is None, reason="no C compiler (cc/gcc) on PATH")
+def test_float_c_states_its_error_against_double(tmp_path, capsys):
+    assert main(["export", str(shower()), "--c", str(tmp_path / "c"), "--float"]) == 0
+    line = next(x for x in capsys.readouterr().out.splitlines() if "single precision" in x)
+    relative = float(line.split("(")[1].split()[0])
+    assert 0 < relative < 1e-5  # float's 6e-8 relative, a few operations deep

@@ -170,23 +170,12 @@ def cmd_show(args: argparse.Namespace) -> int:
 
 
 def cmd_export(args: argparse.Namespace) -> int:
-    from fuzzyservo.io.export import export
+    from fuzzyservo.io.export import export_file
 
-    if not any([args.fis, args.fcl, args.c, args.st]):
-        raise ConfigError("give at least one of --fis FILE, --fcl FILE, --c DIR, --st FILE")
-    if (args.lut is not None and not (args.c or args.st)) or (args.float and not args.c):
-        raise ConfigError("--lut shapes the code of --c DIR or --st FILE, --float that of --c")
-    if args.lut is not None and args.lut < 2:
-        raise ConfigError(f"--lut needs at least 2 points per input, got {args.lut}")
-    if not (math.isfinite(args.sample_time) and args.sample_time > 0):
-        raise ConfigError(f"--sample-time must be > 0 s, got {args.sample_time}")
-    for option in ("fis", "fcl", "st"):
-        _out_file(getattr(args, option), f"--{option}")
-    _out_dir(args.c, "--c")
-    controller = _load_fuzzy(args.controller)
-    real = "float" if args.float else "double"
-    result = export(controller, fis=args.fis, fcl=args.fcl, c_dir=args.c, st=args.st,
-                    lut=args.lut, real=real, sample_time_s=args.sample_time)  # fmt: skip
+    source = resolve(args.controller, "studies/controllers", "controller")
+    result = export_file(source, fis=args.fis, fcl=args.fcl, c_dir=args.c, st=args.st,
+                         fmu=args.fmu, fmi=args.fmi, lut=args.lut, sample_time_s=args.sample_time,
+                         real="float" if args.float else "double")  # fmt: skip
     for note in result.notes:
         print(note, file=sys.stderr)
     print(result.text())
@@ -454,11 +443,13 @@ ROBUSTNESS = [
     _arg("--strict", action="store_true", help="exit 1 when any sample fails"),
 ]  # fmt: skip
 EXPORT = [
-    _arg("controller", help=f"{FUZZY} under studies/controllers/"),
+    _arg("controller", help=f"{FUZZY} under studies/controllers/, or any .fis/.fcl system"),
     _arg("--fis", metavar="FILE", help="the .fis file to write"),
     _arg("--fcl", metavar="FILE", help="the IEC 61131-7 FCL file to write"),
     _arg("--c", metavar="DIR", help="write <name>.c and <name>.h (C99) into DIR"),
     _arg("--st", metavar="FILE", help="the IEC 61131-3 Structured Text file to write"),
+    _arg("--fmu", metavar="FILE", help="the co-simulation FMU to write (FILE.fmu)"),
+    _arg("--fmi", type=int, choices=(2, 3), default=3, help="FMI version of --fmu (default: 3)"),
     _arg("--lut", type=int, metavar="N",
          help="code with a lookup table of N points per input instead of the evaluator; "
          "prints its largest error"),
@@ -545,7 +536,7 @@ COMMANDS = [  # name, help, function, arguments
     ("show", "a fuzzy controller: terms, rules, membership functions and control curve", cmd_show,
      [_arg("controller", help=f"{FUZZY} under studies/controllers/"),
       _arg("--out", default="out", help="folder for the PNG figures (default: out)")]),
-    ("export", "write a fuzzy controller as MATLAB .fis, IEC 61131-7 FCL, C99 or Structured Text",
+    ("export", "write a fuzzy controller as .fis, IEC 61131-7 FCL, C99, Structured Text or FMU",
      cmd_export, EXPORT),
     ("evaluate", "evaluate a fuzzy system on a table of inputs (what evalfis does)", cmd_evaluate,
      EVALUATE),

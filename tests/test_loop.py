@@ -160,11 +160,12 @@ def test_transformed_stages_take_the_step_of_the_tableau() -> None:
 
 def test_controller_kinds_are_unique_and_each_reaches_its_kernel() -> None:
     from fuzzyservo.controllers.classical import PI, PIDF, OpenLoop, P
+    from fuzzyservo.controllers.fmu import FmuController
     from fuzzyservo.controllers.fuzzy.controller import FuzzyController
     from fuzzyservo.controllers.kernels import controller_step
     from fuzzyservo.controllers.kinds import KINDS
 
-    classes = (OpenLoop, P, PI, FuzzyController, PIDF)
+    classes = (OpenLoop, P, PI, FuzzyController, PIDF, FmuController)  # an FMU: stepped
     assert len(set(KINDS.values())) == len(KINDS)
     assert sorted(c.kind for c in classes) == sorted(KINDS.values())
     for name in ("p_k10", "pi_dinca", "open_loop", "flc2_reshaped", "pidf_faster"):

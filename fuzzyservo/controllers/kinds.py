@@ -6,7 +6,7 @@ to its step kernel; a code used twice is refused when this module is imported.
 
 from __future__ import annotations
 
-KINDS: dict[str, int] = {"open_loop": 0, "P": 1, "PI": 2, "fuzzy": 3, "PIDF": 4}
+KINDS: dict[str, int] = {"open_loop": 0, "P": 1, "PI": 2, "fuzzy": 3, "PIDF": 4, "fmu": 5}
 
 if len(set(KINDS.values())) != len(KINDS):
     raise ValueError(f"controller kind codes must be unique, got {KINDS}")
@@ -16,3 +16,5 @@ KIND_P = KINDS["P"]
 KIND_PI = KINDS["PI"]
 KIND_FUZZY = KINDS["fuzzy"]
 KIND_PIDF = KINDS["PIDF"]
+#: an FMU: no compiled kernel, run sample by sample (simulation.closed_loop.simulate_stepped)
+KIND_FMU = KINDS["fmu"]

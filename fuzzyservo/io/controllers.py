@@ -34,18 +34,21 @@ _KINDS = {
     "PIDF": ("kp", "ki", "kd", "filter_time", "form"),
     "open_loop": ("gain",),
     "fuzzy": KEYS,
+    "fmu": ("file", "reference", "measurement", "command", "sample_time"),
 }
 
 
 def load_controller(path: str | Path) -> Controller:
-    """Read and validate a controller file (YAML, or a MATLAB ``.fis``); raise
+    """Read and validate a controller file (YAML, a MATLAB ``.fis`` or an FCL file); raise
     :class:`ConfigError` naming file and key."""
     file = str(path)
-    if Path(file).suffix.lower() == ".fis":
+    suffix = Path(file).suffix.lower()
+    if suffix in (".fis", ".fcl"):
+        from fuzzyservo.io.fcl import controller_from_fcl
         from fuzzyservo.io.fis import controller_from_fis
         from fuzzyservo.io.paths import name_problem
 
-        controller = controller_from_fis(path)
+        controller = (controller_from_fis if suffix == ".fis" else controller_from_fcl)(path)
         if name_problem(controller.name):
             raise ConfigError(name_problem(controller.name), file=file, key="[System] Name")
         return controller
@@ -78,6 +81,8 @@ def controller_from_data(data: dict, file: str) -> Controller:
         limits = {"u_min": lo_hi[0], "u_max": lo_hi[1]}
     if kind == "fuzzy":
         return fuzzy_from_node(root, name, limits, root.str("description", default=""))
+    if kind == "fmu":
+        return _fmu_controller(root, name, limits)
     # read every number first: ConfigErrors from the reads keep their own key
     unknowns: list[tuple[str, float, float]] = []
     if kind == "P":
@@ -100,6 +105,30 @@ def controller_from_data(data: dict, file: str) -> Controller:
         return make(**gains, name=name, unknowns=tuple(unknowns), **limits)
     except ValueError as exc:
         raise ConfigError(f"{exc}; fix the controller file", file=file) from None
+
+
+def _fmu_controller(root: Node, name: str, limits: dict[str, float]) -> Controller:
+    """``kind: fmu``: a co-simulation FMU (``file``, relative to the controller file) and
+    the names of its reference and measurement inputs and its command output."""
+    from fuzzyservo.controllers.fmu import FmuController
+
+    if not root.has("file"):
+        root.fail("missing key 'file'; give the FMU, e.g. file: controller.fmu")
+    path = Path(root.str("file"))
+    if not path.is_absolute():
+        path = Path(root.file).parent / path
+    if path.suffix.lower() != ".fmu" or not path.is_file():
+        root.fail(f"{path} is not an FMU file (.fmu) that exists; check the path", key="file")
+    period = root.number("sample_time", default=None) if root.has("sample_time") else None
+    names = {k: root.str(k, default=k) for k in ("reference", "measurement", "command")}
+    try:
+        controller = FmuController(file=str(path), sample_time_s=period, name=name,
+                                   description=root.str("description", default=""),
+                                   **names, **limits)  # fmt: skip
+        controller.start(period or 0.01).close()  # the FMU opens and its variables match
+    except ValueError as exc:
+        raise ConfigError(f"{exc}", file=root.file, key="file") from None
+    return controller
 
 
 def _gain(
@@ -153,12 +182,11 @@ def controller_data_from_text(text: str, filename: str) -> dict:
     """The mapping of a controller file's text (an upload): ``.yaml``/``.yml`` or ``.fis``."""
     suffix = Path(filename).suffix.lower()
     if suffix == ".fis":
-        from fuzzyservo.controllers.fuzzy import FuzzyController
-        from fuzzyservo.io.fis import parse_fis
+        from fuzzyservo.io.fis import parse_fis_controller
         from fuzzyservo.io.fuzzy import fuzzy_controller_data
 
-        system = parse_fis(text, filename)
-        return fuzzy_controller_data(FuzzyController(system=system, name=system.name))
+        controller = parse_fis_controller(text, filename)
+        return fuzzy_controller_data(controller.renamed(controller.system.name))
     if suffix in (".yaml", ".yml"):
         return parse_yaml(text, filename)
     raise ConfigError("a controller file ends in .yaml or .fis", file=filename)

@@ -1,16 +1,29 @@
-"""A fuzzy controller written for other tools: MATLAB ``.fis``, IEC 61131-7 FCL, C99
-and IEC 61131-3 Structured Text (what ``fuzzyservo export`` writes)."""
+"""A fuzzy controller or inference system written for other tools: MATLAB ``.fis``,
+IEC 61131-7 FCL, C99, IEC 61131-3 Structured Text and FMI co-simulation FMUs (what
+``fuzzyservo export`` writes).
+
+A controller (a YAML file, or a ``.fis``/FCL file with a fuzzyservo control-law
+comment) is exported with its control law: ``.fis`` and FCL carry it in a comment, C,
+ST and the FMU compute it. Any other ``.fis`` or FCL file is an inference system with
+any number of inputs and outputs: its C and FMU compute what ``evaluate`` does.
+"""
 
 from __future__ import annotations
 
+import dataclasses
+import math
 from dataclasses import dataclass
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
+from fuzzyservo.controllers.fuzzy.controller import FuzzyController
+from fuzzyservo.controllers.fuzzy.system import FuzzySystem
+from fuzzyservo.errors import ConfigError
 from fuzzyservo.results import Result
 
-if TYPE_CHECKING:
-    from fuzzyservo.controllers.fuzzy import FuzzyController
+__all__ = [
+    "ExportResult", "export", "export_file", "load_exportable", "single_precision_error",
+]  # fmt: skip
 
 
 @dataclass(frozen=True)
@@ -31,40 +44,262 @@ class ExportResult(Result):
                 "notes": list(self.notes)}  # fmt: skip
 
 
+def load_exportable(path: str | Path) -> FuzzyController | FuzzySystem:
+    """What ``path`` holds for export: a controller (a fuzzy controller YAML file, or a
+    ``.fis``/FCL file with a control-law comment) or an inference system (any other
+    ``.fis``/FCL file)."""
+    from fuzzyservo.io.evaluation import load_fuzzy_controller
+    from fuzzyservo.io.fcl import read_fcl_law
+    from fuzzyservo.io.fis import controller_from_law, read_fis_law
+
+    p = Path(path)
+    suffix = p.suffix.lower()
+    if suffix not in (".fis", ".fcl"):
+        return load_fuzzy_controller(p, other=", a .fis or a .fcl")
+    system, law = (read_fis_law if suffix == ".fis" else read_fcl_law)(p)
+    return controller_from_law(system, law, p, "[Rules]") if law else system
+
+
+def export_file(
+    source: str | Path,
+    *,
+    fis: str | None = None,
+    fcl: str | None = None,
+    c_dir: str | None = None,
+    st: str | None = None,
+    fmu: str | None = None,
+    fmi: int = 3,
+    lut: int | None = None,
+    real: str = "double",
+    sample_time_s: float = 0.01,
+) -> ExportResult:
+    """:func:`export` of the controller or system in the file ``source``, the options
+    checked first (:class:`ConfigError` naming the option)."""
+    if not any([fis, fcl, c_dir, st, fmu]):
+        raise ConfigError(
+            "give at least one of --fis FILE, --fcl FILE, --c DIR, --st FILE, --fmu FILE"
+        )
+    if (lut is not None and not (c_dir or st)) or (real == "float" and not c_dir):
+        raise ConfigError("--lut shapes the code of --c DIR or --st FILE, --float that of --c")
+    if lut is not None and lut < 2:
+        raise ConfigError(f"--lut needs at least 2 points per input, got {lut}")
+    if not (math.isfinite(sample_time_s) and sample_time_s > 0):
+        raise ConfigError(f"--sample-time must be > 0 s, got {sample_time_s}")
+    if fmi not in (2, 3):
+        raise ConfigError(f"--fmi must be 2 or 3, got {fmi}")
+    for option, value in (("fis", fis), ("fcl", fcl), ("st", st), ("fmu", fmu)):
+        if value is not None and Path(value).is_dir():
+            raise ConfigError(f"--{option} {value}: is a folder; give a file name")
+    if c_dir is not None and Path(c_dir).exists() and not Path(c_dir).is_dir():
+        raise ConfigError(f"--c {c_dir}: is a file, not a folder; name a folder")
+    if fmu is not None and Path(fmu).suffix.lower() != ".fmu":
+        raise ConfigError(f"--fmu {fmu}: an FMU file ends in .fmu; e.g. {Path(fmu).stem}.fmu")
+    target = load_exportable(source)
+    try:
+        return export(target, fis=fis, fcl=fcl, c_dir=c_dir, st=st, fmu=fmu, fmi=fmi, lut=lut,
+                      real=real, sample_time_s=sample_time_s)  # fmt: skip
+    except ValueError as exc:
+        if isinstance(exc, ConfigError):
+            raise
+        raise ConfigError(str(exc), file=str(source)) from None
+
+
+def _fcl_names(system: FuzzySystem) -> tuple[FuzzySystem, list[str]]:
+    """``system`` with term names FCL can refer to: a repeated name gets ``_2``, ``_3`` …
+    (MATLAB refers to terms by number; juggler.fis names nine output terms alike)."""
+    variables, notes = [], []
+    for v in (*system.inputs, *system.outputs):
+        seen: dict[str, int] = {}
+        terms = []
+        for t in v.terms:
+            seen[t.name] = seen.get(t.name, 0) + 1
+            name = t.name if seen[t.name] == 1 else f"{t.name}_{seen[t.name]}"
+            terms.append(dataclasses.replace(t, name=name))
+        if any(n > 1 for n in seen.values()):
+            notes.append(f"note: FCL refers to terms by name; repeated term names of "
+                         f"{v.name!r} written with _2, _3 … suffixes")  # fmt: skip
+        variables.append(dataclasses.replace(v, terms=tuple(terms)))
+    n = len(system.inputs)
+    renamed = dataclasses.replace(system, inputs=tuple(variables[:n]), output=variables[n],
+                                  other_outputs=tuple(variables[n + 1 :]))  # fmt: skip
+    return renamed, notes
+
+
 def export(
-    controller: FuzzyController,
+    controller: FuzzyController | FuzzySystem,
     *,
     fis: str | Path | None = None,
     fcl: str | Path | None = None,
     c_dir: str | Path | None = None,
     st: str | Path | None = None,
+    fmu: str | Path | None = None,
+    fmi: int = 3,
     lut: int | None = None,
     real: str = "double",
     sample_time_s: float = 0.01,
 ) -> ExportResult:
-    """Write ``controller`` to each target given: ``fis`` and ``fcl`` files (the inference
-    system only), C99 sources into ``c_dir`` (``real``: double or float) and a Structured
-    Text file ``st``; the code with a lookup table of ``lut`` points per input instead of
-    the evaluator, its largest error reported."""
-    from fuzzyservo.codegen import lut_error, write_c, write_st
+    """Write ``controller`` (or an inference system) to each target given: ``fis`` and
+    ``fcl`` files (a controller's control law in a comment), C99 sources into ``c_dir``
+    (``real``: double or float), a Structured Text file ``st`` and an FMU ``fmu`` (FMI
+    ``fmi`` 3 or 2); a controller's code with a lookup table of ``lut`` points per input
+    instead of the evaluator, its largest error reported."""
+    from fuzzyservo.codegen import system_c_sources
     from fuzzyservo.io.fcl import write_fcl
-    from fuzzyservo.io.fis import write_fis
+    from fuzzyservo.io.fis import law_text, write_fis
 
-    name, lines, notes, paths = controller.name, [], [], []
-    for file in (fis, fcl, st):  # a file in a folder not made yet: make it
+    system = controller.system if isinstance(controller, FuzzyController) else controller
+    name, lines, notes, paths = system.name, [], [], []
+    for file in (fis, fcl, st, fmu):  # a file in a folder not made yet: make it
         if file:
             Path(file).parent.mkdir(parents=True, exist_ok=True)
-    gains = (controller.input_gain, controller.rate_gain, controller.output_gain)
-    if (fis or fcl) and (any(g != 1.0 for g in gains) or controller.form == "pi"):
-        notes.append(f"note: a .fis/.fcl holds the inference system only; form "
-                     f"{controller.form!r} and gains (input, rate, output) = {gains} stay in "
-                     "the YAML file")  # fmt: skip
+    law = law_text(controller) if isinstance(controller, FuzzyController) else ""
+    if isinstance(controller, FuzzyController):
+        name = controller.name
+        if fis or fcl:
+            notes.append(f"note: MATLAB and other FCL tools read the inference system; the "
+                         f"control law ({law}) is in a fuzzyservo comment that fuzzyservo "
+                         "reads back")  # fmt: skip
+    elif lut is not None:
+        raise ConfigError(f"{name!r} is an inference system, not a controller: --lut tables "
+                          "a controller's map; export it without --lut")  # fmt: skip
     if fis:
-        paths.append(write_fis(controller.system, fis))
+        paths.append(write_fis(system, fis, law))
         lines.append(f"{name} written to {fis}")
     if fcl:
-        paths.append(write_fcl(controller.system, fcl))
+        named, renamed = _fcl_names(system)
+        notes += renamed
+        paths.append(write_fcl(named, fcl, law))
         lines.append(f"{name} written to {fcl} (IEC 61131-7 FCL)")
+    if isinstance(controller, FuzzyController):
+        _controller_code(controller, c_dir, st, lut, real, sample_time_s, lines, paths)
+    else:
+        if c_dir:
+            written = _write_files(system_c_sources(system, real), c_dir)
+            paths += written
+            lines.append(f"{name}: C99 ({real}, {len(system.inputs)} input(s), "
+                         f"{len(system.outputs)} output(s)) written to "
+                         + ", ".join(str(p) for p in written))  # fmt: skip
+        if st:
+            path = Path(st)
+            path.write_text(_system_st(system), encoding="utf-8")
+            how = "exact" if system.type == "sugeno" else "lookup tables"
+            paths.append(path)
+            lines.append(f"{name}: IEC 61131-3 Structured Text ({how}) written to {path}")
+    if c_dir and real == "float":
+        lines.append(single_precision_error(controller))
+    if fmu:
+        from fuzzyservo.io.fmu import write_fmu
+
+        path, what = write_fmu(controller, fmu, fmi=fmi, sample_time_s=sample_time_s)
+        paths.append(path)
+        lines.append(f"{name}: FMU ({what}) written to {path}")
+    return ExportResult(name, tuple(paths), tuple(lines), tuple(notes))
+
+
+_SWEEP_MAIN = r"""#include <stdio.h>
+#include "@P@.h"
+int main(void)
+{
+    @P@_state s;
+    @R@ x[@NIN@], y[@NOUT@];
+    double v;
+    int i;
+    @INIT@
+    for (;;) {
+        for (i = 0; i < @NIN@; i++) {
+            if (scanf("%lf", &v) != 1) return 0;
+            x[i] = (@R@)v;
+        }
+        @CALL@
+        for (i = 0; i < @NOUT@; i++) printf("%.17g\n", (double)y[i]);
+    }
+}
+"""
+
+
+def single_precision_error(target: FuzzyController | FuzzySystem, n: int = 2000) -> str:
+    """The generated C in float against the same C in double on ``n`` inputs spread over
+    the input ranges: a line stating the largest difference (of the map F, before the
+    output gain, for a controller), or why it was not measured."""
+    import subprocess
+    import tempfile
+
+    import numpy as np
+
+    from fuzzyservo.codegen import c_sources, identifier, system_c_sources
+    from fuzzyservo.io.fmu import c_compiler
+
+    cc = c_compiler()
+    if cc is None:
+        return "single precision: not measured (no C compiler found)"
+    system = target.system if isinstance(target, FuzzyController) else target
+    n_in, n_out = len(system.inputs), len(system.outputs)
+    rng = np.random.default_rng(0)
+    xs = np.column_stack([rng.uniform(v.low, v.high, n) for v in system.inputs])
+    text = "\n".join(" ".join(repr(float(x)) for x in row) for row in xs) + "\n"
+    name = identifier(target.name)
+    results = []
+    with tempfile.TemporaryDirectory() as tmp:
+        for real in ("double", "float"):
+            folder = Path(tmp) / real
+            if isinstance(target, FuzzyController):
+                files = c_sources(target, 0.01, real)
+                init, call = f"{name}_init(&s);", f"y[0] = {name}_map(&s, x[0], x[{n_in - 1}]);"
+            else:
+                files = system_c_sources(target, real)
+                init, call = "", f"{name}_evaluate(&s, x, y);"
+            main = _SWEEP_MAIN.replace("@INIT@", init).replace("@CALL@", call)
+            for key, value in (("@P@", name), ("@R@", real), ("@NIN@", str(n_in)),
+                               ("@NOUT@", str(1 if isinstance(target, FuzzyController) else n_out))):  # fmt: skip
+                main = main.replace(key, value)
+            paths = _write_files({**files, "main.c": main}, folder)
+            exe = folder / "sweep"
+            built = subprocess.run([cc, "-std=c99", "-O2", "-o", str(exe),
+                                    *(str(p) for p in paths if p.suffix == ".c"), "-lm"],
+                                   capture_output=True, text=True)  # fmt: skip
+            if built.returncode:
+                return f"single precision: not measured ({cc} failed)"
+            run = subprocess.run([str(exe)], input=text, capture_output=True, text=True)
+            results.append(np.array([float(v) for v in run.stdout.split()]))
+    double, single = results
+    ok = np.isfinite(double) & np.isfinite(single)
+    err = float(np.max(np.abs(single[ok] - double[ok]))) if ok.any() else 0.0
+    span = max(v.high - v.low for v in system.outputs) or 1.0
+    return (f"single precision: largest difference from double {err:.3g} ({err / span:.2e} "
+            f"of the output range) on {n} inputs spread over the input ranges")  # fmt: skip
+
+
+def _system_st(system: FuzzySystem) -> str:
+    from fuzzyservo.codegen import identifier, system_st_source
+
+    return system_st_source(system, identifier(system.name))
+
+
+def _write_files(files: dict[str, str], folder: str | Path) -> list[Path]:
+    out = Path(folder)
+    out.mkdir(parents=True, exist_ok=True)
+    paths = []
+    for file, text in files.items():
+        path = out / file
+        path.write_text(text, encoding="utf-8")
+        paths.append(path)
+    return paths
+
+
+def _controller_code(
+    controller: FuzzyController,
+    c_dir: str | Path | None,
+    st: str | Path | None,
+    lut: int | None,
+    real: str,
+    sample_time_s: float,
+    lines: list[str],
+    paths: list[Path],
+) -> None:
+    """The C and Structured Text of a controller (the lookup table's error reported)."""
+    from fuzzyservo.codegen import lut_error, write_c, write_st
+
+    name = controller.name
 
     def table(n: int) -> str:
         err = lut_error(controller, n)
@@ -81,9 +316,9 @@ def export(
                      f"{', lookup table' if lut else ''}) written to "
                      + ", ".join(str(p) for p in written))  # fmt: skip
     if st:
+        Path(st).parent.mkdir(parents=True, exist_ok=True)
         path, n = write_st(controller, st, sample_time_s, lut)
         if not c_dir or lut is None:
             lines.append(table(n))
         paths.append(path)
         lines.append(f"{name}: IEC 61131-3 Structured Text written to {path}")
-    return ExportResult(name, tuple(paths), tuple(lines), tuple(notes))

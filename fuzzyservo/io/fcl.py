@@ -48,6 +48,7 @@ import re
 from pathlib import Path
 from typing import NoReturn
 
+from fuzzyservo.controllers.fuzzy.controller import FuzzyController
 from fuzzyservo.controllers.fuzzy.shapes import SUGENO_SHAPES
 from fuzzyservo.controllers.fuzzy.system import (
     MATLAB_SAMPLE_POINTS,
@@ -62,9 +63,12 @@ from fuzzyservo.controllers.fuzzy.system import (
     term_index,
 )
 from fuzzyservo.errors import ConfigError
+from fuzzyservo.io.fis import LAW_KEYS, controller_from_law
 from fuzzyservo.io.fis import number_text as _num
 
-__all__ = ["fcl_text", "parse_fcl", "read_fcl", "write_fcl"]
+__all__ = [
+    "controller_from_fcl", "fcl_text", "parse_fcl", "read_fcl", "read_fcl_law", "write_fcl",
+]  # fmt: skip
 
 _AND = {"MIN": "min", "PROD": "prod"}
 _OR = {"MAX": "max", "ASUM": "probor", "PROBOR": "probor"}
@@ -359,10 +363,28 @@ def _clause(file: str, line: int, text: str, variables: list[Variable]) -> tuple
 
 def read_fcl(path: str | Path, points: int = 201) -> FuzzySystem:
     """Read an FCL file; :class:`ConfigError` naming the file, line and fix when it is bad."""
+    return parse_fcl(_read_text(path), str(path), points)
+
+
+def _read_text(path: str | Path) -> str:
     p = Path(path)
     if not p.is_file():
         raise ConfigError("file not found; check the path", file=str(path))
-    return parse_fcl(p.read_text(encoding="utf-8", errors="replace"), str(path), points)
+    return p.read_text(encoding="utf-8", errors="replace")
+
+
+def read_fcl_law(path: str | Path) -> tuple[FuzzySystem, dict[str, str]]:
+    """The system of an FCL file and the control law its ``(* fuzzyservo: … *)`` comment
+    gives (empty when it gives none)."""
+    text = _read_text(path)
+    law = {k: v for k, v in _strip_comments(text)[1].items() if k in LAW_KEYS}
+    return parse_fcl(text, str(path)), law
+
+
+def controller_from_fcl(path: str | Path) -> FuzzyController:
+    """A controller from an FCL file: the control law of its ``(* fuzzyservo: … *)``
+    comment, else the defaults of :func:`~fuzzyservo.io.fis.controller_from_fis`."""
+    return controller_from_law(*read_fcl_law(path), Path(path), "line 1")
 
 
 # --------------------------------------------------------------------------- writing
@@ -385,8 +407,9 @@ def _term_text(t: Term) -> str:
     return " ".join([t.shape, *(_num(v) for v in p)])
 
 
-def fcl_text(system: FuzzySystem) -> str:
-    """``system`` as an FCL function block (module docstring)."""
+def fcl_text(system: FuzzySystem, law: str = "") -> str:
+    """``system`` as an FCL function block (module docstring), with the control law
+    ``law`` (:func:`~fuzzyservo.io.fis.law_text`) in a comment when given."""
     variables = [*system.inputs, *system.outputs]
     for v in variables:
         _name(v.name, "variable name")
@@ -409,6 +432,7 @@ def fcl_text(system: FuzzySystem) -> str:
         f"points={points}"
         + "".join(f" {v.name}.points={v.points}" for v in variables if v.points != points)
         + " *)",
+        *([f"(* {_TAG} {law} *)"] if law else []),
         f"FUNCTION_BLOCK {_name(system.name, 'system name')}",
         "",
         "VAR_INPUT",
@@ -464,8 +488,8 @@ def fcl_text(system: FuzzySystem) -> str:
     return "\n".join(lines) + "\n"
 
 
-def write_fcl(system: FuzzySystem, path: str | Path) -> Path:
-    """Write ``system`` as FCL (UTF-8); returns the path."""
+def write_fcl(system: FuzzySystem, path: str | Path, law: str = "") -> Path:
+    """Write ``system`` (and the control law ``law``) as FCL (UTF-8); returns the path."""
     p = Path(path)
-    p.write_text(fcl_text(system), encoding="utf-8")
+    p.write_text(fcl_text(system, law), encoding="utf-8")
     return p

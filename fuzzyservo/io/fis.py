@@ -78,7 +78,10 @@ from fuzzyservo.controllers.fuzzy.system import (
 )
 from fuzzyservo.errors import ConfigError
 
-__all__ = ["controller_from_fis", "fis_text", "parse_fis", "read_fis", "write_fis"]
+__all__ = [
+    "controller_from_fis", "controller_from_law", "fis_text", "law_text", "parse_fis",
+    "parse_fis_controller", "read_fis", "read_fis_law", "write_fis",
+]  # fmt: skip
 
 #: the ``Version`` written by :func:`fis_text` (MATLAB R2018b and later)
 VERSION = "2.0"
@@ -96,6 +99,8 @@ _METHODS = {
     "DefuzzMethod": ("defuzzification", MAMDANI_DEFUZZIFICATIONS),
 }
 _TAG = "% fuzzyservo:"
+#: the control law of a controller, written in its own ``% fuzzyservo:`` line
+LAW_KEYS = ("form", "input_gain", "rate_gain", "output_gain", "u_min", "u_max")
 _SYSTEM_KEYS = ("Name", "Type", "Version", "NumInputs", "NumOutputs", "NumRules", *_METHODS)
 _VARIABLE_KEYS = ("Name", "Range", "NumMFs", "MF<n>")
 _SECTION = re.compile(r"^\[\s*(?P<name>[^\]]*?)\s*\]$")
@@ -223,10 +228,10 @@ class _Reader:
         prefix = f"{current.name}." if current is not None and current.name != "System" else ""
         for item in text.split():
             key, eq, value = item.partition("=")
-            if not eq or key not in ("semantics", "sample_points", "points"):
+            if not eq or key not in ("semantics", "sample_points", "points", *LAW_KEYS):
                 self.fail(
                     f"cannot read {item!r} in a '{_TAG}' line; write semantics=skfuzzy|matlab, "
-                    "sample_points=N or points=N",
+                    f"sample_points=N, points=N or the control law ({', '.join(LAW_KEYS)})",
                     line=number,
                 )
             self.settings[prefix + key] = (value, number)
@@ -540,6 +545,11 @@ def parse_fis(text: str, file: str = "<fis text>", points: int = 201) -> FuzzySy
     Universes get ``points`` evenly spaced samples unless the file's ``% fuzzyservo:``
     line says otherwise.
     """
+    return _parse(text, file, points)[0]
+
+
+def _parse(text: str, file: str, points: int) -> tuple[FuzzySystem, dict[str, str]]:
+    """The system and the control law's settings (:data:`LAW_KEYS`) the file gives."""
     reader = _Reader(file)
     sections = reader.sections(text)
     if "System" not in sections:
@@ -618,6 +628,7 @@ def parse_fis(text: str, file: str = "<fis text>", points: int = 201) -> FuzzySy
         semantics, line = reader.settings["semantics"]
         if semantics not in SEMANTICS:
             reader.fail(f"semantics must be one of {list(SEMANTICS)}, got {semantics!r}", line=line)
+    law = {k: v for k, (v, _) in reader.settings.items() if k in LAW_KEYS}
     try:
         return FuzzySystem(
             name=name,
@@ -629,7 +640,7 @@ def parse_fis(text: str, file: str = "<fis text>", points: int = 201) -> FuzzySy
             semantics=semantics,
             sample_points=reader.setting_int("sample_points", MATLAB_SAMPLE_POINTS),
             **methods,
-        )
+        ), law
     except ValueError as exc:
         reader.fail(_with_fix(exc, "fix the file"), "[System]", system.number)
 
@@ -639,6 +650,16 @@ def read_fis(path: str | Path, points: int = 201) -> FuzzySystem:
 
     Raises :class:`ConfigError` naming the file, the section and line, and the fix.
     """
+    return _parse(_read_text(path), str(path), points)[0]
+
+
+def read_fis_law(path: str | Path) -> tuple[FuzzySystem, dict[str, str]]:
+    """The system of a ``.fis`` file and the control law (:data:`LAW_KEYS`, as text) its
+    ``% fuzzyservo:`` line gives (empty when it gives none)."""
+    return _parse(_read_text(path), str(path), 201)
+
+
+def _read_text(path: str | Path) -> str:
     p = Path(path)
     if not p.is_file():
         raise ConfigError(
@@ -654,26 +675,64 @@ def read_fis(path: str | Path, points: int = 201) -> FuzzySystem:
         text = data.decode("utf-8-sig")
     except UnicodeDecodeError:
         text = data.decode("latin-1")  # older MATLAB wrote the platform encoding (often cp1252)
-    return parse_fis(text, str(path), points)
+    return text
 
 
 def controller_from_fis(path: str | Path) -> FuzzyController:
-    """A controller from a ``.fis`` file: one input → form ``p``, two → ``pd``.
-
-    Named after the file stem; all gains 1; no output limits (the simulator applies the
-    rig actuator's command range).
+    """A controller from a ``.fis`` file: the control law its ``% fuzzyservo:`` line gives
+    (:func:`law_text`, what ``fuzzyservo export`` writes), else one input → form ``p``,
+    two → ``pd``, all gains 1 and no output limits (the simulator applies the rig
+    actuator's command range). Named after the file stem.
     """
-    system = read_fis(path)
-    form = "p" if len(system.inputs) == 1 else "pd"
+    return parse_fis_controller(_read_text(path), str(path))
+
+
+def parse_fis_controller(text: str, file: str) -> FuzzyController:
+    """:func:`controller_from_fis` of ``.fis`` text (an upload named ``file``)."""
+    system, law = _parse(text, file, 201)
+    return controller_from_law(system, law, Path(file), "[Rules]")
+
+
+def law_text(controller: FuzzyController) -> str:
+    """The control law around the inference system (form, gains, output limits) as the
+    ``key=value`` pairs a ``% fuzzyservo:`` line (``.fis``) or ``(* fuzzyservo: *)``
+    comment (FCL) carries, numbers exact (``repr``)."""
+    values = [number_text(getattr(controller, k)) for k in LAW_KEYS[1:]]
+    pairs = [
+        f"form={controller.form}",
+        *(f"{k}={v}" for k, v in zip(LAW_KEYS[1:], values, strict=True)),
+    ]
+    return " ".join(pairs)
+
+
+def controller_from_law(
+    system: FuzzySystem, law: dict[str, str], path: Path, key: str
+) -> FuzzyController:
+    """The controller of ``system`` with the control law ``law`` (:data:`LAW_KEYS`, as
+    text; missing keys: the form from the number of inputs, gains 1, no limits)."""
+    settings: dict[str, object] = {}
+    for k, text in law.items():
+        if k == "form":
+            settings[k] = text
+            continue
+        try:
+            settings[k] = float(text)
+        except ValueError:
+            raise ConfigError(
+                f"control law {k}={text!r} is not a number; write it like {k}=1.5",
+                file=str(path), key="fuzzyservo control law",
+            ) from None  # fmt: skip
+    settings.setdefault("form", "p" if len(system.inputs) == 1 else "pd")
+    kind = "MATLAB FIS" if path.suffix.lower() == ".fis" else "FCL function block"
     try:
         return FuzzyController(
             system=system,
-            form=form,
-            name=Path(path).stem,
-            description=f"MATLAB FIS {system.name!r} read from {Path(path).name}",
+            name=path.stem,
+            description=f"{kind} {system.name!r} read from {path.name}",
+            **settings,  # type: ignore[arg-type]
         )
     except ValueError as exc:
-        raise ConfigError(_with_fix(exc, "fix the rules"), file=str(path), key="[Rules]") from None
+        raise ConfigError(_with_fix(exc, "fix the rules"), file=str(path), key=key) from None
 
 
 # --------------------------------------------------------------------------- writing
@@ -707,11 +766,12 @@ def _variable_text(section: str, var: Variable, points: int) -> list[str]:
     return [*lines, ""]
 
 
-def fis_text(system: FuzzySystem) -> str:
+def fis_text(system: FuzzySystem, law: str = "") -> str:
     """``system`` as MATLAB ``.fis`` text (R2018b+ layout, ``Version=2.0``).
 
     Numbers are written with ``repr`` precision and the evaluation settings in a
-    ``% fuzzyservo:`` comment, so :func:`parse_fis` gives back an equal system.
+    ``% fuzzyservo:`` comment, so :func:`parse_fis` gives back an equal system; ``law``
+    (:func:`law_text`) in a second one, so a controller's file runs as the controller.
     """
     variables = [*system.inputs, *system.outputs]
     points = max({v.points for v in variables}, key=[v.points for v in variables].count)
@@ -728,6 +788,8 @@ def fis_text(system: FuzzySystem) -> str:
     lines.append(
         f"{_TAG} semantics={system.semantics} sample_points={system.sample_points} points={points}"
     )
+    if law:
+        lines.append(f"{_TAG} {law}")
     lines.append("")
     for k, var in enumerate(system.inputs, start=1):
         lines += _variable_text(f"Input{k}", var, points)
@@ -742,8 +804,9 @@ def fis_text(system: FuzzySystem) -> str:
     return "\n".join(lines) + "\n"
 
 
-def write_fis(system: FuzzySystem, path: str | Path) -> Path:
-    """Write ``system`` as a MATLAB ``.fis`` file (UTF-8); returns the path."""
+def write_fis(system: FuzzySystem, path: str | Path, law: str = "") -> Path:
+    """Write ``system`` (and the control law ``law``, :func:`fis_text`) as a MATLAB
+    ``.fis`` file (UTF-8); returns the path."""
     p = Path(path)
-    p.write_text(fis_text(system), encoding="utf-8")
+    p.write_text(fis_text(system, law), encoding="utf-8")
     return p

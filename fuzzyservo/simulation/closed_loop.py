@@ -2,12 +2,15 @@
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
 
+from fuzzyservo.components.effects import E
 from fuzzyservo.controllers.base import Controller
+from fuzzyservo.controllers.classical import OpenLoop
 from fuzzyservo.rig import Rig, Scenario
 from fuzzyservo.simulation import _loop
 from fuzzyservo.simulation.result import SimResult
@@ -126,8 +129,12 @@ def simulate(
     sees the feedback sensor's reading with its noise (seeded by ``noise_seed``; ``noise``
     False or True overrides the scenario's switch) and ADC quantisation, one I/O delay
     (``rig.io_delay_s``) before its command reaches the actuator. Never raises for a run
-    that fails: the result's ``status`` and ``message`` say what happened.
+    that fails: the result's ``status`` and ``message`` say what happened. A controller
+    that is not compiled (an FMU) runs sample by sample (:func:`simulate_stepped`).
     """
+    if getattr(controller, "stepped", False):
+        return simulate_stepped(rig, controller, scenario, duration_s=duration_s, tol=tol,
+                                noise=noise, noise_seed=noise_seed)  # fmt: skip
     prep = prepare(rig, controller, scenario, duration_s, noise=noise, noise_seed=noise_seed)
     n = prep.t.size
     nx = prep.x0.size
@@ -174,6 +181,9 @@ def simulate_batch(
     the one :func:`simulate` gives for that rig and seed. The rigs must share their plant
     model, loop settings and scenario signals (sampled versions of one rig do); otherwise
     they run one by one."""
+    if getattr(controller, "stepped", False):
+        return [simulate(r, controller, scenario, tol=tol, noise_seed=n)
+                for r, n in zip(rigs, noise_seeds, strict=True)]  # fmt: skip
     preps = [prepare(r, controller, scenario, noise_seed=n) for r, n in zip(rigs, noise_seeds,
                                                                              strict=True)]  # fmt: skip
     if not preps:
@@ -315,3 +325,75 @@ def _message(status: str, where: int, prep: Prepared) -> str:
     if status == "diverged":
         return f"the simulation diverged at t = {t:.3f} s (non-finite state or step size collapsed)"
     return f"the integrator needed too many steps in the interval at t = {t:.3f} s"
+
+
+def simulate_stepped(
+    rig: Rig,
+    controller: Controller,
+    scenario: str | Scenario | None = None,
+    *,
+    duration_s: float | None = None,
+    tol: float = DEFAULT_TOL,
+    noise: bool | None = None,
+    noise_seed: int = 0,
+) -> SimResult:
+    """:func:`simulate` with ``controller.step`` called from Python at every sample (its
+    state from ``controller.init``), for a controller that is not compiled (an FMU).
+
+    Each sample does what the compiled loop (``_plant_loop.closed_loop``) does, with the
+    same compiled pieces: the feedback reading (:func:`_loop.sample` of a pass-through
+    controller, so sensor noise, ADC and actuator mapping are the loop's own), the
+    command from ``controller.step``, the limit and the actuator, and the plant integrated
+    over the interval by the plant loop's compiled Rosenbrock integrator behind the same
+    delays. A native controller run this way gives the compiled loop's numbers."""
+    prep = prepare(rig, controller, scenario, duration_s, noise=noise, noise_seed=noise_seed)
+    c = prep.controller
+    loop, p, settings = rig.plant.loop, prep.p, loop_settings(rig, tol)
+    dt = rig.sample_time_s
+    n, x = prep.t.size, prep.x0.copy()
+    states = np.full((n, x.size), np.nan)
+    measured, command, actuator = np.full(n, np.nan), np.full(n, np.nan), np.full(n, np.nan)
+    saturated = np.zeros(n, dtype=np.bool_)
+    work, mats, piv = _loop.workspace(x.size)
+    # a pass-through (u = r) inside the controller's limits: the loop's own sample stage
+    cp, cs = OpenLoop(gain=1.0, u_min=c.u_min, u_max=c.u_max).init(dt)
+    state = c.init(dt)
+    h, status, where, total = dt * 1e-3, _loop.STATUS_OK, -1, 0
+    lag = p[E.valve_lag_s] > 0.0
+    whole, part = _loop.delay_split(p, settings)
+    try:
+        for k in range(n):
+            states[k] = x
+            y = _loop.sample(OpenLoop.kind, cp, cs, 0.0, x, settings, prep.noise[k])[0]
+            u, state = c.step(state, prep.ref[k], y)
+            y, u, a, sat = _loop.sample(OpenLoop.kind, cp, cs, u, x, settings, prep.noise[k])
+            measured[k], command[k], actuator[k], saturated[k] = y, u, a, sat
+            if not math.isfinite(a):
+                status, where = _loop.STATUS_DIVERGED, k
+                break
+            if k == 0 and lag:
+                x[-1] = states[0, -1] = _loop.spool_start(p, a)
+            a_before, a_now = _loop.held_inputs(actuator, k, whole)
+            code = _loop.STATUS_OK
+            for held, span in ((a_before, part * dt), (a_now, (1.0 - part) * dt)):
+                if span > 0.0 and code == _loop.STATUS_OK:
+                    code, h, steps = loop.integrate_interval(
+                        p, prep.null, x, held, prep.load[k], span, h, settings.tol,
+                        prep.scale, prep.typical, work, mats, piv,
+                    )  # fmt: skip
+                    total += steps
+            if code != _loop.STATUS_OK:
+                status, where = code, k
+                break
+            if status == _loop.STATUS_OK and loop.in_end_stop(x, p):
+                status, where = _loop.STATUS_END_STOP, k + 1
+    finally:
+        close = getattr(state, "close", None)
+        if close is not None:
+            close()
+    if status in (_loop.STATUS_DIVERGED, _loop.STATUS_STEP_FAILURE):
+        states[where + 1 :] = np.nan
+        measured[where + 1 :] = command[where + 1 :] = actuator[where + 1 :] = np.nan
+        saturated[where + 1 :] = False
+    return assemble(prep, states, measured, command, actuator, saturated, _STATUS[status],
+                    where, total)  # fmt: skip

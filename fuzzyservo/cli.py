@@ -522,7 +522,7 @@ FIT_VALVE = [
          help="replace the network file the rig names (default: write out/<that file name>)"),
 ]  # fmt: skip
 REPRODUCE = [
-    _arg("seeds", nargs="*", choices=("000", "001", "002", "003"), help="seeds (default: all)"),
+    _arg("seeds", nargs="*", help="seeds: 000, 001, 002, 003 (default: all)"),
     _arg("--json", metavar="FILE", help="write {rows, assumptions, explanations} as JSON"),
     _arg("--markdown", metavar="FILE", help="write the tables as Markdown (docs/reproduction.md)"),
     _arg("--rows-only", action="store_true", help="skip the sensitivity and explanation runs"),

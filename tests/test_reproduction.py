@@ -152,6 +152,26 @@ def test_a_bad_observation_file_is_one_clear_error(tmp_path, edit, message):
     assert str(bad) in str(info.value)
 
 
+def test_entrained_air_bulk_modulus():
+    """E_mix = (1 + r)/(1/E_oil + r/(n·p)), r = α·(p_atm/p)^(1/n) (docs/modelling.md): the
+    oil's modulus at high pressure, the air's n·p near vacuum, α at one atmosphere."""
+    from fuzzyservo.components.air import ATMOSPHERE_PA, EntrainedAir
+    from fuzzyservo.simulation.validity import air_note
+
+    air, oil = EntrainedAir(air_fraction=0.005, polytropic_index=1.0), 1.6e9
+    assert air.free_air_ratio(ATMOSPHERE_PA) == pytest.approx(0.005)
+    assert air.bulk_modulus(300e5, oil) == pytest.approx(oil, rel=0.01)
+    r = 0.005 * ATMOSPHERE_PA / 0.1e5
+    assert air.bulk_modulus(0.1e5, oil) == pytest.approx((1 + r) / (1 / oil + r / 0.1e5))
+    near_vacuum = EntrainedAir(air_fraction=0.005, polytropic_index=1.0, vapour_pressure_pa=1.0)
+    assert near_vacuum.bulk_modulus(5.0, oil) == pytest.approx(5.0, rel=0.02)  # n·p, n = 1
+    # seed 003's chamber A at 0.19 bar absolute: the mixture is 0.04 % as stiff as the oil
+    assert air.bulk_modulus(0.187e5, oil) / oil == pytest.approx(4.4e-4, rel=0.02)
+    assert "cavitate" in air_note(-ATMOSPHERE_PA, oil) and "MPa" in air_note(0.0, oil)
+    with pytest.raises(ValueError, match="air_fraction"):
+        EntrainedAir(air_fraction=1.5)
+
+
 @pytest.mark.slow  # every seed with its sensitivity: about 30 s, and compiles seed 003's other valves
 def test_docs_reproduction_md_is_the_commands_markdown():
     """docs/reproduction.md is generated: `fuzzyservo reproduce --markdown docs/reproduction.md`."""

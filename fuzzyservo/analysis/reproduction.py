@@ -31,7 +31,7 @@ from fuzzyservo.params import fields_by_key
 from fuzzyservo.results import Result
 from fuzzyservo.rig import Rig
 from fuzzyservo.simulation import SimResult, simulate
-from fuzzyservo.simulation.validity import ATMOSPHERE_PA
+from fuzzyservo.simulation.validity import ATMOSPHERE_PA, air_note, lowest_pressure
 
 STATUS_REPRODUCED = "reproduced"
 STATUS_DIFFERS = "differs"
@@ -503,30 +503,29 @@ def _row(obs: Observation, model: float) -> dict[str, Any]:
 
 def _validity_rows(runner: _Runner, chosen: Sequence[Observation]) -> list[dict[str, Any]]:
     """Each rig scenario's lowest absolute chamber pressure [bar] over its runs (the
-    boundary pressures a run holds constant, tank and ideal supply, left out)."""
-    lowest: dict[tuple[str, str], tuple[float, str, float, Run, str]] = {}
+    boundary pressures a run holds constant, tank and ideal supply, left out), with what
+    entrained air would do there."""
+    lowest: dict[tuple[str, str], tuple[float, str, float, Run, SimResult]] = {}
     for obs in chosen:
         for run in obs.runs:
             rig, result = runner.rig(run, ()), runner.result(run, ())
-            for name in rig.plant.pressures:
-                p = result.signals[name]
-                if not np.nanmax(p) > np.nanmin(p):
-                    continue
-                k = int(np.nanargmin(p))
-                entry = (float(p[k]), name, float(result.t[k]), run, result.status)
-                key = (obs.seed, f"{run.rig} · {run.scenario}")
-                if key not in lowest or entry[0] < lowest[key][0]:
-                    lowest[key] = entry
+            moving = [n for n in rig.plant.pressures if np.ptp(result.signals[n]) > 0]
+            name, p, at = lowest_pressure(result.t, result.signals, moving)
+            key = (obs.seed, f"{run.rig} · {run.scenario}")
+            if name and (key not in lowest or p < lowest[key][0]):
+                lowest[key] = (p, name, at, run, result)
     rows = []
-    for (seed, where), (p, name, at, run, status) in lowest.items():
-        absolute = (p + ATMOSPHERE_PA) / 1e5
+    for (seed, where), (p, name, at, run, result) in lowest.items():
+        rig = runner.rig(run, ())
+        oil = getattr(rig.params, fields_by_key(type(rig.params))["oil.bulk_modulus"].name)
         rows.append({
             "seed": seed, "figure": "validity",
             "quantity": f"lowest absolute chamber pressure, {where}",
-            "unit": "bar", "seed_value": None, "model_value": absolute,
+            "unit": "bar", "seed_value": None, "model_value": (p + ATMOSPHERE_PA) / 1e5,
             "tolerance": None, "bounds": None, "tolerance_text": "—",
             "status": STATUS_VALIDITY,
-            "reason": f"{name} at t = {at:.2f} s under {run.controller} (run status {status})",
+            "reason": f"{name} at t = {at:.2f} s under {run.controller} (run status "
+                      f"{result.status}); {air_note(p, oil)}",
             "note": "", "runs": [run.label],
         })  # fmt: skip
     return rows

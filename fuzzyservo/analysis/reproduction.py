@@ -436,11 +436,9 @@ class ReproductionResult(Result):
                 "Rig values no seed gives (`source: assumption` in the rig file), each varied "
                 "over a plausible range; the rows it moves, re-measured at each value."
             )
-        for a in self.assumptions:
+        for a in (a for a in self.assumptions if a["sensitivity"]):
             out += ["", f"### {a['rig']}: `{a['target']}` = {_num(a['value'])} {a['unit']}", ""]
             out += [_cell(a["reason"]), ""]
-            if not a["sensitivity"]:
-                continue
             ids = list(a["sensitivity"][0]["rows"])
             out.append(f"| {a['unit']} | " + " | ".join(ids) + " |")
             out.append("|---" * (len(ids) + 1) + "|")
@@ -448,6 +446,12 @@ class ReproductionResult(Result):
                 mark = " (rig)" if s["value"] == a["value"] else ""
                 cells = " | ".join(_num(s["rows"][i]) for i in ids)
                 out.append(f"| {_num(s['value'])}{mark} | {cells} |")
+        others = [a for a in self.assumptions if not a["sensitivity"]]
+        if others:
+            out += ["", "### The other assumptions of these rigs (no sensitivity run)", ""]
+            out += ["| rig | key | value | unit | how it was chosen |", "|---|---|---|---|---|"]
+            out += [f"| {a['rig']} | `{a['target']}` | {_num(a['value'])} | {a['unit']} | "
+                    f"{_cell(a['reason'])} |" for a in others]  # fmt: skip
         if self.explanations:
             out += ["", "## Explanation runs", ""]
         for e in self.explanations:
@@ -471,7 +475,9 @@ class ReproductionResult(Result):
         return "\n".join(out).rstrip() + "\n"
 
 
-def _num(value: float | None) -> str:
+def _num(value: float | str | None) -> str:
+    if isinstance(value, str):
+        return value
     if value is None or (isinstance(value, float) and not math.isfinite(value)):
         return "—"
     return f"{value:.3g}"
@@ -538,10 +544,13 @@ def run_reproduction(
     seeds: Sequence[str] | None = None,
     *,
     sensitivity: bool = True,
+    other_assumptions: Mapping[str, Sequence[Mapping[str, Any]]] | None = None,
 ) -> ReproductionResult:
     """Measure every observation of ``seeds`` (default: all) on ``rigs``/``controllers``
     (by the names the spec uses), then the assumptions' sensitivity and the explanation
-    runs of those seeds (``sensitivity=False`` leaves both out)."""
+    runs of those seeds (``sensitivity=False`` leaves both out). ``other_assumptions``:
+    rig name -> the rig file's other ``source: assumption`` values ({key, value, unit,
+    note}), listed without a sensitivity run."""
     wanted = set(seeds or SEEDS)
     unknown = wanted - set(SEEDS)
     if unknown:
@@ -578,4 +587,12 @@ def run_reproduction(
             {"id": e.id, "seed": e.seed, "gap": e.gap, "variants": variants,
              "conclusion": e.conclusion}
         )  # fmt: skip
+    used = {r.rig for o in chosen for r in o.runs}
+    for rig_name, entries in (other_assumptions or {}).items() if sensitivity else ():
+        assumptions += [
+            {"id": f"{rig_name}:{e['key']}", "rig": rig_name, "target": e["key"],
+             "unit": e["unit"], "value": e["value"], "reason": e["note"], "range": None,
+             "sensitivity": []}
+            for e in entries if rig_name in used
+        ]  # fmt: skip
     return ReproductionResult(rows, assumptions, explanations)

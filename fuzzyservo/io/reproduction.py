@@ -108,8 +108,18 @@ def reproduce(
         name: load_controller(data_root() / "studies" / "controllers" / f"{name}.yaml")
         for name in loaded.controllers()
     }
+    covered = {(a.rig, _file_key(a.target)) for a in loaded.assumptions}
+    covered |= {
+        (a.rig, "actuator.lower") for a in loaded.assumptions if a.target == "actuator.upper"
+    }
+    others = {
+        name: [e for e in rig_assumptions(name) if (name, e["key"]) not in covered]
+        for name in sorted(rigs)
+        if (data_root() / "rigs" / f"{name}.yaml").is_file()
+    }
     try:
-        return run_reproduction(loaded, rigs, controllers, seeds, sensitivity=sensitivity)
+        return run_reproduction(loaded, rigs, controllers, seeds, sensitivity=sensitivity,
+                                other_assumptions=others)  # fmt: skip
     except ValueError as exc:
         raise ConfigError(str(exc)) from None
 
@@ -139,7 +149,7 @@ def rig_assumptions(rig_name: str) -> list[dict[str, Any]]:
 
     def walk(data: Any, key: str) -> None:
         if isinstance(data, dict) and data.get("source") == ASSUMPTION and "value" in data:
-            found.append({"key": key, "value": data["value"], "unit": data.get("unit", ""),
+            found.append({"key": key, "value": _number(data["value"]), "unit": data.get("unit", ""),
                           "note": " ".join(str(data.get("note", "")).split())})  # fmt: skip
         elif isinstance(data, dict):
             for k, v in data.items():
@@ -150,6 +160,14 @@ def rig_assumptions(rig_name: str) -> list[dict[str, Any]]:
 
 
 # --------------------------------------------------------------------------- parsing
+def _number(value: Any) -> float | str:
+    """A rig-file value as a number (YAML 1.1 reads 1.4e9 as text), else as written."""
+    try:
+        return float(value)
+    except (TypeError, ValueError):
+        return str(value)
+
+
 def _items(root: Node, key: str) -> list[Node]:
     raw = root.data.get(key, [])
     if not isinstance(raw, list):

@@ -18,6 +18,8 @@ from typing import NoReturn
 
 from fuzzyservo.errors import ConfigError, FuzzyservoError
 from fuzzyservo.io.jsonfile import read_json, write_json
+from fuzzyservo.io.paths import output_dir as _out_dir
+from fuzzyservo.io.paths import output_file as _out_file
 from fuzzyservo.progress import note_compiling, progress_bar
 from fuzzyservo.tuning import MAIN_STUDY as DEFAULT_STUDY
 
@@ -51,27 +53,6 @@ def _load_fuzzy(name: str):
     from fuzzyservo.io.evaluation import load_fuzzy_controller
 
     return load_fuzzy_controller(resolve(name, "studies/controllers", "controller"))
-
-
-def _out_dir(path: str | None, option: str = "--out") -> Path | None:
-    """The output folder ``path``: refused when a file of that name is in the way."""
-    if path is None:
-        return None
-    out = Path(path)
-    if out.exists() and not out.is_dir():
-        raise ConfigError(
-            f"{option} {path}: is a file, not a folder; name a folder (new or existing)"
-        )
-    return out
-
-
-def _out_file(path: str | None, option: str) -> str | None:
-    """An output file ``path``: refused when it names a folder."""
-    if path is not None and Path(path).is_dir():
-        raise ConfigError(
-            f"{option} {path}: is a folder; give a file name such as {Path(path) / 'out.json'}"
-        )
-    return path
 
 
 def _checked_duration(rig, duration: float | None) -> float | None:
@@ -140,9 +121,7 @@ def cmd_frequency(args: argparse.Namespace) -> int:
 
     out, json_path = _out_dir(args.out), _out_file(args.json, "--json")
     if args.amplitude is not None and not (math.isfinite(args.amplitude) and args.amplitude > 0):
-        raise ConfigError(
-            f"--amplitude {args.amplitude}: must be a positive number in the feedback unit"
-        )
+        raise ConfigError(f"--amplitude {args.amplitude}: must be a positive number in the feedback unit")  # fmt: skip
     rig, (controller,) = _load(args.rig, [args.controller])
     scenario = rig.scenario(args.scenario).name
     note_compiling()
@@ -192,9 +171,7 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
     if args.out:
         result.write(args.out)
         s = result.system
-        print(
-            f"{len(result.inputs)} row(s) of {s.name!r} ({s.semantics} semantics) written to {args.out}"
-        )
+        print(f"{len(result.inputs)} row(s) of {s.name!r} ({s.semantics} semantics) written to {args.out}")  # fmt: skip
     else:
         print(result.text())
     return 0
@@ -286,6 +263,18 @@ def cmd_robustness(args: argparse.Namespace) -> int:
         print(f"plots written to {out}/")
     _json(args.json, result)
     return EXIT_FAILED_RUN if result.failed and args.strict else 0
+
+
+def cmd_reproduce(args: argparse.Namespace) -> int:
+    from fuzzyservo.io.reproduction import reproduce, write_reproduction
+
+    json_path, markdown = _out_file(args.json, "--json"), _out_file(args.markdown, "--markdown")
+    note_compiling()
+    result = reproduce(args.seeds or None, sensitivity=not args.rows_only)
+    print(result.text())
+    for path in write_reproduction(result, json_path=json_path, markdown_path=markdown):
+        print(f"written to {path}")
+    return 0
 
 
 def cmd_designer(args: argparse.Namespace) -> int:
@@ -523,6 +512,12 @@ FIT_VALVE = [
     _arg("--into-rig", action="store_true",
          help="replace the network file the rig names (default: write out/<that file name>)"),
 ]  # fmt: skip
+REPRODUCE = [
+    _arg("seeds", nargs="*", help="seeds: 000, 001, 002, 003 (default: all)"),
+    _arg("--json", metavar="FILE", help="write {rows, assumptions, explanations} as JSON"),
+    _arg("--markdown", metavar="FILE", help="write the tables as Markdown (docs/reproduction.md)"),
+    _arg("--rows-only", action="store_true", help="skip the sensitivity and explanation runs"),
+]  # fmt: skip
 COMMANDS = [  # name, help, function, arguments
     ("simulate", "simulate one controller on a rig scenario", cmd_compare, [RIG, CONTROLLER, *SIM]),
     ("compare", "compare controllers on a rig scenario: table, plots, JSON", cmd_compare, [
@@ -550,6 +545,8 @@ COMMANDS = [  # name, help, function, arguments
     ("calibrate", "replay measured data on a rig, trace the residual to missing effects, add them",
      cmd_calibrate, CALIBRATE),
     ("fit-valve", "train the seed-003 valve network on a valve-data CSV", cmd_fit_valve, FIT_VALVE),
+    ("reproduce", "the seeds' observations on the model: seed against model, assumptions' "
+     "sensitivity, explanation runs, validity", cmd_reproduce, REPRODUCE),
 ]  # fmt: skip
 
 

@@ -61,3 +61,25 @@ def name_problem(name: str) -> str | None:
     if len(name) > 100:
         return f"is {len(name)} characters long; give at most 100"
     return None
+
+
+def output_dir(path: str | None, option: str = "--out") -> Path | None:
+    """The output folder ``path`` given to ``option``: refused when a file of that name is
+    in the way."""
+    if path is None:
+        return None
+    out = Path(path)
+    if out.exists() and not out.is_dir():
+        raise ConfigError(
+            f"{option} {path}: is a file, not a folder; name a folder (new or existing)"
+        )
+    return out
+
+
+def output_file(path: str | None, option: str) -> str | None:
+    """An output file ``path`` given to ``option``: refused when it names a folder."""
+    if path is not None and Path(path).is_dir():
+        raise ConfigError(
+            f"{option} {path}: is a folder; give a file name such as {Path(path) / 'out.json'}"
+        )
+    return path

@@ -70,8 +70,15 @@ def load_rig(path: str | Path, *, plants: Mapping[str, PlantModel] | None = None
     instead of composing one (none ship; the tests hold the compositions to the seeds'
     hand-written equations so).
     """
-    file = str(path)
-    root = Node(read_yaml(path), file)
+    return rig_from_data(read_yaml(path), str(path), plants=plants)
+
+
+def rig_from_data(
+    data: dict[str, Any], file: str, *, plants: Mapping[str, PlantModel] | None = None
+) -> Rig:
+    """A rig from a rig file's parsed mapping (``file``: where it came from, for messages
+    and the files it names, e.g. a variant of a shipped rig built in memory)."""
+    root = Node(data, file)
     root.only(_TOP)
     plant_node = root.child("plant")
     unknowns: dict[str, tuple[float, float]] = {}

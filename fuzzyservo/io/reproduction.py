@@ -1,0 +1,284 @@
+"""``fuzzyservo reproduce``: the seeds' observations (``data/reproduction.yaml``) run on
+the shipped rigs and controllers, with the rig files' assumptions.
+
+Layout of the observation file::
+
+    observations:
+      - id: s002_onset_gain
+        seed: "002"
+        figure: "§5"
+        quantity: P gain at which the bench starts to oscillate
+        unit: "1"                  # the row's unit; measures are SI, shown in this unit
+        seed_value: 15             # with tolerance; or bounds: [lower, upper] (null: open)
+        tolerance: 3
+        measure: onset_gain        # analysis.reproduction.MEASURES
+        metric: rise_time_s        # for metric, reading, reduction, ratio
+        runs: [{rig: dinca_cylinder, controller: p_k10, scenario: pulses, params: {}}]
+        options: {from_s: 5, to_s: 7}
+        reason: the physical cause, when the row differs (and the run that shows it)
+        note: what the row depends on (an assumption it matches only at)
+    rigs:                          # variants of a shipped rig: components replaced
+      hydroprax_network: {rig: hydroprax_pdcv, components: {valve: {type: ..., parameters: ...}}}
+    assumptions:                   # rig values the rig file marks `source: assumption`
+      - {id: ..., rig: dinca_cylinder, target: controller.io_delay, unit: ms,
+         values: [0, 10, 20, 30], rows: [s002_onset_gain, ...]}
+    explanations:
+      - {id: ..., seed: "002", gap: ..., rows: [...], conclusion: ...,
+         variants: [{label: ..., changes: [{target: effects.coulomb_friction.force,
+                                            value: 20, unit: N}]}]}
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+from fuzzyservo.analysis.reproduction import (
+    Assumption,
+    Change,
+    Explanation,
+    Observation,
+    ReproductionResult,
+    ReproductionSpec,
+    Run,
+    Variant,
+    run_reproduction,
+)
+from fuzzyservo.errors import ConfigError
+from fuzzyservo.io._yaml import Node, read_yaml
+from fuzzyservo.io.controllers import load_controller
+from fuzzyservo.io.jsonfile import write_json
+from fuzzyservo.io.paths import data_root
+from fuzzyservo.io.rigs import load_rig, rig_from_data
+from fuzzyservo.rig import Rig
+
+SPEC_FILE = "reproduction.yaml"
+ASSUMPTION = "assumption"
+
+
+def load_reproduction_spec(path: str | Path | None = None) -> ReproductionSpec:
+    """The observation file (default: the shipped ``data/reproduction.yaml``), with each
+    assumption's rig value and reason read from its rig file."""
+    return _load_spec(path)[0]
+
+
+def _load_spec(path: str | Path | None) -> tuple[ReproductionSpec, dict[str, Rig]]:
+    """The spec and its rigs by name (shipped rigs, and the variants of ``rigs:``)."""
+    path = Path(path) if path is not None else data_root() / SPEC_FILE
+    root = Node(read_yaml(path), str(path))
+    root.only(("observations", "rigs", "assumptions", "explanations"))
+    variants = root.children("rigs")
+    observations = tuple(_observation(n) for n in _items(root, "observations"))
+    assumptions = tuple(_assumption(n) for n in _items(root, "assumptions"))
+    explanations = tuple(_explanation(n) for n in _items(root, "explanations"))
+    try:
+        spec = ReproductionSpec(observations, assumptions, explanations)
+    except ValueError as exc:
+        raise ConfigError(f"{exc}; fix the file", file=str(path)) from None
+    rigs = {name: _variant(variants[name]) if name in variants else _shipped_rig(name)
+            for name in spec.rigs()}  # fmt: skip
+    return spec, rigs
+
+
+def _shipped_rig(name: str) -> Rig:
+    return load_rig(data_root() / "rigs" / f"{name}.yaml")
+
+
+def _variant(node: Node) -> Rig:
+    """A shipped rig with some of its components replaced (seed 003's other valves)."""
+    node.only(("rig", "components"))
+    path = data_root() / "rigs" / f"{node.str('rig')}.yaml"
+    data = read_yaml(path)
+    for inst, comp in node.child("components").data.items():
+        if inst not in data["plant"]["components"]:
+            node.fail(f"{path.name} has no component {inst!r}", key="components")
+        data["plant"]["components"][inst] = comp
+    data["name"] = node.key.rsplit(".", 1)[-1]
+    return rig_from_data(data, str(path))
+
+
+def reproduce(
+    seeds: list[str] | None = None, *, sensitivity: bool = True, spec: str | Path | None = None
+) -> ReproductionResult:
+    """Run every observation of ``seeds`` ("000" … "003"; default all) on the shipped
+    rigs, with the assumptions' sensitivity and the explanation runs (``sensitivity=False``:
+    the rows only). ``spec``: another observation file."""
+    loaded, rigs = _load_spec(spec)
+    controllers = {
+        name: load_controller(data_root() / "studies" / "controllers" / f"{name}.yaml")
+        for name in loaded.controllers()
+    }
+    covered = {(a.rig, _file_key(a.target)) for a in loaded.assumptions}
+    covered |= {
+        (a.rig, "actuator.lower") for a in loaded.assumptions if a.target == "actuator.upper"
+    }
+    others = {
+        name: [e for e in rig_assumptions(name) if (name, e["key"]) not in covered]
+        for name in sorted(rigs)
+        if (data_root() / "rigs" / f"{name}.yaml").is_file()
+    }
+    try:
+        return run_reproduction(loaded, rigs, controllers, seeds, sensitivity=sensitivity,
+                                other_assumptions=others)  # fmt: skip
+    except ValueError as exc:
+        raise ConfigError(str(exc)) from None
+
+
+def write_reproduction(
+    result: ReproductionResult,
+    *,
+    json_path: str | Path | None = None,
+    markdown_path: str | Path | None = None,
+) -> list[Path]:
+    """Write the result as JSON and/or Markdown (creating the folders); the paths written."""
+    written = []
+    if json_path:
+        written.append(write_json(json_path, result))
+    if markdown_path:
+        path = Path(markdown_path)
+        path.parent.mkdir(parents=True, exist_ok=True)
+        path.write_text(result.to_markdown(), encoding="utf-8")
+        written.append(path)
+    return written
+
+
+def rig_assumptions(rig_name: str) -> list[dict[str, Any]]:
+    """Every value a shipped rig file marks ``source: assumption``: key, value, unit, note."""
+    path = data_root() / "rigs" / f"{rig_name}.yaml"
+    found: list[dict[str, Any]] = []
+
+    def walk(data: Any, key: str) -> None:
+        if isinstance(data, dict) and data.get("source") == ASSUMPTION and "value" in data:
+            found.append({"key": key, "value": _number(data["value"]), "unit": data.get("unit", ""),
+                          "note": " ".join(str(data.get("note", "")).split())})  # fmt: skip
+        elif isinstance(data, dict):
+            for k, v in data.items():
+                walk(v, f"{key}.{k}" if key else str(k))
+
+    walk(read_yaml(path), "")
+    return found
+
+
+# --------------------------------------------------------------------------- parsing
+def _number(value: Any) -> float | str:
+    """A rig-file value as a number (YAML 1.1 reads 1.4e9 as text), else as written."""
+    try:
+        return float(value)
+    except (TypeError, ValueError):
+        return str(value)
+
+
+def _items(root: Node, key: str) -> list[Node]:
+    raw = root.data.get(key, [])
+    if not isinstance(raw, list):
+        root.fail(f"must be a list of mappings (lines starting with '- '), got {raw!r}", key=key)
+    return [Node(item, root.file, f"{key}[{i}]") for i, item in enumerate(raw)]
+
+
+def _scale(node: Node, unit: str) -> float:
+    return node.unit(unit).factor
+
+
+def _run(node: Node) -> Run:
+    node.only(("rig", "controller", "scenario", "params"))
+    params = node.child("params", default={})
+    return Run(
+        node.str("rig"),
+        node.str("controller"),
+        node.str("scenario"),
+        tuple((k, params.number(k)) for k in params.data),
+    )
+
+
+def _bounds(node: Node) -> tuple[float | None, float | None] | None:
+    if "bounds" not in node.data:
+        return None
+    raw = node.data["bounds"]
+    if not (isinstance(raw, list) and len(raw) == 2):
+        node.fail(f"must be [lower, upper] (null for an open end), got {raw!r}", key="bounds")
+    return tuple(None if v is None else node._as_number(v, "bounds") for v in raw)  # type: ignore[return-value]
+
+
+def _observation(node: Node) -> Observation:
+    node.only(("id", "seed", "figure", "quantity", "unit", "seed_value", "tolerance", "bounds",
+               "measure", "metric", "runs", "options", "reason", "note"))  # fmt: skip
+    unit = node.str("unit")
+    options = node.child("options", default={})
+    runs = node.data.get("runs", [])
+    if not isinstance(runs, list) or not runs:
+        node.fail("must be a list of runs ({rig, controller, scenario})", key="runs")
+    try:
+        return Observation(
+            id=node.str("id"),
+            seed=str(node.require("seed")),
+            figure=node.str("figure"),
+            quantity=node.str("quantity"),
+            unit=unit,
+            measure=node.str("measure"),
+            runs=tuple(_run(Node(r, node.file, node.path(f"runs[{i}]"))) for i, r in enumerate(runs)),
+            metric=node.str("metric", default=""),
+            scale=_scale(node, unit),
+            seed_value=node.number("seed_value") if node.data.get("seed_value") is not None else None,
+            tolerance=node.number("tolerance") if "tolerance" in node.data else None,
+            bounds=_bounds(node),
+            options=tuple((k, options.number(k)) for k in options.data),
+            reason=" ".join(node.str("reason", default="").split()),
+            note=" ".join(node.str("note", default="").split()),
+        )  # fmt: skip
+    except ValueError as exc:
+        node.fail(f"{exc}; fix the entry")
+
+
+def _change(node: Node) -> Change:
+    node.only(("target", "value", "unit"))
+    unit = node.str("unit", default="1")
+    try:
+        return Change(node.str("target"), node.number("value") * _scale(node, unit))
+    except ValueError as exc:
+        node.fail(str(exc), key="target")
+
+
+def _assumption(node: Node) -> Assumption:
+    node.only(("id", "rig", "target", "unit", "values", "rows"))
+    rig, target, unit = node.str("rig"), node.str("target"), node.str("unit")
+    scale = _scale(node, unit)
+    declared = {a["key"]: a for a in rig_assumptions(rig)}
+    file_key = _file_key(target)
+    if file_key not in declared:
+        node.fail(
+            f"{rig}.yaml does not mark {file_key} as an assumption; give it "
+            "'source: assumption' and a note saying how it was chosen",
+            key="target",
+        )
+    entry = declared[file_key]
+    value = float(entry["value"]) * _scale(node, str(entry["unit"] or unit))
+    return Assumption(
+        id=node.str("id"), rig=rig, target=target, unit=unit, scale=scale,
+        values=tuple(v * scale for v in node.numbers("values")),
+        rows=tuple(str(r) for r in node.require("rows")), value=value, reason=entry["note"],
+    )  # fmt: skip
+
+
+def _file_key(target: str) -> str:
+    """The rig-file key of a change target (``plant.valve.x`` -> ``plant.components.valve.parameters.x``)."""
+    head, _, rest = target.partition(".")
+    if head == "plant":
+        inst, _, key = rest.partition(".")
+        return f"plant.components.{inst}.parameters.{key}"
+    return target
+
+
+def _explanation(node: Node) -> Explanation:
+    node.only(("id", "seed", "gap", "rows", "variants", "conclusion"))
+    variants = []
+    for i, raw in enumerate(node.require("variants")):
+        v = Node(raw, node.file, node.path(f"variants[{i}]"))
+        v.only(("label", "changes"))
+        changes = [Node(c, v.file, v.path(f"changes[{j}]")) for j, c in
+                   enumerate(v.data.get("changes", []))]  # fmt: skip
+        variants.append(Variant(v.str("label"), tuple(_change(c) for c in changes)))
+    return Explanation(
+        id=node.str("id"), seed=str(node.require("seed")), gap=" ".join(node.str("gap").split()),
+        rows=tuple(str(r) for r in node.require("rows")), variants=tuple(variants),
+        conclusion=" ".join(node.str("conclusion", default="").split()),
+    )  # fmt: skip

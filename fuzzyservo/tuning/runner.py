@@ -12,6 +12,7 @@ a killed process are failed by the storage heartbeat and do not count.
 from __future__ import annotations
 
 import dataclasses
+import json
 import math
 import multiprocessing as mp
 import sys
@@ -25,10 +26,13 @@ from fuzzyservo.tuning.evaluation import Evaluation
 from fuzzyservo.tuning.integrity import check_definition, die_with_parent, per_trial_seeded
 from fuzzyservo.tuning.objective import Evaluator
 from fuzzyservo.tuning.spec import Study
+from fuzzyservo.tuning.trial import TrialResult, score
 from fuzzyservo.tuning.warmstart import (
     enqueue,
     is_feasible,
+    out_of_patience,
     patience_callback,
+    start_points,
     stored_violations,
 )
 
@@ -189,51 +193,46 @@ def build_evaluator(spec: Study) -> Evaluator:
     return Evaluator(spec)
 
 
+def _suggest(trial, spec: Study) -> dict[str, float]:
+    """The trial's numbers, drawn by the study's sampler."""
+    params = {}
+    for p in spec.parameters:
+        if p.integer:
+            params[p.path] = trial.suggest_int(p.path, int(p.low), int(p.high), log=p.log)
+        else:
+            params[p.path] = trial.suggest_float(p.path, p.low, p.high, log=p.log)
+    return params
+
+
+def _prunes(spec: Study) -> bool:
+    """Robust single-objective trials stop once hopeless (tuning/trial.py)."""
+    return spec.uncertainty is not None and spec.objective.n_values == 1
+
+
+def _record(trial, spec: Study, result: TrialResult) -> None:
+    """The result's attributes and constraints on the Optuna trial (and, for a pruned
+    trial, its last value: TPE ranks a pruned trial by it)."""
+    for key, value in result.user_attrs.items():
+        trial.set_user_attr(key, value)
+    _record_constraints(trial, spec, list(result.constraints))
+    if result.pruned_at is not None:
+        step, value = result.pruned_at
+        trial.report(value, step)
+
+
 def _objective(spec: Study, evaluator: Evaluator):
+    """The asynchronous mode's objective: the pruning bound is read at the trial's start."""
+
     def objective(trial) -> float | tuple[float, ...]:
-        params = {}
-        for p in spec.parameters:
-            if p.integer:
-                params[p.path] = trial.suggest_int(p.path, int(p.low), int(p.high), log=p.log)
-            else:
-                params[p.path] = trial.suggest_float(p.path, p.low, p.high, log=p.log)
-        try:
-            controller = evaluator.controller(params)  # the template's name: no second build
-        except ValueError as exc:  # a combination the template rejects: penalised, reason kept
-            trial.set_user_attr("status", "invalid")
-            trial.set_user_attr("message", str(exc))
-            _record_constraints(trial, spec, [1e300] * len(spec.constraints))
-            values = tuple(spec.penalty for _ in range(spec.objective.n_values))
-            return values if len(values) > 1 else values[0]
-        report = None
-        if spec.uncertainty is not None and spec.objective.n_values == 1:
-            # exact pruning: a trial's worst sample can only grow, so once it is worse than
-            # the best feasible trial (read once, at the trial's start) the trial is lost
-            bound = _best_feasible_value(trial.study)
-            last: list[tuple[int, float]] = []
-
-            def report(step: int, value: float) -> bool:
-                last[:] = [(step, value)]
-                return bound is not None and value > bound
-
-        ev = evaluator.evaluate(controller, report=report)
-        trial.set_user_attr("status", ev.status)
-        if ev.message:
-            trial.set_user_attr("message", ev.message)
-        trial.set_user_attr(
-            "metrics", {k: (v if math.isfinite(v) else None) for k, v in ev.metrics.items()}
-        )
-        _record_constraints(trial, spec, [v if math.isfinite(v) else 1e300 for v in ev.violations])
-        trial.set_user_attr("sim_time_s", ev.sim_time_s)
-        if ev.simulations:
-            trial.set_user_attr("simulations", ev.simulations)
-        if ev.status == "pruned":
+        params = _suggest(trial, spec)
+        bound = _best_feasible_value(trial.study) if _prunes(spec) else None
+        result = score(spec, evaluator, params, bound)
+        _record(trial, spec, result)
+        if result.pruned_at is not None:
             import optuna
 
-            step, value = last[0]
-            trial.report(value, step)  # TPE ranks a pruned trial by its last value
-            raise optuna.TrialPruned(ev.message)
-        return ev.values if len(ev.values) > 1 else ev.values[0]
+            raise optuna.TrialPruned(result.user_attrs.get("message", ""))
+        return result.values if len(result.values) > 1 else result.values[0]
 
     return objective
 
@@ -316,33 +315,176 @@ def run_study(
     workers: int = 1,
     progress: bool = True,
     rig: Rig | None = None,
+    cluster: str | None = None,
+    batch_size: int | None = None,
+    asynchronous: bool = False,
 ) -> Outcome:
     """Run (or resume) the study until it holds ``trials`` complete trials; return the outcome.
+
+    Batch-synchronous (the default; :func:`run_batches`): the same seeded study gives the
+    same trials, hence the same best, with any ``workers`` (local processes) or on the Dask
+    ``cluster`` (``tcp://HOST:PORT``), run twice, or interrupted and resumed.
+    ``asynchronous``: every worker runs Optuna's own loop on the shared storage (several
+    ``tune`` commands, on several machines, may share one study): not reproducible.
 
     ``rig``: tune on this rig instead of the study's own (the same as
     ``dataclasses.replace(spec, rig=rig)``)."""
     if rig is not None:
         spec = dataclasses.replace(spec, rig=rig)
+    if batch_size is not None:
+        spec = dataclasses.replace(spec, batch_size=batch_size)
     out_dir.mkdir(parents=True, exist_ok=True)
     url = storage_url(spec, out_dir, storage)
     # a storage named by the user may be shared with other processes or machines
     shared = bool(storage or spec.storage)
     total = trials or spec.trials
+    if cluster and asynchronous:
+        from fuzzyservo.errors import ConfigError
+
+        raise ConfigError("--cluster runs batches; leave out --async (or --cluster)")
     study = open_study(spec, url)  # creates it (and its tables) before any worker starts
-    enqueue(study, spec)
     done_before = count_complete(study)
     t0 = time.perf_counter()
     _warm_kernels(spec)  # before the bar: its rate (and ETA) should not count compiling
     bar = _bar(total, done_before, spec.name, progress)
     try:
-        if workers <= 1:
-            _run_inline(spec, url, total, bar, shared)
+        if asynchronous:
+            enqueue(study, spec)
+            if workers <= 1:
+                _run_inline(spec, url, total, bar, shared)
+            else:
+                _run_processes(spec, url, total, workers, bar, shared)
         else:
-            _run_processes(spec, url, total, workers, bar, shared)
+            from fuzzyservo.executor import make_executor
+
+            executor = make_executor(workers, cluster)
+            try:
+                run_batches(spec, study, total, executor, bar)
+            finally:
+                executor.close()
     finally:
         bar.close()
     wall = time.perf_counter() - t0
     return collect(spec, url, wall_s=wall)
+
+
+#: a batch-mode trial's user attribute: [its batch's first trial index, the batch's size]
+BATCH_ATTR = "batch"
+
+
+def run_batches(spec: Study, stored, total: int, executor, bar=None) -> None:
+    """The batch-synchronous loop: this process owns the sampler and the storage.
+
+    The study lives in memory (the stored trials replayed in order into a fresh sampler
+    seeded per trial: :func:`~fuzzyservo.tuning.integrity.per_trial_seeded`); each round
+    asks ``spec.batch_size`` trials, has ``executor`` score them
+    (:class:`~fuzzyservo.tuning.trial.TrialRunner`, pruning bound: the best feasible value
+    told before the batch), tells them in trial-number order and then writes the batch to
+    the storage ``stored``. Whatever the executor, the sampler sees the same history at
+    every ask, so the trials are the same. A run killed before its batch is written loses
+    that batch only and a resume asks it again, identically; one killed while writing it
+    finds the written part on resume and scores only the rest."""
+    import optuna
+
+    from fuzzyservo.tuning.integrity import fingerprint
+    from fuzzyservo.tuning.trial import Task, TrialRunner
+
+    told = stored.get_trials(deepcopy=False, states=_finished())
+    start, pending = _partial_batch(told)
+    memory = optuna.create_study(
+        directions=["minimize"] * spec.objective.n_values,
+        sampler=per_trial_seeded(make_sampler(spec, spec.seed), spec.seed),
+    )
+    memory.add_trials(told[:start])
+    for point in start_points(spec)[start:]:  # the warm start not run yet
+        memory.enqueue_trial(point)
+    written = _n_trials(stored)
+    runner = TrialRunner(spec, json.dumps(fingerprint(spec), sort_keys=True))
+    t0 = time.perf_counter()
+    n = start
+    while n < total:
+        size = pending[0] if pending else min(spec.batch_size, total - n)
+        bound = _best_feasible_value(memory) if _prunes(spec) else None
+        trials = [memory.ask() for _ in range(size)]
+        tasks = [Task(t.number, _suggest(t, spec), bound) for t in trials]
+        kept = {t.number: _result_of(pending[1][t.number]) for t in tasks
+                if pending and t.number in pending[1] and pending[1][t.number].params == t.params}  # fmt: skip
+        todo = [t for t in tasks if t.number not in kept]
+        results = {**kept, **dict(zip([t.number for t in todo], executor.map(runner, todo),
+                                      strict=True))}  # fmt: skip
+        for trial in trials:
+            _tell(memory, trial, spec, results[trial.number], [n, size])
+        if _n_trials(stored) != written:
+            from fuzzyservo.errors import ConfigError
+
+            raise ConfigError(
+                f"study {spec.name!r}: another process writes to its storage; a batch run "
+                "owns its study: run every process sharing one with --async"
+            )
+        new = [t for t in memory.get_trials(deepcopy=False)[n : n + size] if t.number not in kept]
+        stored.add_trials(new)
+        written += len(new)
+        pending = None
+        n += size
+        if bar is not None:
+            bar.update(size)
+            _postfix(bar, memory)
+        if (
+            spec.patience
+            and spec.objective.n_values == 1
+            and out_of_patience(memory, spec.patience)
+        ):
+            break
+        if spec.timeout_s is not None and time.perf_counter() - t0 > spec.timeout_s:
+            break
+
+
+def _partial_batch(told: list) -> tuple[int, tuple[int, dict] | None]:
+    """Where the replay stops: the stored trials up to the last whole batch, and the part
+    of a batch a killed run had begun to write (its size and its trials by index)."""
+    if not told:
+        return 0, None
+    batch = told[-1].user_attrs.get(BATCH_ATTR)
+    if not batch:
+        return len(told), None
+    first, size = batch
+    part = told[first:]
+    if len(part) >= size or first > len(told):
+        return len(told), None
+    return first, (size, {first + k: t for k, t in enumerate(part)})
+
+
+def _result_of(trial) -> TrialResult:
+    """A stored trial's result, as :func:`~fuzzyservo.tuning.trial.score` returned it."""
+    from optuna.trial import TrialState
+
+    attrs = {k: v for k, v in trial.user_attrs.items() if k not in ("constraints", BATCH_ATTR)}
+    pruned = None
+    if trial.state == TrialState.PRUNED and trial.intermediate_values:
+        step = max(trial.intermediate_values)
+        pruned = (step, trial.intermediate_values[step])
+    return TrialResult(
+        values=tuple(trial.values or ()),
+        constraints=tuple(trial.user_attrs.get("constraints", ())),
+        user_attrs=attrs,
+        pruned_at=pruned,
+    )
+
+
+def _tell(study, trial, spec: Study, result: TrialResult, batch: list[int]) -> None:
+    from optuna.trial import TrialState
+
+    _record(trial, spec, result)
+    trial.set_user_attr(BATCH_ATTR, batch)
+    if result.pruned_at is not None:
+        study.tell(trial, state=TrialState.PRUNED)
+    else:
+        study.tell(trial, list(result.values))
+
+
+def _n_trials(study) -> int:
+    """The study's trials in its storage, by one count (not a read of every trial)."""
+    return study._storage.get_n_trials(study._study_id)
 
 
 def _run_inline(spec: Study, url: str, total: int, bar, shared: bool) -> None:
@@ -470,6 +612,15 @@ def _bar(total: int, initial: int, name: str, enabled: bool):
     )
 
 
+def _trial_time(trial) -> float:
+    """A trial's own time (a batch's trials all start at its ask and end at its tell)."""
+    if "trial_time_s" in trial.user_attrs:
+        return trial.user_attrs["trial_time_s"]
+    if trial.datetime_complete and trial.datetime_start:
+        return (trial.datetime_complete - trial.datetime_start).total_seconds()
+    return 0.0
+
+
 def collect(spec: Study, url: str, *, wall_s: float = 0.0) -> Outcome:
     """Read the study back: best (feasible) trial or Pareto front, history, importances."""
     import optuna
@@ -529,11 +680,7 @@ def collect(spec: Study, url: str, *, wall_s: float = 0.0) -> Outcome:
             importances = {}
     finished = study.get_trials(deepcopy=False, states=_finished())  # with pruned ones
     sim = sum(t.user_attrs.get("sim_time_s", 0.0) for t in finished)
-    worker_time = sum(
-        (t.datetime_complete - t.datetime_start).total_seconds()
-        for t in finished
-        if t.datetime_complete and t.datetime_start
-    )
+    worker_time = sum(_trial_time(t) for t in finished)
     return Outcome(
         spec=spec,
         storage_url=url,

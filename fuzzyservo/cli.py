@@ -219,22 +219,16 @@ def cmd_tune(args: argparse.Namespace) -> int:
     from fuzzyservo.tuning.runner import run_study
     from fuzzyservo.tuning.spec import storage_problem
 
-    _at_least(1, trials=args.trials, workers=args.workers)
+    _at_least(1, trials=args.trials, workers=args.workers, batch_size=args.batch_size)
     _at_least(0, check_samples=args.check_samples)
     if args.storage and storage_problem(args.storage):
         raise ConfigError(f"--storage: {storage_problem(args.storage)}")
     _out_file(args.json, "--json")
     spec = load_study(resolve(args.study, "studies", "study"))
     if args.patience is not None or args.warm_start:
-        import dataclasses
-
         from fuzzyservo.io.studies import with_warm_start
 
-        _at_least(1, patience=args.patience)
-        warm = [str(resolve(w, "studies/controllers", "controller")) for w in args.warm_start]
-        spec = with_warm_start(spec, warm)
-        if args.patience is not None:
-            spec = dataclasses.replace(spec, patience=args.patience)
+        spec = with_warm_start(spec, args.warm_start, args.patience)
     out = _out_dir(args.out) or Path("out") / spec.name
     _out_dir(str(out))
     total, workers = args.trials or spec.trials, args.workers or spec.workers
@@ -243,7 +237,9 @@ def cmd_tune(args: argparse.Namespace) -> int:
         print(f"uncertainty: {spec.uncertainty.describe()}")
     note_compiling()
     try:
-        outcome = run_study(spec, out, trials=total, storage=args.storage, workers=workers)
+        outcome = run_study(spec, out, trials=total, storage=args.storage, workers=workers,
+                            cluster=args.cluster, batch_size=args.batch_size,
+                            asynchronous=args.asynchronous)  # fmt: skip
     except KeyboardInterrupt:
         print("fuzzyservo: interrupted; completed trials are kept: run the same command to "
               "resume", file=sys.stderr)  # fmt: skip
@@ -427,6 +423,11 @@ TUNE = [
     _arg("--storage",
          help="Optuna storage URL, e.g. postgresql://user@host/db (default: SQLite in --out)"),
     _arg("--workers", type=int, help="local worker processes (default: the study's, else 1)"),
+    _arg("--cluster", metavar="tcp://HOST:PORT",
+         help="score the batches on this Dask scheduler's workers (extra: fuzzyservo[cluster])"),
+    _arg("--batch-size", type=int, help="trials asked at once (default: the study's, else 8)"),
+    _arg("--async", dest="asynchronous", action="store_true",
+         help="each worker runs its own Optuna loop on the shared storage: not reproducible"),
     _arg("--out", help="output folder (default: out/<study name>)"),
     _arg("--json", metavar="FILE", help="also write summary.json here"),
     _arg("--patience", type=int,

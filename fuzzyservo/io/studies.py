@@ -271,12 +271,19 @@ def warm_start_point(parameters: tuple[Parameter, ...] | list[Parameter], file: 
     return point
 
 
-def with_warm_start(study: Study, files: list[str]) -> Study:
-    """``study`` with the controller ``files`` as further warm-start points."""
+def with_warm_start(study: Study, files: list[str], patience: int | None = None) -> Study:
+    """``study`` with the controller ``files`` (paths, or names under studies/controllers)
+    as further warm-start points, and ``patience`` when given (the command line's)."""
     import dataclasses
 
-    points = tuple(warm_start_point(study.parameters, f) for f in files)
-    return dataclasses.replace(study, warm_start=(*study.warm_start, *points))
+    from fuzzyservo.io.paths import find_file
+
+    if patience is not None and patience < 1:
+        raise ConfigError(f"--patience must be >= 1, got {patience}")
+    paths = [str(find_file(f, "studies/controllers", "controller")) for f in files]
+    points = tuple(warm_start_point(study.parameters, f) for f in paths)
+    study = dataclasses.replace(study, warm_start=(*study.warm_start, *points))
+    return study if patience is None else dataclasses.replace(study, patience=patience)
 
 
 _DIST_KEYS = ("uniform", "normal", "log-uniform", "interval")

@@ -342,28 +342,31 @@ def run_study(
         from fuzzyservo.errors import ConfigError
 
         raise ConfigError("--cluster runs batches; leave out --async (or --cluster)")
-    study = open_study(spec, url)  # creates it (and its tables) before any worker starts
-    done_before = count_complete(study)
-    t0 = time.perf_counter()
-    _warm_kernels(spec)  # before the bar: its rate (and ETA) should not count compiling
-    bar = _bar(total, done_before, spec.name, progress)
-    try:
-        if asynchronous:
-            enqueue(study, spec)
-            if workers <= 1:
-                _run_inline(spec, url, total, bar, shared)
-            else:
-                _run_processes(spec, url, total, workers, bar, shared)
-        else:
-            from fuzzyservo.executor import make_executor
+    executor = None
+    if not asynchronous:  # a cluster that cannot be used fails before anything starts
+        from fuzzyservo.executor import make_executor
 
-            executor = make_executor(workers, cluster)
-            try:
+        executor = make_executor(workers, cluster)
+    try:
+        study = open_study(spec, url)  # creates it (and its tables) before any worker starts
+        done_before = count_complete(study)
+        t0 = time.perf_counter()
+        _warm_kernels(spec)  # before the bar: its rate (and ETA) should not count compiling
+        bar = _bar(total, done_before, spec.name, progress)
+        try:
+            if executor is not None:
                 run_batches(spec, study, total, executor, bar)
-            finally:
-                executor.close()
+            else:
+                enqueue(study, spec)
+                if workers <= 1:
+                    _run_inline(spec, url, total, bar, shared)
+                else:
+                    _run_processes(spec, url, total, workers, bar, shared)
+        finally:
+            bar.close()
     finally:
-        bar.close()
+        if executor is not None:
+            executor.close()
     wall = time.perf_counter() - t0
     return collect(spec, url, wall_s=wall)
 

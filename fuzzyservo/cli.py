@@ -213,7 +213,7 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
 
 def cmd_tune(args: argparse.Namespace) -> int:
     from fuzzyservo.analysis.robustness import comparison_text
-    from fuzzyservo.io.studies import load_study
+    from fuzzyservo.io.studies import load_study, with_warm_start
     from fuzzyservo.io.study_report import write_outputs
     from fuzzyservo.metrics import format_value, metrics_table
     from fuzzyservo.tuning.runner import run_study
@@ -226,8 +226,6 @@ def cmd_tune(args: argparse.Namespace) -> int:
     _out_file(args.json, "--json")
     spec = load_study(resolve(args.study, "studies", "study"))
     if args.patience is not None or args.warm_start:
-        from fuzzyservo.io.studies import with_warm_start
-
         spec = with_warm_start(spec, args.warm_start, args.patience)
     out = _out_dir(args.out) or Path("out") / spec.name
     _out_dir(str(out))
@@ -249,8 +247,7 @@ def cmd_tune(args: argparse.Namespace) -> int:
     if spec.uncertainty is not None and check != 0:
         n = spec.uncertainty.samples if check is None else check
         print(f"checking the best against the baseline and the template on {n} fresh samples")
-        same = spec.template == spec.baseline
-        bar = progress_bar((2 if same else 3) * n, "check")  # best, baseline, template
+        bar = progress_bar((3 - (spec.template == spec.baseline)) * n, "check")  # best, base, tpl
     paths = write_outputs(outcome, out, check_samples=check, progress=bar and bar.update)
     if bar is not None:
         bar.close()
@@ -271,7 +268,7 @@ def cmd_robustness(args: argparse.Namespace) -> int:
     from fuzzyservo.io.studies import load_study
     from fuzzyservo.tuning.montecarlo import plan
 
-    _at_least(1, samples=args.samples)
+    _at_least(1, samples=args.samples, workers=args.workers)
     if args.gain_margin is not None and not args.gain_margin > 1:
         raise ConfigError(f"--gain-margin must be > 1, got {args.gain_margin}")
     _out_file(args.json, "--json")
@@ -283,7 +280,8 @@ def cmd_robustness(args: argparse.Namespace) -> int:
     print(setup.describe())
     note_compiling()
     bar = progress_bar(setup.steps, "robustness")
-    result = setup.run(args.gain_margin, progress=bar.update)
+    result = setup.run(args.gain_margin, progress=bar.update, workers=args.workers,
+                       cluster=args.cluster)  # fmt: skip
     bar.close()
     print(result.text())
     if out is not None:
@@ -324,9 +322,8 @@ def cmd_fit_valve(args: argparse.Namespace) -> int:
         bar.close()
     print(result.text())
     if rig_file is not None and out.resolve() != rig_file.resolve():
-        print(
-            f"the rig reads {rig_file}: use --into-rig to replace it, or point its weights at {out}"
-        )
+        print(f"the rig reads {rig_file}: use --into-rig to replace it, or point its weights "
+              f"at {out}")  # fmt: skip
     return 0
 
 
@@ -416,6 +413,8 @@ SIM = [  # simulate and compare
     _arg("--out", default="out", help="folder for plots and CSV signals (default: out)"),
     _arg("--json", metavar="FILE", help="also write the results as JSON"),
 ]
+CLUSTER = _arg("--cluster", metavar="tcp://HOST:PORT",
+               help="compute on this Dask scheduler's workers (extra: fuzzyservo[cluster])")  # fmt: skip
 TUNE = [
     _arg("study", nargs="?", default=DEFAULT_STUDY,
          help=f"study file or name under studies/ (default: {DEFAULT_STUDY})"),
@@ -423,8 +422,7 @@ TUNE = [
     _arg("--storage",
          help="Optuna storage URL, e.g. postgresql://user@host/db (default: SQLite in --out)"),
     _arg("--workers", type=int, help="local worker processes (default: the study's, else 1)"),
-    _arg("--cluster", metavar="tcp://HOST:PORT",
-         help="score the batches on this Dask scheduler's workers (extra: fuzzyservo[cluster])"),
+    CLUSTER,
     _arg("--batch-size", type=int, help="trials asked at once (default: the study's, else 8)"),
     _arg("--async", dest="asynchronous", action="store_true",
          help="each worker runs its own Optuna loop on the shared storage: not reproducible"),
@@ -453,6 +451,8 @@ ROBUSTNESS = [
     _arg("--out", default="out", help="folder for the plots (default: out)"),
     _arg("--json", metavar="FILE", help="also write the table as JSON"),
     _arg("--strict", action="store_true", help="exit 1 when any sample fails"),
+    _arg("--workers", type=int, default=1, help="local processes sharing the samples (default: 1)"),
+    CLUSTER,
 ]  # fmt: skip
 EXPORT = [
     _arg("controller", help=f"{FUZZY} under studies/controllers/"),

@@ -9,6 +9,7 @@ where and in which order trials run, not the objective.
 
 from __future__ import annotations
 
+import json
 import os
 import signal
 import socket
@@ -63,24 +64,20 @@ class LocalCluster:
         self.logs = tmp_path
         self.scheduler = self._start("scheduler", "--host", "127.0.0.1",
                                      "--port", self.address.rsplit(":", 1)[1])  # fmt: skip
-        self.workers = [
-            self._start(
-                f"worker{i}",
-                self.address,
-                "--nthreads",
-                "1",
-                "--no-nanny",
-                "--memory-limit",
-                "0",
-                "--name",
-                f"w{i}",
-            )
-            for i in range(workers)
-        ]
+        self.workers: list[subprocess.Popen] = []
+        for _ in range(workers):
+            self.add_worker()
+
+    def add_worker(self) -> subprocess.Popen:
+        """One more worker process; returns once the scheduler counts it."""
         from distributed import Client
 
+        n = len(self.workers)
+        self.workers.append(self._start(f"worker{n}", self.address, "--nthreads", "1",
+                                        "--no-nanny", "--memory-limit", "0", "--name", f"w{n}"))  # fmt: skip
         with Client(self.address, timeout=60) as client:
-            client.wait_for_workers(workers, timeout=120)
+            client.wait_for_workers(len([w for w in self.workers if w.poll() is None]), timeout=120)
+        return self.workers[-1]
 
     def _start(self, what: str, *args: str) -> subprocess.Popen:
         command = "scheduler" if what == "scheduler" else "worker"
@@ -97,9 +94,9 @@ class LocalCluster:
             proc.wait(timeout=30)
 
 
-@pytest.fixture
-def cluster(tmp_path):
-    c = LocalCluster(tmp_path)
+@pytest.fixture(scope="module")
+def cluster(tmp_path_factory):
+    c = LocalCluster(tmp_path_factory.mktemp("dask"))
     yield c
     c.close()
 
@@ -146,6 +143,7 @@ def test_robust_study_same_best_with_workers_and_cluster(tmp_path, cluster):
 
 def test_a_killed_dask_worker_loses_no_trial(tmp_path, cluster):
     study, name = cheap_copy(tmp_path, "killw")
+    doomed = cluster.add_worker()  # a third worker, killed below
     out = tmp_path / "dask"
     total = 24
     proc = start_tune(study, out, total, "--cluster", cluster.address, "--batch-size", "4")
@@ -153,7 +151,7 @@ def test_a_killed_dask_worker_loses_no_trial(tmp_path, cluster):
     while complete_now(out / f"{name}.db", name) < 4 and time.monotonic() < deadline:
         assert proc.poll() is None, proc.stdout.read()
         time.sleep(0.05)
-    cluster.workers[0].send_signal(signal.SIGKILL)  # mid-run: its running task is lost
+    doomed.send_signal(signal.SIGKILL)  # mid-run: its running task is lost
     code, output = finish(proc, timeout=240)
     assert code == 0, output
     got = snapshot(sqlite_url(out, name), name)
@@ -206,3 +204,17 @@ def test_cluster_without_dask_names_the_extra(tmp_path, capsys, monkeypatch):
     assert code == 2
     err = capsys.readouterr().err.strip()
     assert "fuzzyservo[cluster]" in err and "\n" not in err, err
+
+
+def test_robustness_gives_the_same_numbers_on_workers_and_a_cluster(tmp_path, cluster, dinca,
+                                                                    flc2, p_k10):  # fmt: skip
+    from fuzzyservo.tuning.montecarlo import CHUNK, plan
+
+    study = load_study(DATA / "studies" / "dinca_robust.yaml")
+    setup = plan(dinca, [flc2, p_k10], study, samples=CHUNK + 4, scenarios=["steps"])
+    def numbers(**how) -> str:  # NaN (an undefined metric) equals itself in JSON
+        return json.dumps(setup.run(**how).rows(), default=str)
+
+    here = numbers()
+    assert numbers(workers=2) == here
+    assert numbers(cluster=cluster.address) == here

@@ -58,6 +58,11 @@ class Outcome:
     worker_time_s: float = 0.0
     simulations: int = 0
     trials_pruned: int = 0
+    #: robust studies: the top trials scored again on fresh samples (tuning/noise.py), the
+    #: winner first; each {number, value, standard_error, fresh_value, fresh_standard_error,
+    #: fresh_feasible}
+    selection: list[dict[str, Any]] = field(default_factory=list)
+    best_number: int | None = None
 
 
 def storage_url(spec: Study, out_dir: Path, override: str | None = None) -> str:
@@ -364,11 +369,11 @@ def run_study(
                     _run_processes(spec, url, total, workers, bar, shared)
         finally:
             bar.close()
+        wall = time.perf_counter() - t0
+        return collect(spec, url, wall_s=wall, executor=executor)
     finally:
         if executor is not None:
             executor.close()
-    wall = time.perf_counter() - t0
-    return collect(spec, url, wall_s=wall)
 
 
 #: a batch-mode trial's user attribute: [its batch's first trial index, the batch's size]
@@ -624,8 +629,10 @@ def _trial_time(trial) -> float:
     return 0.0
 
 
-def collect(spec: Study, url: str, *, wall_s: float = 0.0) -> Outcome:
-    """Read the study back: best (feasible) trial or Pareto front, history, importances."""
+def collect(spec: Study, url: str, *, wall_s: float = 0.0, executor=None) -> Outcome:
+    """Read the study back: best (feasible) trial or Pareto front, history, importances.
+    A robust study's best is chosen among its top trials on fresh samples
+    (:func:`select_on_fresh_samples`, scored by ``executor``, default this process)."""
     import optuna
     from optuna.trial import TrialState
 
@@ -657,6 +664,9 @@ def collect(spec: Study, url: str, *, wall_s: float = 0.0) -> Outcome:
         )
     else:
         best_trial = min(pool, key=lambda t: t.value)
+    selection: list[dict[str, Any]] = []
+    if spec.uncertainty is not None and not spec.objective.pareto:
+        best_trial, selection = select_on_fresh_samples(spec, pool, executor)
     best_params = dict(best_trial.params)
     best = evaluator.evaluate(
         evaluator.controller(best_params, name=f"{spec.name}_best"), keep_results=True
@@ -699,4 +709,38 @@ def collect(spec: Study, url: str, *, wall_s: float = 0.0) -> Outcome:
         worker_time_s=worker_time,
         simulations=sum(t.user_attrs.get("simulations", 0) for t in finished),
         trials_pruned=len(finished) - len(trials),
+        selection=selection,
+        best_number=best_trial.number,
     )
+
+
+def select_on_fresh_samples(spec: Study, pool: list, executor=None) -> tuple[Any, list[dict]]:
+    """The best of the :data:`~fuzzyservo.tuning.noise.TOP` lowest trials of ``pool`` on
+    fresh samples (:func:`~fuzzyservo.tuning.noise.fresh_uncertainty`; feasible there
+    first, then by value), and every candidate's values with their standard errors."""
+    from fuzzyservo.executor import Inline
+    from fuzzyservo.tuning.integrity import fingerprint
+    from fuzzyservo.tuning.noise import TOP, fresh_uncertainty, standard_error
+    from fuzzyservo.tuning.trial import Task, TrialRunner
+
+    u = spec.uncertainty
+    top = sorted(pool, key=lambda t: (t.value, t.number))[:TOP]
+    fresh = dataclasses.replace(spec, uncertainty=fresh_uncertainty(u))
+    runner = TrialRunner(fresh, "fresh " + json.dumps(fingerprint(fresh), sort_keys=True))
+    results = (executor or Inline()).map(runner, [Task(t.number, dict(t.params)) for t in top])
+
+    def se(values) -> float | None:
+        value = standard_error([math.nan if v is None else v for v in values or ()],
+                               u.aggregate, u.alpha)  # fmt: skip
+        return value if math.isfinite(value) else None
+
+    rows = []
+    for t, r in zip(top, results, strict=True):
+        feasible = r.user_attrs.get("status") == "ok" and all(c <= 0 for c in r.constraints)
+        rows.append({"number": t.number, "value": t.value,
+                     "standard_error": se(t.user_attrs.get("sample_values")),
+                     "fresh_value": r.values[0], "fresh_standard_error":
+                     se(r.user_attrs.get("sample_values")), "fresh_feasible": feasible})  # fmt: skip
+    rows.sort(key=lambda row: (not row["fresh_feasible"], row["fresh_value"], row["number"]))
+    winner = next(t for t in top if t.number == rows[0]["number"])
+    return winner, rows

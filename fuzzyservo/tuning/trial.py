@@ -71,6 +71,8 @@ def score(spec: Study, evaluator: Evaluator, params: dict[str, float],
     attrs["sim_time_s"] = ev.sim_time_s
     if ev.simulations:
         attrs["simulations"] = ev.simulations
+    if ev.sample_values:
+        attrs["sample_values"] = [v if math.isfinite(v) else None for v in ev.sample_values]
     attrs["trial_time_s"] = time.perf_counter() - t0
     return TrialResult(
         values=ev.values,

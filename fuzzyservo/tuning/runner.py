@@ -1,12 +1,28 @@
-"""Running a study on Optuna: samplers, storage, resume, local workers, progress.
+"""Running a study on Optuna: samplers, storage, resume, batches, workers, progress.
 
-The only module that imports optuna. Trials are stored as they finish, so a study
+The module that drives optuna (with :mod:`~fuzzyservo.tuning.integrity` and
+:mod:`~fuzzyservo.tuning.warmstart`, which read its objects). Two ways to run a study:
+
+* **Batch-synchronous** (the default, :func:`run_batches`): this process owns the sampler
+  and the storage; it asks ``batch_size`` trials, an executor (:mod:`fuzzyservo.executor`:
+  this process, ``--workers N`` local processes, or a Dask ``--cluster``) scores them,
+  and it tells them in trial-number order. The same seeded study gives the same trials,
+  hence the same best, with any number of workers, run twice, or killed (kill -9) and
+  resumed. The batch size is the trade-off: the sampler learns from a batch only once it
+  is told (a larger batch learns less often, keeps more workers busy and prunes against an
+  older bound); the result depends on it, never on the workers.
+* **Asynchronous** (``--async``): every worker process runs Optuna's own loop on the
+  shared storage, which several ``tune`` commands, on several machines, may share
+  (PostgreSQL). Not reproducible: the trials depend on which worker finished first.
+
+Trials are stored as they are told (a batch at a time in the first mode), so a study
 stopped at any moment (Ctrl-C, a killed process) resumes with the same command and
-loses no completed trial. The count towards ``trials`` is the number of COMPLETE
-trials (and PRUNED ones: robust trials stopped once their worst sample so far is worse
-than the best feasible trial, which is exact: the worst can only grow); a simulation that diverges or hits an end stop is a COMPLETE trial with the
-study's penalty as its value and its reason in ``user_attrs``. Trials left RUNNING by
-a killed process are failed by the storage heartbeat and do not count.
+loses no told trial. The count towards ``trials`` is the number of COMPLETE trials (and
+PRUNED ones: robust trials stopped once their worst sample so far is worse than the
+best feasible trial, which is exact: the worst can only grow); a simulation that
+diverges or hits an end stop is a COMPLETE trial with the study's penalty as its value
+and its reason in ``user_attrs``. In the asynchronous mode, trials left RUNNING by a
+killed process are failed by the storage heartbeat and do not count.
 """
 
 from __future__ import annotations

@@ -329,6 +329,7 @@ def cmd_fit_valve(args: argparse.Namespace) -> int:
 
 def cmd_calibrate(args: argparse.Namespace) -> int:
     from fuzzyservo.calibration import prepare
+    from fuzzyservo.io.calibration_report import write_calibration
     from fuzzyservo.io.controllers import load_controller
     from fuzzyservo.io.measured import read_rig_data
     from fuzzyservo.io.rigs import load_rig
@@ -348,14 +349,12 @@ def cmd_calibrate(args: argparse.Namespace) -> int:
     print(setup.describe())
     bar = progress_bar(setup.steps(args.max_effects), "candidates")
     try:
-        result = setup.run(max_effects=args.max_effects, workers=args.workers,
+        result = setup.run(max_effects=args.max_effects, workers=args.workers, cluster=args.cluster,
                            progress=lambda name: (bar.set_postfix_str(name), bar.update(1)))  # fmt: skip
     finally:
         bar.close()
     stem = Path(args.data[0]).stem + (f"+{len(args.data) - 1}" if len(args.data) > 1 else "")
     out = out or _out_dir(str(Path("out") / f"calibrate_{rig.name}_{stem}"))
-    from fuzzyservo.io.calibration_report import write_calibration
-
     paths = write_calibration(result, out, ", ".join(Path(d).name for d in args.data))
     print(result.text())
     print(f"calibrated in {result.outcome.seconds:.1f} s; report: {paths['report']}")
@@ -520,6 +519,7 @@ CALIBRATE = [
     _arg("--workers", type=int, default=os.cpu_count() or 1,
          help="processes that fit a round's candidates in parallel (default: one per core)"),
     _arg("--resample", action="store_true", help="resample uneven or repeated time stamps"),
+    CLUSTER,
 ]  # fmt: skip
 FIT_VALVE = [
     _arg("data", help="CSV with columns p_s_bar, u_c_V, p_a_bar, p_b_bar, q_a_l_min, q_b_l_min"),

@@ -36,12 +36,14 @@ CLUSTER_EXTRA = "pip install 'fuzzyservo[cluster]' (dask[distributed])"
 
 
 class Executor(Protocol):
-    """Maps a function over items, results in the items' order."""
+    """Maps a function over items, results in the items' order; ``on_done(k)`` as item
+    ``k`` finishes (in any order: for progress only)."""
 
     #: how many tasks run at once at most (a hint for progress and batching)
     workers: int
 
-    def map(self, fn: Callable[[Any], Any], items: Sequence[Any]) -> list[Any]: ...
+    def map(self, fn: Callable[[Any], Any], items: Sequence[Any],
+            on_done: Callable[[int], object] | None = None) -> list[Any]: ...  # fmt: skip
 
     def close(self) -> None: ...
 
@@ -51,8 +53,14 @@ class Inline:
 
     workers = 1
 
-    def map(self, fn: Callable[[Any], Any], items: Sequence[Any]) -> list[Any]:
-        return [fn(item) for item in items]
+    def map(self, fn: Callable[[Any], Any], items: Sequence[Any],
+            on_done: Callable[[int], object] | None = None) -> list[Any]:  # fmt: skip
+        out = []
+        for k, item in enumerate(items):
+            out.append(fn(item))
+            if on_done is not None:
+                on_done(k)
+        return out
 
     def close(self) -> None:
         pass
@@ -77,8 +85,20 @@ class LocalProcesses:
             initargs=(os.getpid(),),
         )
 
-    def map(self, fn: Callable[[Any], Any], items: Sequence[Any]) -> list[Any]:
-        return list(self._pool.map(fn, items))
+    def map(self, fn: Callable[[Any], Any], items: Sequence[Any],
+            on_done: Callable[[int], object] | None = None) -> list[Any]:  # fmt: skip
+        from concurrent.futures import as_completed
+
+        futures = {self._pool.submit(fn, item): k for k, item in enumerate(items)}
+        try:
+            for future in as_completed(futures):
+                future.result()  # a task's exception stops the map here
+                if on_done is not None:
+                    on_done(futures[future])
+        finally:
+            for future in futures:
+                future.cancel()
+        return [future.result() for future in futures]
 
     def close(self) -> None:
         # a Ctrl-C mid-batch: drop the queued tasks, do not wait for the running ones
@@ -114,11 +134,18 @@ class DaskCluster:
         self._client.wait_for_workers(1, timeout=timeout_s)
         self.workers = max(1, sum(self._client.nthreads().values()))
 
-    def map(self, fn: Callable[[Any], Any], items: Sequence[Any]) -> list[Any]:
+    def map(self, fn: Callable[[Any], Any], items: Sequence[Any],
+            on_done: Callable[[int], object] | None = None) -> list[Any]:  # fmt: skip
+        from distributed import as_completed
+
         # pure=False: the same item twice is computed twice, never taken from a cache of
         # another study; a task lost with its worker is re-run by the scheduler
         futures = self._client.map(fn, list(items), pure=False)
+        index = {f.key: k for k, f in enumerate(futures)}
         try:
+            for future in as_completed(futures):
+                if on_done is not None:
+                    on_done(index[future.key])
             return self._client.gather(futures)
         finally:
             self._client.cancel(futures)

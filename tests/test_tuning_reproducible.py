@@ -212,6 +212,7 @@ def test_robustness_gives_the_same_numbers_on_workers_and_a_cluster(tmp_path, cl
 
     study = load_study(DATA / "studies" / "dinca_robust.yaml")
     setup = plan(dinca, [flc2, p_k10], study, samples=CHUNK + 4, scenarios=["steps"])
+
     def numbers(**how) -> str:  # NaN (an undefined metric) equals itself in JSON
         return json.dumps(setup.run(**how).rows(), default=str)
 

@@ -431,11 +431,17 @@ def run_batches(spec: Study, stored, total: int, executor, bar=None) -> None:
         bound = _best_feasible_value(memory) if _prunes(spec) else None
         trials = [memory.ask() for _ in range(size)]
         tasks = [Task(t.number, _suggest(t, spec), bound) for t in trials]
-        kept = {t.number: _result_of(pending[1][t.number]) for t in tasks
-                if pending and t.number in pending[1] and pending[1][t.number].params == t.params}  # fmt: skip
+        kept = {}  # the trials of a half-written batch, asked again identically
+        for task in tasks if pending else ():
+            old = pending[1].get(task.number)
+            if old is not None and old.params == task.params:
+                kept[task.number] = _result_of(old)
         todo = [t for t in tasks if t.number not in kept]
-        results = {**kept, **dict(zip([t.number for t in todo], executor.map(runner, todo),
-                                      strict=True))}  # fmt: skip
+        if bar is not None:
+            bar.update(len(kept))
+        done = None if bar is None else (lambda k: bar.update(1))
+        scored = executor.map(runner, todo, done)
+        results = {**kept, **{t.number: r for t, r in zip(todo, scored, strict=True)}}
         for trial in trials:
             _tell(memory, trial, spec, results[trial.number], [n, size])
         if _n_trials(stored) != written:
@@ -451,7 +457,6 @@ def run_batches(spec: Study, stored, total: int, executor, bar=None) -> None:
         pending = None
         n += size
         if bar is not None:
-            bar.update(size)
             _postfix(bar, memory)
         if (
             spec.patience

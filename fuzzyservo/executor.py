@@ -143,7 +143,7 @@ class DaskCluster:
         futures = self._client.map(fn, list(items), pure=False)
         index = {f.key: k for k, f in enumerate(futures)}
         try:
-            for future in as_completed(futures):
+            for future in as_completed(futures, loop=self._client.loop):
                 if on_done is not None:
                     on_done(index[future.key])
             return self._client.gather(futures)

@@ -27,6 +27,7 @@ killed process are failed by the storage heartbeat and do not count.
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import json
 import math
@@ -376,7 +377,8 @@ def run_study(
         bar = _bar(total, done_before, spec.name, progress)
         try:
             if executor is not None:
-                run_batches(spec, study, total, executor, bar)
+                with _interruptible():
+                    run_batches(spec, study, total, executor, bar)
             else:
                 enqueue(study, spec)
                 if workers <= 1:
@@ -390,6 +392,28 @@ def run_study(
     finally:
         if executor is not None:
             executor.close()
+
+
+@contextlib.contextmanager
+def _interruptible():
+    """SIGINT (also in a background job started with it ignored) and SIGTERM raise
+    KeyboardInterrupt here: the batch is dropped, the workers are ended, the told
+    trials stay. Only the main thread may set handlers; elsewhere nothing changes."""
+    import signal
+    import threading
+
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    previous = {
+        sig: signal.signal(sig, signal.default_int_handler)
+        for sig in (signal.SIGINT, signal.SIGTERM)
+    }
+    try:
+        yield
+    finally:
+        for sig, handler in previous.items():
+            signal.signal(sig, handler)
 
 
 #: a batch-mode trial's user attribute: [its batch's first trial index, the batch's size]

@@ -143,6 +143,7 @@ def test_robust_study_same_best_here_and_on_a_cluster(tmp_path, cluster):
     assert one.selection == dask.selection  # the top trials on fresh samples too
 
 
+@pytest.mark.slow
 def test_a_killed_dask_worker_loses_no_trial(tmp_path, cluster):
     study, name = cheap_copy(tmp_path, "killw")
     doomed = cluster.add_worker()  # a third worker, killed below
@@ -163,6 +164,7 @@ def test_a_killed_dask_worker_loses_no_trial(tmp_path, cluster):
     assert got == snapshot(local.storage_url, name)
 
 
+@pytest.mark.slow
 def test_parent_killed_and_resumed_ends_like_an_uninterrupted_run(tmp_path):
     study, name = cheap_copy(tmp_path, "killp")
     total = 16

@@ -133,14 +133,15 @@ def _small_robust(tmp_path: Path) -> Path:
     return study
 
 
-def test_robust_study_same_best_here_and_on_a_cluster(tmp_path, cluster):
+def test_robust_study_same_best_with_workers_and_a_cluster(tmp_path, cluster):
     spec = load_study(_small_robust(tmp_path))
     one, trials_one = _run(spec, tmp_path / "w1")
-    dask, trials_dask = _run(spec, tmp_path / "dask", cluster=cluster.address)
-    assert trials_one == trials_dask
-    assert one.best_params == dask.best_params
-    assert one.trials_pruned == dask.trials_pruned
-    assert one.selection == dask.selection  # the top trials on fresh samples too
+    for tag, how in (("w2", {"workers": 2}), ("dask", {"cluster": cluster.address})):
+        other, trials = _run(spec, tmp_path / tag, **how)
+        assert trials == trials_one, f"{tag}: other trials than with one worker"
+        assert other.best_params == one.best_params
+        assert other.trials_pruned == one.trials_pruned
+        assert other.selection == one.selection  # the top trials on fresh samples too
 
 
 @pytest.mark.slow

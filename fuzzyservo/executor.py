@@ -107,6 +107,8 @@ class LocalProcesses:
         for proc in procs:
             if proc.is_alive():
                 proc.terminate()
+        for proc in procs:
+            proc.join(timeout=10)  # reaped: no zombie, their CPU time counted as ours
 
     def describe(self) -> str:
         return f"{self.workers} local worker processes"

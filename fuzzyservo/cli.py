@@ -179,28 +179,20 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
 
 def cmd_tune(args: argparse.Namespace) -> int:
     from fuzzyservo.analysis.robustness import comparison_text
-    from fuzzyservo.io.studies import load_study
+    from fuzzyservo.io.studies import load_study, with_warm_start
     from fuzzyservo.io.study_report import write_outputs
     from fuzzyservo.metrics import format_value, metrics_table
     from fuzzyservo.tuning.runner import run_study
     from fuzzyservo.tuning.spec import storage_problem
 
-    _at_least(1, trials=args.trials, workers=args.workers)
+    _at_least(1, trials=args.trials, workers=args.workers, batch_size=args.batch_size)
     _at_least(0, check_samples=args.check_samples)
     if args.storage and storage_problem(args.storage):
         raise ConfigError(f"--storage: {storage_problem(args.storage)}")
     _out_file(args.json, "--json")
     spec = load_study(resolve(args.study, "studies", "study"))
     if args.patience is not None or args.warm_start:
-        import dataclasses
-
-        from fuzzyservo.io.studies import with_warm_start
-
-        _at_least(1, patience=args.patience)
-        warm = [str(resolve(w, "studies/controllers", "controller")) for w in args.warm_start]
-        spec = with_warm_start(spec, warm)
-        if args.patience is not None:
-            spec = dataclasses.replace(spec, patience=args.patience)
+        spec = with_warm_start(spec, args.warm_start, args.patience)
     out = _out_dir(args.out) or Path("out") / spec.name
     _out_dir(str(out))
     total, workers = args.trials or spec.trials, args.workers or spec.workers
@@ -209,7 +201,9 @@ def cmd_tune(args: argparse.Namespace) -> int:
         print(f"uncertainty: {spec.uncertainty.describe()}")
     note_compiling()
     try:
-        outcome = run_study(spec, out, trials=total, storage=args.storage, workers=workers)
+        outcome = run_study(spec, out, trials=total, storage=args.storage, workers=workers,
+                            cluster=args.cluster, batch_size=args.batch_size,
+                            asynchronous=args.asynchronous)  # fmt: skip
     except KeyboardInterrupt:
         print("fuzzyservo: interrupted; completed trials are kept: run the same command to "
               "resume", file=sys.stderr)  # fmt: skip
@@ -219,8 +213,7 @@ def cmd_tune(args: argparse.Namespace) -> int:
     if spec.uncertainty is not None and check != 0:
         n = spec.uncertainty.samples if check is None else check
         print(f"checking the best against the baseline and the template on {n} fresh samples")
-        same = spec.template == spec.baseline
-        bar = progress_bar((2 if same else 3) * n, "check")  # best, baseline, template
+        bar = progress_bar((3 - (spec.template == spec.baseline)) * n, "check")  # best, base, tpl
     paths = write_outputs(outcome, out, check_samples=check, progress=bar and bar.update)
     if bar is not None:
         bar.close()
@@ -241,7 +234,7 @@ def cmd_robustness(args: argparse.Namespace) -> int:
     from fuzzyservo.io.studies import load_study
     from fuzzyservo.tuning.montecarlo import plan
 
-    _at_least(1, samples=args.samples)
+    _at_least(1, samples=args.samples, workers=args.workers)
     if args.gain_margin is not None and not args.gain_margin > 1:
         raise ConfigError(f"--gain-margin must be > 1, got {args.gain_margin}")
     _out_file(args.json, "--json")
@@ -253,7 +246,8 @@ def cmd_robustness(args: argparse.Namespace) -> int:
     print(setup.describe())
     note_compiling()
     bar = progress_bar(setup.steps, "robustness")
-    result = setup.run(args.gain_margin, progress=bar.update)
+    result = setup.run(args.gain_margin, progress=bar.update, workers=args.workers,
+                       cluster=args.cluster)  # fmt: skip
     bar.close()
     print(result.text())
     if out is not None:
@@ -306,14 +300,14 @@ def cmd_fit_valve(args: argparse.Namespace) -> int:
         bar.close()
     print(result.text())
     if rig_file is not None and out.resolve() != rig_file.resolve():
-        print(
-            f"the rig reads {rig_file}: use --into-rig to replace it, or point its weights at {out}"
-        )
+        print(f"the rig reads {rig_file}: use --into-rig to replace it, or point its weights "
+              f"at {out}")  # fmt: skip
     return 0
 
 
 def cmd_calibrate(args: argparse.Namespace) -> int:
     from fuzzyservo.calibration import prepare
+    from fuzzyservo.io.calibration_report import write_calibration
     from fuzzyservo.io.controllers import load_controller
     from fuzzyservo.io.measured import read_rig_data
     from fuzzyservo.io.rigs import load_rig
@@ -333,14 +327,12 @@ def cmd_calibrate(args: argparse.Namespace) -> int:
     print(setup.describe())
     bar = progress_bar(setup.steps(args.max_effects), "candidates")
     try:
-        result = setup.run(max_effects=args.max_effects, workers=args.workers,
+        result = setup.run(max_effects=args.max_effects, workers=args.workers, cluster=args.cluster,
                            progress=lambda name: (bar.set_postfix_str(name), bar.update(1)))  # fmt: skip
     finally:
         bar.close()
     stem = Path(args.data[0]).stem + (f"+{len(args.data) - 1}" if len(args.data) > 1 else "")
     out = out or _out_dir(str(Path("out") / f"calibrate_{rig.name}_{stem}"))
-    from fuzzyservo.io.calibration_report import write_calibration
-
     paths = write_calibration(result, out, ", ".join(Path(d).name for d in args.data))
     print(result.text())
     print(f"calibrated in {result.outcome.seconds:.1f} s; report: {paths['report']}")
@@ -398,6 +390,8 @@ SIM = [  # simulate and compare
     _arg("--out", default="out", help="folder for plots and CSV signals (default: out)"),
     _arg("--json", metavar="FILE", help="also write the results as JSON"),
 ]
+CLUSTER = _arg("--cluster", metavar="tcp://HOST:PORT",
+               help="compute on this Dask scheduler's workers (extra: fuzzyservo[cluster])")  # fmt: skip
 TUNE = [
     _arg("study", nargs="?", default=DEFAULT_STUDY,
          help=f"study file or name under studies/ (default: {DEFAULT_STUDY})"),
@@ -405,6 +399,10 @@ TUNE = [
     _arg("--storage",
          help="Optuna storage URL, e.g. postgresql://user@host/db (default: SQLite in --out)"),
     _arg("--workers", type=int, help="local worker processes (default: the study's, else 1)"),
+    CLUSTER,
+    _arg("--batch-size", type=int, help="trials asked at once (default: the study's, else 4)"),
+    _arg("--async", dest="asynchronous", action="store_true",
+         help="each worker runs its own Optuna loop on the shared storage: not reproducible"),
     _arg("--out", help="output folder (default: out/<study name>)"),
     _arg("--json", metavar="FILE", help="also write summary.json here"),
     _arg("--patience", type=int,
@@ -430,6 +428,8 @@ ROBUSTNESS = [
     _arg("--out", default="out", help="folder for the plots (default: out)"),
     _arg("--json", metavar="FILE", help="also write the table as JSON"),
     _arg("--strict", action="store_true", help="exit 1 when any sample fails"),
+    _arg("--workers", type=int, default=1, help="local processes sharing the samples (default: 1)"),
+    CLUSTER,
 ]  # fmt: skip
 EXPORT = [
     _arg("controller", help=f"{FUZZY} under studies/controllers/, or any .fis/.fcl system"),
@@ -499,6 +499,7 @@ CALIBRATE = [
     _arg("--workers", type=int, default=os.cpu_count() or 1,
          help="processes that fit a round's candidates in parallel (default: one per core)"),
     _arg("--resample", action="store_true", help="resample uneven or repeated time stamps"),
+    CLUSTER,
 ]  # fmt: skip
 FIT_VALVE = [
     _arg("data", help="CSV with columns p_s_bar, u_c_V, p_a_bar, p_b_bar, q_a_l_min, q_b_l_min"),

@@ -376,3 +376,20 @@ def test_tune_prints_and_reports_the_comparison(tmp_path, capsys):
     assert c["samples"] == 1 and [r["controller"] for r in c["controllers"]][1:] == [
         "p_k10", "flc2_reshaped"]  # fmt: skip
     assert (out / "check.png").is_file()
+
+
+def test_standard_error_of_the_mean_and_of_the_worst():
+    """Of the mean: s/sqrt(n) (here s = 1 for 1, 2, 3 and n = 3); of the worst: the bootstrap
+    spread, zero when every sample gives the same value, a fraction of the range otherwise."""
+    from fuzzyservo.tuning.noise import fresh_uncertainty, standard_error
+
+    assert standard_error([1.0, 2.0, 3.0], "mean") == pytest.approx(1 / math.sqrt(3))
+    assert standard_error([2.0] * 8, "worst") == 0.0
+    spread = standard_error([1.0, 2.0, 3.0, 4.0, 5.0, 6.0, 7.0, 8.0], "worst")
+    assert 0.1 < spread < 7.0
+    assert math.isnan(standard_error([1.0], "worst"))
+    assert math.isnan(standard_error([1.0, math.nan], "mean"))
+    u = load_study(DATA / "studies" / "dinca_robust.yaml").uncertainty
+    fresh = fresh_uncertainty(u)
+    assert fresh.samples == u.samples and fresh.seed != u.seed
+    assert fresh.draws[0].values != u.draws[0].values

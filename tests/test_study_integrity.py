@@ -139,7 +139,7 @@ def test_two_tune_commands_on_default_sqlite_share_without_duplicates(tmp_path):
     out = tmp_path / "out"
     out.mkdir()
     target = 16
-    procs = [start_tune(study, out, target) for _ in range(2)]
+    procs = [start_tune(study, out, target, "--async") for _ in range(2)]
     for proc in procs:
         code, output = finish(proc)
         assert code == 0, output

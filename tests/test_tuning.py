@@ -70,6 +70,7 @@ def _bad_study(tmp_path: Path, **changes) -> Path:
         ({"scenarios": ["pulses", "nope"]}, "scenarios[1]", "unknown scenario 'nope'"),
         ({"sampler": "bayes"}, "sampler", "unknown sampler"),
         ({"trials": 0}, "trials", ">= 1"),
+        ({"batch_size": 2.5}, "batch_size", "whole number of trials >= 1"),
     ],
 )
 def test_bad_study_files_name_file_key_and_fix(tmp_path, changes, key, text):

@@ -269,7 +269,8 @@ def test_two_processes_share_one_postgres_study(tmp_path):
     study, name = study_copy(tmp_path, "twoproc")
     target = 24
     try:
-        procs = [start_tune(study, tmp_path / f"out{i}", target, "--storage", url) for i in (0, 1)]
+        procs = [start_tune(study, tmp_path / f"out{i}", target, "--storage", url, "--async")
+                 for i in (0, 1)]  # fmt: skip
         results = [finish(p) for p in procs]
         for i, (code, output) in enumerate(results):
             assert code == 0, f"process {i} exited {code}:\n{output}"

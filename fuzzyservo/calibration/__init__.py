@@ -22,6 +22,7 @@ def calibrate(
     max_effects: int = 2,
     per_record: Sequence[str] = (),
     workers: int = 1,
+    cluster: str | None = None,
     progress: Callable[[str], object] | None = None,
 ) -> CalibrationResult:
     """Fit ``rig`` to measured ``data`` (a :class:`Measured`; read a data file with
@@ -30,14 +31,16 @@ def calibrate(
 
     A list of records is calibrated together (calibration/joint.py): effects and unknowns
     shared, the unknowns named in ``per_record`` (rig-file keys) fitted per record.
-    ``workers`` > 1 fits each round's candidates in that many processes.
+    ``workers`` > 1 fits each round's candidates in that many processes, ``cluster`` (a
+    Dask scheduler, ``tcp://HOST:PORT``) on its workers: the same result either way.
 
     With a ``controller`` the data's reference drives the closed loop; without, its
     recorded valve input drives the plant. Print the result, or write the report and
     the calibrated rig file with :func:`fuzzyservo.io.calibration_report.write_calibration`.
     """
     setup = prepare(rig, data, controller, effects=effects, per_record=per_record)
-    return setup.run(max_effects=max_effects, workers=workers, progress=progress)
+    return setup.run(max_effects=max_effects, workers=workers, cluster=cluster,
+                     progress=progress)  # fmt: skip
 
 
 __all__ = ["Calibration", "CalibrationResult", "calibrate", "prepare"]

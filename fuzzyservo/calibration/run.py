@@ -92,15 +92,17 @@ class Calibration:
         *,
         max_effects: int = 2,
         workers: int = 1,
+        cluster: str | None = None,
         progress: Callable[[str], object] | None = None,
     ) -> CalibrationResult:
         """Fit the unknowns, then add up to ``max_effects`` effects; ``progress(name)``
-        as each candidate starts (one worker) or ends (several)."""
+        as each candidate ends; ``workers`` local processes or the Dask ``cluster``
+        (``tcp://HOST:PORT``) fit a round's candidates (the same result)."""
         from fuzzyservo.calibration.search import calibrate as search
 
         effects = None if self.effects is None else list(self.effects)
         outcome = search(self.replay, self.rig, effects=effects, max_effects=max_effects,
-                         progress=progress, workers=workers)  # fmt: skip
+                         progress=progress, workers=workers, cluster=cluster)  # fmt: skip
         return CalibrationResult(outcome, self.replay)
 
 

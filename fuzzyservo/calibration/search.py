@@ -42,6 +42,7 @@ from fuzzyservo.calibration.residuals import fit_percent
 from fuzzyservo.calibration.uncertainty import Estimate, effective_samples, estimates
 from fuzzyservo.components.effects import LIBRARY, EffectParam, owner
 from fuzzyservo.controllers.base import Controller
+from fuzzyservo.executor import make_executor
 from fuzzyservo.rig import Rig
 
 SCAN = (0.0, 0.25, 0.5, 0.75, 1.0)  # grid of each parameter (unit interval)
@@ -446,12 +447,14 @@ def calibrate(
     progress: Callable[[str], None] | None = None,
     workers: int = 1,
     screen_samples: int | None = SCREEN_SAMPLES,
+    cluster: str | None = None,
 ) -> Outcome:
     """Fit the rig's unknowns, then add up to ``max_effects`` effects from the library.
 
-    ``workers`` > 1 fits a round's candidates in that many processes (each candidate is
-    independent of the others); ``progress`` gets each candidate's name as it starts
-    (one process) or as it ends (several). A training part SCREEN_RATIO times longer
+    ``workers`` > 1 fits a round's candidates in that many processes, ``cluster`` (a Dask
+    scheduler, ``tcp://HOST:PORT``) on its workers (:mod:`fuzzyservo.executor`; each
+    candidate is independent of the others, the results are the same); ``progress`` gets
+    each candidate's name as it ends. A training part SCREEN_RATIO times longer
     than ``screen_samples`` (None: never) screens the candidates on its first
     ``screen_samples`` and refits the best on all of it (:func:`_confirm`).
     """
@@ -474,13 +477,16 @@ def calibrate(
     models = {"declared": declared_model, "nominal": current_model}
     added: list[Candidate] = []
     rounds: list[Round] = []
-    with _Pool(workers, len(names)) as pool:
+    executor = make_executor(max(1, min(workers, len(names))), cluster)
+    try:
         for _ in range(max_effects):
             todo = [name for name in names if name not in current.effects]
             if not todo:  # every allowed effect is in already
                 break
-            task = functools.partial(_candidate, screen=screen_samples)
-            results = pool.map(task, replay, current, current_model, todo, progress)
+            task = functools.partial(_candidate, replay, current, current_model,
+                                     screen=screen_samples)  # fmt: skip
+            done = None if progress is None else (lambda k, todo=todo: progress(todo[k]))
+            results = executor.map(task, todo, done)
             results.sort(key=lambda c: c.score)
             if _screened(replay, screen_samples) is not replay:
                 results = _confirm(replay, current, current_model, results)
@@ -516,6 +522,8 @@ def calibrate(
             added.append(best)
             current, current_model, cost = best.rig, best.model, best.cost_val
             replay = replay.with_values(best.unknowns)
+    finally:
+        executor.close()
     if len(added) > 1:
         current, added, current_model, cost, refitted = _refit_jointly(
             replay, current, added, current_model, cost
@@ -575,56 +583,6 @@ def _confirm(
         ranked.append(refit)
         ranked.sort(key=lambda c: c.score)
     return ranked
-
-
-class _Pool:
-    """The candidates of a round, fitted in this process or in ``workers`` processes
-    (spawned once per calibration and reused by every round)."""
-
-    def __init__(self, workers: int, candidates: int):
-        self.workers = max(1, min(workers, candidates))
-        self.executor = None
-
-    def __enter__(self) -> _Pool:
-        if self.workers > 1:
-            import multiprocessing as mp
-            from concurrent.futures import ProcessPoolExecutor
-
-            self.executor = ProcessPoolExecutor(self.workers, mp_context=mp.get_context("spawn"))
-        return self
-
-    def __exit__(self, *exc) -> None:
-        if self.executor is not None:
-            self.executor.shutdown(cancel_futures=True)
-
-    def map(
-        self,
-        task: Callable[..., Candidate],
-        replay: Replay,
-        base: Rig,
-        base_model: dict[str, np.ndarray],
-        names: Sequence[str],
-        progress: Callable[[str], None] | None,
-    ) -> list[Candidate]:
-        """``task`` on every name; the results in the order of ``names``."""
-        if self.executor is None:
-            out = []
-            for name in names:
-                if progress:
-                    progress(name)
-                out.append(task(replay, base, base_model, name))
-            return out
-        from concurrent.futures import as_completed
-
-        futures = {
-            self.executor.submit(task, replay, base, base_model, name): name for name in names
-        }
-        done: dict[str, Candidate] = {}
-        for future in as_completed(futures):
-            done[futures[future]] = future.result()
-            if progress:
-                progress(futures[future])
-        return [done[name] for name in names]
 
 
 def _uncertainty(

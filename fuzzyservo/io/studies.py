@@ -27,6 +27,7 @@ trials: 300
 timeout_s: 600
 storage: null                      # default: SQLite in the output folder
 workers: 1                         # local worker processes (--workers overrides)
+batch_size: 4                      # trials asked at once; the result depends on it, not on workers
 uncertainty:                       # optional: tune on sampled plants (tuning/uncertainty.py)
   samples: 8                       # the same 8 plants and noise realisations for every trial
   seed: 1
@@ -57,6 +58,7 @@ from fuzzyservo.io.rigs import load_rig
 from fuzzyservo.metrics import METRIC_NAMES
 from fuzzyservo.tuning.spec import (
     AGGREGATES,
+    BATCH_SIZE,
     MARGIN_METRICS,
     SAMPLERS,
     Constraint,
@@ -68,7 +70,7 @@ from fuzzyservo.tuning.spec import (
 _TOP = (
     "name", "description", "source", "rig", "scenarios", "controller", "baseline", "parameters",
     "objective", "aggregate", "constraints", "sampler", "seed", "trials", "timeout_s", "storage", "penalty",
-    "workers", "uncertainty", "patience", "warm_start",
+    "workers", "uncertainty", "patience", "warm_start", "batch_size",
 )  # fmt: skip
 DEFAULT_BASELINE = "p_k10"
 
@@ -165,6 +167,9 @@ def load_study(path: str | Path) -> Study:
     workers = root.number("workers", default=1)
     if workers < 1 or workers != int(workers):
         root.fail(f"must be a whole number >= 1, got {workers}", key="workers")
+    batch_size = root.number("batch_size", default=BATCH_SIZE)
+    if batch_size < 1 or batch_size != int(batch_size):
+        root.fail(f"must be a whole number of trials >= 1, got {batch_size}", key="batch_size")
     patience = root.data.get("patience")
     if patience is not None and (
         isinstance(patience, bool) or not isinstance(patience, int) or patience < 1
@@ -211,6 +216,7 @@ def load_study(path: str | Path) -> Study:
             path=file,
             uncertainty=uncertainty,
             workers=int(workers),
+            batch_size=int(batch_size),
             patience=patience,
             warm_start=tuple(warm_start_point(params, w) for w in warm_files),
         )
@@ -265,12 +271,19 @@ def warm_start_point(parameters: tuple[Parameter, ...] | list[Parameter], file: 
     return point
 
 
-def with_warm_start(study: Study, files: list[str]) -> Study:
-    """``study`` with the controller ``files`` as further warm-start points."""
+def with_warm_start(study: Study, files: list[str], patience: int | None = None) -> Study:
+    """``study`` with the controller ``files`` (paths, or names under studies/controllers)
+    as further warm-start points, and ``patience`` when given (the command line's)."""
     import dataclasses
 
-    points = tuple(warm_start_point(study.parameters, f) for f in files)
-    return dataclasses.replace(study, warm_start=(*study.warm_start, *points))
+    from fuzzyservo.io.paths import find_file
+
+    if patience is not None and patience < 1:
+        raise ConfigError(f"--patience must be >= 1, got {patience}")
+    paths = [str(find_file(f, "studies/controllers", "controller")) for f in files]
+    points = tuple(warm_start_point(study.parameters, f) for f in paths)
+    study = dataclasses.replace(study, warm_start=(*study.warm_start, *points))
+    return study if patience is None else dataclasses.replace(study, patience=patience)
 
 
 _DIST_KEYS = ("uniform", "normal", "log-uniform", "interval")

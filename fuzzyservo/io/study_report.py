@@ -185,6 +185,8 @@ def _comparison_lines(comparison: Comparison, link) -> list[str]:
 
 def best_trial_number(outcome: Outcome) -> int | None:
     """The number of the trial the outcome reports as best (as :func:`runner.collect` picks it)."""
+    if outcome.best_number is not None:
+        return outcome.best_number
     if outcome.pareto:
         for p in outcome.pareto:
             if p["params"] == outcome.best_params:
@@ -219,7 +221,18 @@ def summary_data(outcome: Outcome, baseline_name: str, trial: int | None) -> dic
             "message": best.message,
             "feasible": best.feasible,
             "violations": list(best.violations),
+            # robust studies: the value's standard error over the samples, and its value
+            # on fresh samples (the winner of the top trials there: tuning/noise.py)
+            **(
+                {
+                    k: outcome.selection[0][k]
+                    for k in ("standard_error", "fresh_value", "fresh_standard_error")
+                }
+                if outcome.selection
+                else {}
+            ),
         },
+        "selection": [dict(row) for row in outcome.selection],
         "baseline": {
             "controller": baseline_name,
             "objective": _objective_value(base),
@@ -241,6 +254,29 @@ def summary_data(outcome: Outcome, baseline_name: str, trial: int | None) -> dic
         # what the trials spent outside the simulations: sampling, storage, building controllers
         "sampler_time_s": max(0.0, outcome.worker_time_s - outcome.sim_time_s),
     }
+
+
+def _selection_lines(outcome: Outcome) -> list[str]:
+    """The robust study's top trials on fresh samples (the winner first), values ± their
+    standard errors over the samples."""
+    if not outcome.selection:
+        return []
+
+    def pm(value: float, se: float | None) -> str:
+        return f"{value:.4g}" + (f" ± {se:.2g}" if se is not None else "")
+
+    lines = [
+        f"The {len(outcome.selection)} best trials scored again on fresh samples (a search's "
+        "best over noisy values is biased low); the lowest feasible fresh value wins:",
+        "",
+        "| trial | objective (study samples) | objective (fresh samples) | feasible there |",
+        "|---|---|---|---|",
+    ]
+    for row in outcome.selection:
+        lines.append(f"| #{row['number']} | {pm(row['value'], row['standard_error'])} | "
+                     f"{pm(row['fresh_value'], row['fresh_standard_error'])} | "
+                     f"{'yes' if row['fresh_feasible'] else 'no'} |")  # fmt: skip
+    return [*lines, ""]
 
 
 def _objective_value(ev: Evaluation) -> float | list[float]:
@@ -374,6 +410,7 @@ def _report(
         "## Result",
         "",
     ]
+    lines += _selection_lines(outcome)
     which = "the reported best" if trial is None else f"trial #{trial}"
     lines += [
         f"Best: {which}, objective {_values_text(best.values)} against the baseline's "

@@ -29,6 +29,9 @@ def tune(
     rig: Rig | None = None,
     storage: str | None = None,
     progress: bool = True,
+    cluster: str | None = None,
+    batch_size: int | None = None,
+    asynchronous: bool = False,
 ) -> Outcome:
     """Run (or resume: finished trials are kept, only the rest run) a :class:`Study`.
 
@@ -36,13 +39,19 @@ def tune(
     ``postgresql://…``), else the study's ``storage``, else SQLite in ``out_dir`` (default
     ``out/<study name>``); ``rig`` tunes on another rig than the study's own. Write the
     report with :func:`fuzzyservo.io.study_report.write_outputs`.
+
+    Trials are asked ``batch_size`` at a time (default: the study's) and scored by
+    ``workers`` local processes or on the Dask ``cluster`` (``tcp://HOST:PORT``): the
+    same result either way. ``asynchronous``: Optuna's own loop in each worker on the
+    shared storage instead (several commands or machines on one study; not reproducible).
     """
     from fuzzyservo.tuning.runner import run_study
 
     out = Path(out_dir) if out_dir is not None else Path("out") / study.name
     return run_study(
-        study, out, trials=trials, storage=storage, workers=workers, progress=progress, rig=rig
-    )
+        study, out, trials=trials, storage=storage, workers=workers, progress=progress, rig=rig,
+        cluster=cluster, batch_size=batch_size, asynchronous=asynchronous,
+    )  # fmt: skip
 
 
 __all__ = ["tune"]

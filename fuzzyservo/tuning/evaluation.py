@@ -25,6 +25,8 @@ class Evaluation:
     sim_time_s: float = 0.0
     results: dict[str, SimResult] = field(default_factory=dict, repr=False)
     simulations: int = 0  # runs it took (robust studies count them; 0: not counted)
+    #: a robust study's objective on each sample (the value is their aggregate); () otherwise
+    sample_values: tuple[float, ...] = ()
 
     @property
     def feasible(self) -> bool:

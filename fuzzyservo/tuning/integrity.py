@@ -9,9 +9,9 @@
   trial's number, which the storage hands out once. Processes sharing a storage (the
   default SQLite file too) never replay the same random stream, and a fresh single-process
   run is reproducible.
-* **Workers die with their parent**: a worker process asks the kernel for SIGTERM when its
-  parent dies (``prctl(PR_SET_PDEATHSIG)`` on Linux) and also watches its parent's pid
-  (other systems, and the race where the parent died before the request).
+* **Workers die with their parent**: :func:`fuzzyservo.executor.die_with_parent` (a
+  worker process asks the kernel for SIGTERM when its parent dies and also watches its
+  parent's pid).
 
 Stdlib only at import; optuna is imported inside the functions that need it.
 """
@@ -20,14 +20,10 @@ from __future__ import annotations
 
 import hashlib
 import json
-import os
-import signal
-import sys
-import threading
-import time
 from typing import TYPE_CHECKING, Any
 
 from fuzzyservo.errors import ConfigError
+from fuzzyservo.executor import die_with_parent
 
 if TYPE_CHECKING:
     from fuzzyservo.controllers.base import Controller
@@ -220,35 +216,4 @@ def per_trial_seeded(sampler: Any, seed: int | None) -> Any:
     return TrialSeeded()
 
 
-# --------------------------------------------------------------------------- orphans
-_PR_SET_PDEATHSIG = 1
-
-
-def die_with_parent(parent_pid: int, poll_s: float = 1.0) -> None:
-    """End this process when ``parent_pid`` ends: SIGTERM from the kernel on Linux, and a
-    daemon thread that checks the parent every ``poll_s`` everywhere. SIGTERM then stops
-    the process at once (its running trial is failed by the storage heartbeat)."""
-    signal.signal(signal.SIGTERM, _exit_now)
-    if sys.platform.startswith("linux"):
-        try:
-            import ctypes
-
-            libc = ctypes.CDLL(None, use_errno=True)
-            libc.prctl(_PR_SET_PDEATHSIG, int(signal.SIGTERM), 0, 0, 0)
-        except (OSError, AttributeError):
-            pass
-    if os.getppid() != parent_pid:  # died before we asked
-        _exit_now(signal.SIGTERM, None)
-
-    def watch() -> None:
-        while True:
-            time.sleep(poll_s)
-            if os.getppid() != parent_pid:
-                os.kill(os.getpid(), signal.SIGTERM)
-                return
-
-    threading.Thread(target=watch, name="parent-watch", daemon=True).start()
-
-
-def _exit_now(signum: int, frame: Any) -> None:
-    os._exit(128 + int(signum))
+__all__ = ["check_definition", "die_with_parent", "fingerprint", "per_trial_seeded", "trial_seed"]

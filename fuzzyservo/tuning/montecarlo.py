@@ -110,15 +110,62 @@ class RobustnessPlan:
         )
 
     def run(
-        self, gain_margin: float | None = 2.0, progress: Callable[[int], object] | None = None
+        self,
+        gain_margin: float | None = 2.0,
+        progress: Callable[[int], object] | None = None,
+        *,
+        workers: int = 1,
+        cluster: str | None = None,
     ) -> RobustnessResult:
         """Every controller on every plant, with the gain check ``gain_margin`` (None:
-        none); ``progress(k)`` as ``k`` samples finish."""
+        none); ``progress(k)`` as ``k`` samples finish. ``workers`` local processes or the
+        Dask ``cluster`` (``tcp://HOST:PORT``) share the samples, :data:`CHUNK` at a time:
+        the same numbers as in this process (each sample's runs are its own)."""
         seeds = [d.noise_seed for d in self.uncertainty.draws]
-        runs = monte_carlo(self.rig, self.controllers, self.rigs, seeds, self.scenarios,
-                           gain=gain_margin, progress=progress)  # fmt: skip
+        if workers <= 1 and not cluster:
+            runs = monte_carlo(self.rig, self.controllers, self.rigs, seeds, self.scenarios,
+                               gain=gain_margin, progress=progress)  # fmt: skip
+        else:
+            from fuzzyservo.executor import make_executor
+
+            executor = make_executor(workers, cluster)
+            try:
+                task = _Chunk(self.rig, self.controllers, self.rigs, tuple(seeds),
+                              self.scenarios, gain_margin)  # fmt: skip
+                parts = executor.map(task, range(0, len(self.rigs), CHUNK))
+            finally:
+                executor.close()
+            runs = [MonteCarlo(c.name, [r for part in parts for r in part[k].runs])
+                    for k, c in enumerate(self.controllers)]  # fmt: skip
+            if progress is not None:
+                progress(self.steps)
         return RobustnessResult(self.rig.name, self.uncertainty, self.scenarios, gain_margin,
                                 tuple(runs), self.controllers, self.rigs)  # fmt: skip
+
+
+#: samples per task when the Monte Carlo is shared out (monte_carlo's own chunk)
+CHUNK = 16
+
+
+@dataclass(frozen=True)
+class _Chunk:
+    """The Monte Carlo of samples ``start`` to ``start + CHUNK`` (an executor's task),
+    numbered as in the whole."""
+
+    rig: Rig
+    controllers: tuple[Controller, ...]
+    rigs: tuple[Rig, ...]
+    seeds: tuple[int, ...]
+    scenarios: tuple[str, ...]
+    gain: float | None
+
+    def __call__(self, start: int) -> list[MonteCarlo]:
+        stop = min(start + CHUNK, len(self.rigs))
+        runs = monte_carlo(self.rig, self.controllers, self.rigs[start:stop],
+                           self.seeds[start:stop], self.scenarios, gain=self.gain,
+                           chunk=CHUNK)  # fmt: skip
+        return [MonteCarlo(mc.controller, [dataclasses.replace(r, index=r.index + start)
+                                           for r in mc.runs]) for mc in runs]  # fmt: skip
 
 
 def _where(rig: Rig) -> str:

@@ -179,6 +179,7 @@ def evaluate_samples(
         sim_time_s=sim_time,
         results=results,
         simulations=sims,
+        sample_values=tuple(v[0] for v in per_sample),
     )
 
 

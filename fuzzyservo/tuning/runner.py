@@ -1,17 +1,35 @@
-"""Running a study on Optuna: samplers, storage, resume, local workers, progress.
+"""Running a study on Optuna: samplers, storage, resume, batches, workers, progress.
 
-The only module that imports optuna. Trials are stored as they finish, so a study
+The module that drives optuna (with :mod:`~fuzzyservo.tuning.integrity` and
+:mod:`~fuzzyservo.tuning.warmstart`, which read its objects). Two ways to run a study:
+
+* **Batch-synchronous** (the default, :func:`run_batches`): this process owns the sampler
+  and the storage; it asks ``batch_size`` trials, an executor (:mod:`fuzzyservo.executor`:
+  this process, ``--workers N`` local processes, or a Dask ``--cluster``) scores them,
+  and it tells them in trial-number order. The same seeded study gives the same trials,
+  hence the same best, with any number of workers, run twice, or killed (kill -9) and
+  resumed. The batch size is the trade-off: the sampler learns from a batch only once it
+  is told (a larger batch learns less often, keeps more workers busy and prunes against an
+  older bound); the result depends on it, never on the workers.
+* **Asynchronous** (``--async``): every worker process runs Optuna's own loop on the
+  shared storage, which several ``tune`` commands, on several machines, may share
+  (PostgreSQL). Not reproducible: the trials depend on which worker finished first.
+
+Trials are stored as they are told (a batch at a time in the first mode), so a study
 stopped at any moment (Ctrl-C, a killed process) resumes with the same command and
-loses no completed trial. The count towards ``trials`` is the number of COMPLETE
-trials (and PRUNED ones: robust trials stopped once their worst sample so far is worse
-than the best feasible trial, which is exact: the worst can only grow); a simulation that diverges or hits an end stop is a COMPLETE trial with the
-study's penalty as its value and its reason in ``user_attrs``. Trials left RUNNING by
-a killed process are failed by the storage heartbeat and do not count.
+loses no told trial. The count towards ``trials`` is the number of COMPLETE trials (and
+PRUNED ones: robust trials stopped once their worst sample so far is worse than the
+best feasible trial, which is exact: the worst can only grow); a simulation that
+diverges or hits an end stop is a COMPLETE trial with the study's penalty as its value
+and its reason in ``user_attrs``. In the asynchronous mode, trials left RUNNING by a
+killed process are failed by the storage heartbeat and do not count.
 """
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
+import json
 import math
 import multiprocessing as mp
 import sys
@@ -26,10 +44,13 @@ from fuzzyservo.tuning.evaluation import Evaluation
 from fuzzyservo.tuning.integrity import check_definition, die_with_parent, per_trial_seeded
 from fuzzyservo.tuning.objective import Evaluator
 from fuzzyservo.tuning.spec import Study
+from fuzzyservo.tuning.trial import TrialResult, score
 from fuzzyservo.tuning.warmstart import (
     enqueue,
     is_feasible,
+    out_of_patience,
     patience_callback,
+    start_points,
     stored_violations,
 )
 
@@ -55,6 +76,11 @@ class Outcome:
     worker_time_s: float = 0.0
     simulations: int = 0
     trials_pruned: int = 0
+    #: robust studies: the top trials scored again on fresh samples (tuning/noise.py), the
+    #: winner first; each {number, value, standard_error, fresh_value, fresh_standard_error,
+    #: fresh_feasible}
+    selection: list[dict[str, Any]] = field(default_factory=list)
+    best_number: int | None = None
 
 
 def storage_url(spec: Study, out_dir: Path, override: str | None = None) -> str:
@@ -191,51 +217,46 @@ def build_evaluator(spec: Study) -> Evaluator:
     return Evaluator(spec)
 
 
+def _suggest(trial, spec: Study) -> dict[str, float]:
+    """The trial's numbers, drawn by the study's sampler."""
+    params = {}
+    for p in spec.parameters:
+        if p.integer:
+            params[p.path] = trial.suggest_int(p.path, int(p.low), int(p.high), log=p.log)
+        else:
+            params[p.path] = trial.suggest_float(p.path, p.low, p.high, log=p.log)
+    return params
+
+
+def _prunes(spec: Study) -> bool:
+    """Robust single-objective trials stop once hopeless (tuning/trial.py)."""
+    return spec.uncertainty is not None and spec.objective.n_values == 1
+
+
+def _record(trial, spec: Study, result: TrialResult) -> None:
+    """The result's attributes and constraints on the Optuna trial (and, for a pruned
+    trial, its last value: TPE ranks a pruned trial by it)."""
+    for key, value in result.user_attrs.items():
+        trial.set_user_attr(key, value)
+    _record_constraints(trial, spec, list(result.constraints))
+    if result.pruned_at is not None:
+        step, value = result.pruned_at
+        trial.report(value, step)
+
+
 def _objective(spec: Study, evaluator: Evaluator):
+    """The asynchronous mode's objective: the pruning bound is read at the trial's start."""
+
     def objective(trial) -> float | tuple[float, ...]:
-        params = {}
-        for p in spec.parameters:
-            if p.integer:
-                params[p.path] = trial.suggest_int(p.path, int(p.low), int(p.high), log=p.log)
-            else:
-                params[p.path] = trial.suggest_float(p.path, p.low, p.high, log=p.log)
-        try:
-            controller = evaluator.controller(params)  # the template's name: no second build
-        except ValueError as exc:  # a combination the template rejects: penalised, reason kept
-            trial.set_user_attr("status", "invalid")
-            trial.set_user_attr("message", str(exc))
-            _record_constraints(trial, spec, [1e300] * len(spec.constraints))
-            values = tuple(spec.penalty for _ in range(spec.objective.n_values))
-            return values if len(values) > 1 else values[0]
-        report = None
-        if spec.uncertainty is not None and spec.objective.n_values == 1:
-            # exact pruning: a trial's worst sample can only grow, so once it is worse than
-            # the best feasible trial (read once, at the trial's start) the trial is lost
-            bound = _best_feasible_value(trial.study)
-            last: list[tuple[int, float]] = []
-
-            def report(step: int, value: float) -> bool:
-                last[:] = [(step, value)]
-                return bound is not None and value > bound
-
-        ev = evaluator.evaluate(controller, report=report)
-        trial.set_user_attr("status", ev.status)
-        if ev.message:
-            trial.set_user_attr("message", ev.message)
-        trial.set_user_attr(
-            "metrics", {k: (v if math.isfinite(v) else None) for k, v in ev.metrics.items()}
-        )
-        _record_constraints(trial, spec, [v if math.isfinite(v) else 1e300 for v in ev.violations])
-        trial.set_user_attr("sim_time_s", ev.sim_time_s)
-        if ev.simulations:
-            trial.set_user_attr("simulations", ev.simulations)
-        if ev.status == "pruned":
+        params = _suggest(trial, spec)
+        bound = _best_feasible_value(trial.study) if _prunes(spec) else None
+        result = score(spec, evaluator, params, bound)
+        _record(trial, spec, result)
+        if result.pruned_at is not None:
             import optuna
 
-            step, value = last[0]
-            trial.report(value, step)  # TPE ranks a pruned trial by its last value
-            raise optuna.TrialPruned(ev.message)
-        return ev.values if len(ev.values) > 1 else ev.values[0]
+            raise optuna.TrialPruned(result.user_attrs.get("message", ""))
+        return result.values if len(result.values) > 1 else result.values[0]
 
     return objective
 
@@ -318,33 +339,207 @@ def run_study(
     workers: int = 1,
     progress: bool = True,
     rig: Rig | None = None,
+    cluster: str | None = None,
+    batch_size: int | None = None,
+    asynchronous: bool = False,
 ) -> Outcome:
     """Run (or resume) the study until it holds ``trials`` complete trials; return the outcome.
+
+    Batch-synchronous (the default; :func:`run_batches`): the same seeded study gives the
+    same trials, hence the same best, with any ``workers`` (local processes) or on the Dask
+    ``cluster`` (``tcp://HOST:PORT``), run twice, or interrupted and resumed.
+    ``asynchronous``: every worker runs Optuna's own loop on the shared storage (several
+    ``tune`` commands, on several machines, may share one study): not reproducible.
 
     ``rig``: tune on this rig instead of the study's own (the same as
     ``dataclasses.replace(spec, rig=rig)``)."""
     if rig is not None:
         spec = dataclasses.replace(spec, rig=rig)
+    if batch_size is not None:
+        spec = dataclasses.replace(spec, batch_size=batch_size)
     out_dir.mkdir(parents=True, exist_ok=True)
     url = storage_url(spec, out_dir, storage)
     # a storage named by the user may be shared with other processes or machines
     shared = bool(storage or spec.storage)
     total = trials or spec.trials
-    study = open_study(spec, url)  # creates it (and its tables) before any worker starts
-    enqueue(study, spec)
-    done_before = count_complete(study)
-    t0 = time.perf_counter()
-    _warm_kernels(spec)  # before the bar: its rate (and ETA) should not count compiling
-    bar = _bar(total, done_before, spec.name, progress)
+    if cluster and asynchronous:
+        from fuzzyservo.errors import ConfigError
+
+        raise ConfigError("--cluster runs batches; leave out --async (or --cluster)")
+    executor = None
+    if not asynchronous:  # a cluster that cannot be used fails before anything starts
+        from fuzzyservo.executor import make_executor
+
+        executor = make_executor(workers, cluster)
     try:
-        if workers <= 1:
-            _run_inline(spec, url, total, bar, shared)
-        else:
-            _run_processes(spec, url, total, workers, bar, shared)
+        study = open_study(spec, url)  # creates it (and its tables) before any worker starts
+        done_before = count_complete(study)
+        t0 = time.perf_counter()
+        _warm_kernels(spec)  # before the bar: its rate (and ETA) should not count compiling
+        bar = _bar(total, done_before, spec.name, progress)
+        try:
+            if executor is not None:
+                with _interruptible():
+                    run_batches(spec, study, total, executor, bar)
+            else:
+                enqueue(study, spec)
+                if workers <= 1:
+                    _run_inline(spec, url, total, bar, shared)
+                else:
+                    _run_processes(spec, url, total, workers, bar, shared)
+        finally:
+            bar.close()
+        wall = time.perf_counter() - t0
+        return collect(spec, url, wall_s=wall, executor=executor)
     finally:
-        bar.close()
-    wall = time.perf_counter() - t0
-    return collect(spec, url, wall_s=wall)
+        if executor is not None:
+            executor.close()
+
+
+@contextlib.contextmanager
+def _interruptible():
+    """SIGINT (also in a background job started with it ignored) and SIGTERM raise
+    KeyboardInterrupt here: the batch is dropped, the workers are ended, the told
+    trials stay. Only the main thread may set handlers; elsewhere nothing changes."""
+    import signal
+    import threading
+
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    previous = {
+        sig: signal.signal(sig, signal.default_int_handler)
+        for sig in (signal.SIGINT, signal.SIGTERM)
+    }
+    try:
+        yield
+    finally:
+        for sig, handler in previous.items():
+            signal.signal(sig, handler)
+
+
+#: a batch-mode trial's user attribute: [its batch's first trial index, the batch's size]
+BATCH_ATTR = "batch"
+
+
+def run_batches(spec: Study, stored, total: int, executor, bar=None) -> None:
+    """The batch-synchronous loop: this process owns the sampler and the storage.
+
+    The study lives in memory (the stored trials replayed in order into a fresh sampler
+    seeded per trial: :func:`~fuzzyservo.tuning.integrity.per_trial_seeded`); each round
+    asks ``spec.batch_size`` trials, has ``executor`` score them
+    (:class:`~fuzzyservo.tuning.trial.TrialRunner`, pruning bound: the best feasible value
+    told before the batch), tells them in trial-number order and then writes the batch to
+    the storage ``stored``. Whatever the executor, the sampler sees the same history at
+    every ask, so the trials are the same. A run killed before its batch is written loses
+    that batch only and a resume asks it again, identically; one killed while writing it
+    finds the written part on resume and scores only the rest."""
+    import optuna
+
+    from fuzzyservo.tuning.integrity import fingerprint
+    from fuzzyservo.tuning.trial import Task, TrialRunner
+
+    told = stored.get_trials(deepcopy=False, states=_finished())
+    start, pending = _partial_batch(told)
+    memory = optuna.create_study(
+        directions=["minimize"] * spec.objective.n_values,
+        sampler=per_trial_seeded(make_sampler(spec, spec.seed), spec.seed),
+    )
+    memory.add_trials(told[:start])
+    for point in start_points(spec)[start:]:  # the warm start not run yet
+        memory.enqueue_trial(point)
+    written = _n_trials(stored)
+    runner = TrialRunner(spec, json.dumps(fingerprint(spec), sort_keys=True))
+    t0 = time.perf_counter()
+    n = start
+    while n < total:
+        size = pending[0] if pending else min(spec.batch_size, total - n)
+        bound = _best_feasible_value(memory) if _prunes(spec) else None
+        trials = [memory.ask() for _ in range(size)]
+        tasks = [Task(t.number, _suggest(t, spec), bound) for t in trials]
+        kept = {}  # the trials of a half-written batch, asked again identically
+        for task in tasks if pending else ():
+            old = pending[1].get(task.number)
+            if old is not None and old.params == task.params:
+                kept[task.number] = _result_of(old)
+        todo = [t for t in tasks if t.number not in kept]
+        if bar is not None:
+            bar.update(len(kept))
+        done = None if bar is None else (lambda k: bar.update(1))
+        scored = executor.map(runner, todo, done)
+        results = {**kept, **{t.number: r for t, r in zip(todo, scored, strict=True)}}
+        for trial in trials:
+            _tell(memory, trial, spec, results[trial.number], [n, size])
+        if _n_trials(stored) != written:
+            from fuzzyservo.errors import ConfigError
+
+            raise ConfigError(
+                f"study {spec.name!r}: another process writes to its storage; a batch run "
+                "owns its study: run every process sharing one with --async"
+            )
+        new = [t for t in memory.get_trials(deepcopy=False)[n : n + size] if t.number not in kept]
+        stored.add_trials(new)
+        written += len(new)
+        pending = None
+        n += size
+        if bar is not None:
+            _postfix(bar, memory)
+        if (
+            spec.patience
+            and spec.objective.n_values == 1
+            and out_of_patience(memory, spec.patience)
+        ):
+            break
+        if spec.timeout_s is not None and time.perf_counter() - t0 > spec.timeout_s:
+            break
+
+
+def _partial_batch(told: list) -> tuple[int, tuple[int, dict] | None]:
+    """Where the replay stops: the stored trials up to the last whole batch, and the part
+    of a batch a killed run had begun to write (its size and its trials by index)."""
+    if not told:
+        return 0, None
+    batch = told[-1].user_attrs.get(BATCH_ATTR)
+    if not batch:
+        return len(told), None
+    first, size = batch
+    part = told[first:]
+    if len(part) >= size or first > len(told):
+        return len(told), None
+    return first, (size, {first + k: t for k, t in enumerate(part)})
+
+
+def _result_of(trial) -> TrialResult:
+    """A stored trial's result, as :func:`~fuzzyservo.tuning.trial.score` returned it."""
+    from optuna.trial import TrialState
+
+    attrs = {k: v for k, v in trial.user_attrs.items() if k not in ("constraints", BATCH_ATTR)}
+    pruned = None
+    if trial.state == TrialState.PRUNED and trial.intermediate_values:
+        step = max(trial.intermediate_values)
+        pruned = (step, trial.intermediate_values[step])
+    return TrialResult(
+        values=tuple(trial.values or ()),
+        constraints=tuple(trial.user_attrs.get("constraints", ())),
+        user_attrs=attrs,
+        pruned_at=pruned,
+    )
+
+
+def _tell(study, trial, spec: Study, result: TrialResult, batch: list[int]) -> None:
+    from optuna.trial import TrialState
+
+    _record(trial, spec, result)
+    trial.set_user_attr(BATCH_ATTR, batch)
+    if result.pruned_at is not None:
+        study.tell(trial, state=TrialState.PRUNED)
+    else:
+        study.tell(trial, list(result.values))
+
+
+def _n_trials(study) -> int:
+    """The study's trials in its storage, by one count (not a read of every trial)."""
+    return study._storage.get_n_trials(study._study_id)
 
 
 def _run_inline(spec: Study, url: str, total: int, bar, shared: bool) -> None:
@@ -472,8 +667,19 @@ def _bar(total: int, initial: int, name: str, enabled: bool):
     )
 
 
-def collect(spec: Study, url: str, *, wall_s: float = 0.0) -> Outcome:
-    """Read the study back: best (feasible) trial or Pareto front, history, importances."""
+def _trial_time(trial) -> float:
+    """A trial's own time (a batch's trials all start at its ask and end at its tell)."""
+    if "trial_time_s" in trial.user_attrs:
+        return trial.user_attrs["trial_time_s"]
+    if trial.datetime_complete and trial.datetime_start:
+        return (trial.datetime_complete - trial.datetime_start).total_seconds()
+    return 0.0
+
+
+def collect(spec: Study, url: str, *, wall_s: float = 0.0, executor=None) -> Outcome:
+    """Read the study back: best (feasible) trial or Pareto front, history, importances.
+    A robust study's best is chosen among its top trials on fresh samples
+    (:func:`select_on_fresh_samples`, scored by ``executor``, default this process)."""
     import optuna
     from optuna.trial import TrialState
 
@@ -505,6 +711,9 @@ def collect(spec: Study, url: str, *, wall_s: float = 0.0) -> Outcome:
         )
     else:
         best_trial = min(pool, key=lambda t: t.value)
+    selection: list[dict[str, Any]] = []
+    if spec.uncertainty is not None and not spec.objective.pareto:
+        best_trial, selection = select_on_fresh_samples(spec, pool, executor)
     best_params = dict(best_trial.params)
     best = evaluator.evaluate(
         evaluator.controller(best_params, name=f"{spec.name}_best"), keep_results=True
@@ -531,11 +740,7 @@ def collect(spec: Study, url: str, *, wall_s: float = 0.0) -> Outcome:
             importances = {}
     finished = study.get_trials(deepcopy=False, states=_finished())  # with pruned ones
     sim = sum(t.user_attrs.get("sim_time_s", 0.0) for t in finished)
-    worker_time = sum(
-        (t.datetime_complete - t.datetime_start).total_seconds()
-        for t in finished
-        if t.datetime_complete and t.datetime_start
-    )
+    worker_time = sum(_trial_time(t) for t in finished)
     return Outcome(
         spec=spec,
         storage_url=url,
@@ -551,4 +756,38 @@ def collect(spec: Study, url: str, *, wall_s: float = 0.0) -> Outcome:
         worker_time_s=worker_time,
         simulations=sum(t.user_attrs.get("simulations", 0) for t in finished),
         trials_pruned=len(finished) - len(trials),
+        selection=selection,
+        best_number=best_trial.number,
     )
+
+
+def select_on_fresh_samples(spec: Study, pool: list, executor=None) -> tuple[Any, list[dict]]:
+    """The best of the :data:`~fuzzyservo.tuning.noise.TOP` lowest trials of ``pool`` on
+    fresh samples (:func:`~fuzzyservo.tuning.noise.fresh_uncertainty`; feasible there
+    first, then by value), and every candidate's values with their standard errors."""
+    from fuzzyservo.executor import Inline
+    from fuzzyservo.tuning.integrity import fingerprint
+    from fuzzyservo.tuning.noise import TOP, fresh_uncertainty, standard_error
+    from fuzzyservo.tuning.trial import Task, TrialRunner
+
+    u = spec.uncertainty
+    top = sorted(pool, key=lambda t: (t.value, t.number))[:TOP]
+    fresh = dataclasses.replace(spec, uncertainty=fresh_uncertainty(u))
+    runner = TrialRunner(fresh, "fresh " + json.dumps(fingerprint(fresh), sort_keys=True))
+    results = (executor or Inline()).map(runner, [Task(t.number, dict(t.params)) for t in top])
+
+    def se(values) -> float | None:
+        value = standard_error([math.nan if v is None else v for v in values or ()],
+                               u.aggregate, u.alpha)  # fmt: skip
+        return value if math.isfinite(value) else None
+
+    rows = []
+    for t, r in zip(top, results, strict=True):
+        feasible = r.user_attrs.get("status") == "ok" and all(c <= 0 for c in r.constraints)
+        rows.append({"number": t.number, "value": t.value,
+                     "standard_error": se(t.user_attrs.get("sample_values")),
+                     "fresh_value": r.values[0], "fresh_standard_error":
+                     se(r.user_attrs.get("sample_values")), "fresh_feasible": feasible})  # fmt: skip
+    rows.sort(key=lambda row: (not row["fresh_feasible"], row["fresh_value"], row["number"]))
+    winner = next(t for t in top if t.number == rows[0]["number"])
+    return winner, rows

@@ -54,15 +54,20 @@ def patience_callback(n: int):
     more finished trials old."""
 
     def callback(study, trial) -> None:
-        from optuna.trial import TrialState
-
-        done = study.get_trials(deepcopy=False, states=(TrialState.COMPLETE, TrialState.PRUNED))
-        complete = [t for t in done if t.state == TrialState.COMPLETE]
-        if not complete:
-            return
-        feasible = [t for t in complete if is_feasible(t)] or complete
-        best = min(feasible, key=lambda t: t.values[0])
-        if sum(t.number > best.number for t in done) >= n:
+        if out_of_patience(study, n):
             study.stop()
 
     return callback
+
+
+def out_of_patience(study: Any, n: int) -> bool:
+    """Is the study's best (feasible first) trial ``n`` or more finished trials old?"""
+    from optuna.trial import TrialState
+
+    done = study.get_trials(deepcopy=False, states=(TrialState.COMPLETE, TrialState.PRUNED))
+    complete = [t for t in done if t.state == TrialState.COMPLETE]
+    if not complete:
+        return False
+    feasible = [t for t in complete if is_feasible(t)] or complete
+    best = min(feasible, key=lambda t: t.values[0])
+    return sum(t.number > best.number for t in done) >= n

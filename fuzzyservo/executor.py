@@ -1,0 +1,224 @@
+"""Where parallel work runs: in this process, in local worker processes, or on a Dask cluster.
+
+One concept for every parallel job of the workbench (a tuning study's batch of trials,
+a Monte Carlo's samples, a calibration's candidates): an :class:`Executor` maps a
+picklable function over a list of picklable items and returns the results **in the
+order of the items**, whichever worker computed which. The callers decide everything
+that makes the numbers (what to compute, in which order to use the results); the
+executor only decides where, so 1 worker, N local processes or a cluster give the
+same numbers.
+
+* :class:`Inline`: one after the other in this process (``--workers 1``);
+* :class:`LocalProcesses`: a pool of ``spawn`` processes that end with this one
+  (``--workers N``);
+* :class:`DaskCluster`: the workers of a Dask distributed scheduler (``--cluster
+  tcp://HOST:8786``; ``dask scheduler`` on one machine, ``dask worker tcp://HOST:8786``
+  on each of the others, every one with fuzzyservo importable). A worker that dies
+  mid-batch has its tasks re-run by the scheduler on another worker; no result is lost.
+
+Stdlib only at import; ``distributed`` is imported when a cluster is asked for (the
+``cluster`` extra: ``pip install 'fuzzyservo[cluster]'``).
+"""
+
+from __future__ import annotations
+
+import os
+import signal
+import sys
+import threading
+import time
+from collections.abc import Callable, Sequence
+from typing import Any, Protocol
+
+from fuzzyservo.errors import ConfigError, require
+
+
+class Executor(Protocol):
+    """Maps a function over items, results in the items' order; ``on_done(k)`` as item
+    ``k`` finishes (in any order: for progress only)."""
+
+    #: how many tasks run at once at most (a hint for progress and batching)
+    workers: int
+
+    def map(self, fn: Callable[[Any], Any], items: Sequence[Any],
+            on_done: Callable[[int], object] | None = None) -> list[Any]: ...  # fmt: skip
+
+    def close(self) -> None: ...
+
+
+class Inline:
+    """Everything in this process, one item after the other."""
+
+    workers = 1
+
+    def map(self, fn: Callable[[Any], Any], items: Sequence[Any],
+            on_done: Callable[[int], object] | None = None) -> list[Any]:  # fmt: skip
+        out = []
+        for k, item in enumerate(items):
+            out.append(fn(item))
+            if on_done is not None:
+                on_done(k)
+        return out
+
+    def close(self) -> None:
+        pass
+
+    def describe(self) -> str:
+        return "1 worker (this process)"
+
+
+class LocalProcesses:
+    """``workers`` processes on this machine (``spawn``: a fresh interpreter each, which
+    imports fuzzyservo like the parent), ended with the parent (:func:`die_with_parent`)."""
+
+    def __init__(self, workers: int):
+        import multiprocessing as mp
+        from concurrent.futures import ProcessPoolExecutor
+
+        self.workers = workers
+        self._pool = ProcessPoolExecutor(
+            max_workers=workers,
+            mp_context=mp.get_context("spawn"),
+            initializer=_pool_worker,
+            initargs=(os.getpid(),),
+        )
+
+    def map(self, fn: Callable[[Any], Any], items: Sequence[Any],
+            on_done: Callable[[int], object] | None = None) -> list[Any]:  # fmt: skip
+        from concurrent.futures import as_completed
+
+        futures = {self._pool.submit(fn, item): k for k, item in enumerate(items)}
+        try:
+            for future in as_completed(futures):
+                future.result()  # a task's exception stops the map here
+                if on_done is not None:
+                    on_done(futures[future])
+        finally:
+            for future in futures:
+                future.cancel()
+        return [future.result() for future in futures]
+
+    def close(self) -> None:
+        # a Ctrl-C mid-batch: drop the queued tasks, do not wait for the running ones
+        procs = list((getattr(self._pool, "_processes", None) or {}).values())
+        self._pool.shutdown(wait=False, cancel_futures=True)
+        for proc in procs:
+            if proc.is_alive():
+                proc.terminate()
+        for proc in procs:
+            proc.join(timeout=10)  # reaped: no zombie, their CPU time counted as ours
+
+    def describe(self) -> str:
+        return f"{self.workers} local worker processes"
+
+
+class DaskCluster:
+    """The workers of the Dask scheduler at ``address`` (``tcp://HOST:PORT``)."""
+
+    def __init__(self, address: str, timeout_s: float = 30.0):
+        require("distributed", "cluster", f"--cluster {address} (Dask distributed)")
+        from distributed import Client
+
+        try:
+            self._client = Client(address, timeout=timeout_s, set_as_default=False)
+        except (OSError, TimeoutError) as exc:
+            reason = (str(exc).strip().splitlines() or [type(exc).__name__])[0]
+            raise ConfigError(
+                f"--cluster {address}: cannot reach the Dask scheduler ({reason}); start "
+                "`dask scheduler` there and `dask worker ADDRESS` on the machines that compute"
+            ) from None
+        self.address = address
+        self._client.wait_for_workers(1, timeout=timeout_s)
+        self.workers = max(1, sum(self._client.nthreads().values()))
+
+    def map(self, fn: Callable[[Any], Any], items: Sequence[Any],
+            on_done: Callable[[int], object] | None = None) -> list[Any]:  # fmt: skip
+        from distributed import as_completed
+
+        # pure=False: the same item twice is computed twice, never taken from a cache of
+        # another study; a task lost with its worker is re-run by the scheduler
+        futures = self._client.map(fn, list(items), pure=False)
+        index = {f.key: k for k, f in enumerate(futures)}
+        try:
+            for future in as_completed(futures, loop=self._client.loop):
+                if on_done is not None:
+                    on_done(index[future.key])
+            return self._client.gather(futures)
+        finally:
+            self._client.cancel(futures)
+
+    def close(self) -> None:
+        self._client.close()
+
+    def describe(self) -> str:
+        return f"Dask cluster {self.address} ({self.workers} worker thread(s))"
+
+
+def cluster_problem(address: str) -> str | None:
+    """Why ``address`` is no Dask scheduler address, or ``None`` (reachability is found
+    out when connecting)."""
+    if not address.startswith(("tcp://", "tls://", "inproc://", "ucx://")):
+        return (
+            f"{address!r} is not a Dask scheduler address; give it as tcp://HOST:PORT "
+            "(the address `dask scheduler` prints, port 8786 by default)"
+        )
+    return None
+
+
+def make_executor(workers: int = 1, cluster: str | None = None) -> Executor:
+    """A Dask cluster when ``cluster`` names a scheduler, else ``workers`` local processes
+    (1: this process)."""
+    if cluster:
+        problem = cluster_problem(cluster)
+        if problem:
+            raise ConfigError(f"--cluster: {problem}")
+        return DaskCluster(cluster)
+    if workers <= 1:
+        return Inline()
+    return LocalProcesses(workers)
+
+
+# --------------------------------------------------------------------------- orphans
+_PR_SET_PDEATHSIG = 1
+
+
+def die_with_parent(parent_pid: int, poll_s: float = 1.0) -> None:
+    """End this process when ``parent_pid`` ends: SIGTERM from the kernel on Linux
+    (``prctl(PR_SET_PDEATHSIG)``), and a daemon thread that checks the parent every
+    ``poll_s`` everywhere (and the race where the parent died before the request).
+    SIGTERM then stops the process at once."""
+    signal.signal(signal.SIGTERM, _exit_now)
+    if sys.platform.startswith("linux"):
+        try:
+            import ctypes
+
+            libc = ctypes.CDLL(None, use_errno=True)
+            libc.prctl(_PR_SET_PDEATHSIG, int(signal.SIGTERM), 0, 0, 0)
+        except (OSError, AttributeError):
+            pass
+    if os.getppid() != parent_pid:  # died before we asked
+        _exit_now(signal.SIGTERM, None)
+
+    def watch() -> None:
+        while True:
+            time.sleep(poll_s)
+            if os.getppid() != parent_pid:
+                os.kill(os.getpid(), signal.SIGTERM)
+                return
+
+    threading.Thread(target=watch, name="parent-watch", daemon=True).start()
+
+
+def _pool_worker(parent_pid: int) -> None:
+    """A pool process: ends with its parent; Ctrl-C is the parent's to handle (it drops
+    the batch and ends the pool), so the worker ignores it."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    die_with_parent(parent_pid)
+
+
+def _exit_now(signum: int, frame: Any) -> None:
+    os._exit(128 + int(signum))
+
+
+__all__ = ["DaskCluster", "Executor", "Inline", "LocalProcesses", "die_with_parent",
+           "make_executor"]  # fmt: skip

@@ -240,6 +240,23 @@ def summary_data(outcome: Outcome, baseline_name: str, trial: int | None) -> dic
         "sim_time_s": outcome.sim_time_s,
         # what the trials spent outside the simulations: sampling, storage, building controllers
         "sampler_time_s": max(0.0, outcome.worker_time_s - outcome.sim_time_s),
+        "time_split_s": time_split(outcome),
+        "simulations": outcome.simulations,
+        "trials_pruned": outcome.trials_pruned,
+        # robust studies: sampled plants the trials never ran (pruned or failed before them)
+        "samples_skipped": outcome.samples_skipped,
+    }
+
+
+def time_split(outcome: Outcome) -> dict[str, float]:
+    """The trials' time (summed over the stored trials) by what it went to; ``storage``
+    is the rest: writing the trial, and the storage reads outside the sampler."""
+    rest = outcome.worker_time_s - outcome.sim_time_s - outcome.sampler_time_s
+    return {
+        "simulation": outcome.sim_time_s,
+        "sampler": outcome.sampler_time_s,
+        "building": outcome.build_time_s,
+        "storage": max(0.0, rest - outcome.build_time_s),
     }
 
 

@@ -25,6 +25,8 @@ class Evaluation:
     sim_time_s: float = 0.0
     results: dict[str, SimResult] = field(default_factory=dict, repr=False)
     simulations: int = 0  # runs it took (robust studies count them; 0: not counted)
+    # sampled plants a robust trial never ran: decided (pruned, failed) before them
+    samples_skipped: int = 0
 
     @property
     def feasible(self) -> bool:

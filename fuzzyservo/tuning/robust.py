@@ -6,7 +6,10 @@ mean or CVaR (:func:`~fuzzyservo.tuning.uncertainty.aggregate`). A trial where a
 diverges, fails a step or hits an end stop is infeasible with that sample as its reason
 (and the remaining samples are skipped); a constraint counts broken when it is broken on
 any sample; ``gain_margin >= g`` and ``delay_margin_s >= d`` are checked on every sample
-with one run each (:func:`~fuzzyservo.analysis.robustness.margin_checks`).
+with one run each (:func:`~fuzzyservo.analysis.robustness.margin_checks`), once every
+sample ran through: a trial pruned or failed on its k-th sample pays for no margin check
+(the checks decide neither, so the result is the same). The samples a trial never ran
+are counted (``Evaluation.samples_skipped``; the study's ``samples_skipped``).
 """
 
 from __future__ import annotations
@@ -114,11 +117,13 @@ def evaluate_samples(
             if math.isfinite(so_far) and report(sample.index, so_far):
                 status, message = "pruned", f"worst after {len(runs)} sample(s): {so_far:.4g}"
                 break
-        # the margin checks last: a pruned trial does not pay for them
-        if gain is not None or delay is not None:
+    if status == "ok" and (gain is not None or delay is not None):
+        # the margin checks last, once every sample ran through: they decide no pruning
+        # and no failure, so a trial stopped at its k-th sample does not pay for k of them
+        for k, (sample, rig) in enumerate(zip(u.draws, evaluator.sample_rigs, strict=True)):
             checks = margin_checks(rig, controller, u.margin_scenario, sample.noise_seed,
                                    gain, delay)  # fmt: skip
-            runs[-1] = dataclasses.replace(run, gain_holds=checks[0], delay_holds=checks[1])
+            runs[k] = dataclasses.replace(runs[k], gain_holds=checks[0], delay_holds=checks[1])
     results = {}
     if keep_results:  # the nominal plant, for the report's plots
         for scenario in spec.scenarios:
@@ -126,6 +131,7 @@ def evaluate_samples(
     sim_time = time.perf_counter() - t0
     sims = sum(len(r.scenario_metrics) + (r.gain_holds is not None) + (r.delay_holds is not None)
                for r in runs)  # fmt: skip
+    skipped = len(u.draws) - len(runs)
     n_values = spec.objective.n_values
     if status != "ok":
         return Evaluation(
@@ -138,6 +144,7 @@ def evaluate_samples(
             sim_time_s=sim_time,
             results=results,
             simulations=sims,
+            samples_skipped=skipped,
         )
     how, alpha = u.aggregate, u.alpha
     metrics = {m: aggregate([r.metrics[m] for r in runs], how, alpha) for m in METRIC_NAMES}

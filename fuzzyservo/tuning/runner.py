@@ -17,6 +17,7 @@ import multiprocessing as mp
 import sys
 import time
 from dataclasses import dataclass, field
+from datetime import datetime
 from pathlib import Path
 from typing import Any, NoReturn
 
@@ -54,6 +55,9 @@ class Outcome:
     worker_time_s: float = 0.0
     simulations: int = 0
     trials_pruned: int = 0
+    samples_skipped: int = 0  # sampled plants the robust trials never ran (decided before)
+    sampler_time_s: float = 0.0  # in the trials: the sampler's time
+    build_time_s: float = 0.0  # in the trials: building controllers
 
 
 def storage_url(spec: Study, out_dir: Path, override: str | None = None) -> str:
@@ -191,12 +195,14 @@ def build_evaluator(spec: Study) -> Evaluator:
 
 def _objective(spec: Study, evaluator: Evaluator):
     def objective(trial) -> float | tuple[float, ...]:
+        t0 = time.perf_counter()
         params = {}
         for p in spec.parameters:
             if p.integer:
                 params[p.path] = trial.suggest_int(p.path, int(p.low), int(p.high), log=p.log)
             else:
                 params[p.path] = trial.suggest_float(p.path, p.low, p.high, log=p.log)
+        t1 = time.perf_counter()
         try:
             controller = evaluator.controller(params)  # the template's name: no second build
         except ValueError as exc:  # a combination the template rejects: penalised, reason kept
@@ -216,7 +222,17 @@ def _objective(spec: Study, evaluator: Evaluator):
                 last[:] = [(step, value)]
                 return bound is not None and value > bound
 
+        t2 = time.perf_counter()
         ev = evaluator.evaluate(controller, report=report)
+        # where the trial's time went besides simulating (bench, the report): the sampler
+        # (its relative sampling ran when the trial was created, before this function)
+        started = trial.datetime_start
+        before = (datetime.now() - started).total_seconds() - (time.perf_counter() - t0)
+        trial.set_user_attr(
+            "work",
+            {"sample_s": max(before, 0.0) + t1 - t0, "build_s": t2 - t1,
+             "samples_skipped": ev.samples_skipped},
+        )  # fmt: skip
         trial.set_user_attr("status", ev.status)
         if ev.message:
             trial.set_user_attr("message", ev.message)
@@ -549,4 +565,12 @@ def collect(spec: Study, url: str, *, wall_s: float = 0.0) -> Outcome:
         worker_time_s=worker_time,
         simulations=sum(t.user_attrs.get("simulations", 0) for t in finished),
         trials_pruned=len(finished) - len(trials),
+        samples_skipped=sum(_work(t, "samples_skipped") for t in finished),
+        sampler_time_s=sum(_work(t, "sample_s") for t in finished),
+        build_time_s=sum(_work(t, "build_s") for t in finished),
     )
+
+
+def _work(trial, key: str) -> float:
+    """One figure of a stored trial's ``work`` record (0 for a study stored before it)."""
+    return trial.user_attrs.get("work", {}).get(key, 0)

@@ -251,9 +251,11 @@ def run_study_case(
 ) -> BenchResult:
     """``trials`` trials of ``studies/<study>.yaml`` from scratch on ``workers`` processes.
 
-    Reports the wall time and how the workers' time splits between simulation (the
-    trial's simulations and metrics) and everything else (sampler, storage, process
-    start-up); the ratio is the simulated-time throughput against the wall.
+    Reports the wall time and how the trials' time (summed over the workers) splits:
+    simulation (the trial's simulations and metrics), sampler, building the controllers,
+    and storage (the rest of each trial: writing it, and the storage reads outside the
+    sampler); for a robust study also the simulations per second of wall time and the
+    sampled plants its pruned or failed trials skipped.
     """
     import tempfile
 

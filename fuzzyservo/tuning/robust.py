@@ -25,9 +25,10 @@ from fuzzyservo.analysis.robustness import (
     SUMMARY_METRICS,
     MonteCarlo,
     SampleRun,
-    margin_checks,
+    margin_checks_batch,
     monte_carlo,
     run_sample,
+    run_samples,
     summary,
 )
 from fuzzyservo.controllers.base import Controller
@@ -87,43 +88,53 @@ def evaluate_samples(
     within = prunable and _partial_is_lower_bound(spec)
     if within:  # the shortest scenario first: a lost trial stops after the cheapest run
         scenarios.sort(key=lambda s: evaluator.rig.scenario(s).duration_s)
-    for sample, rig in zip(u.draws, evaluator.sample_rigs, strict=True):
-        stop = None
-        if within:
-            before = max(
-                (evaluator.objective_values(r.metrics)[0] for r in runs), default=-math.inf
-            )
+    if report is None:  # only a failure ends the trial early: the samples in lock-step
+        seeds = [d.noise_seed for d in u.draws]
+        indices = [d.index for d in u.draws]
+        runs = run_samples(indices, evaluator.sample_rigs, controller, scenarios, seeds,
+                           aggregate=spec.aggregate)  # fmt: skip
+        if runs[-1].status != "ok":
+            status = runs[-1].status
+            message = f"{u.draws[len(runs) - 1].describe(u.parameters)}: {runs[-1].message}"
+    else:
+        for sample, rig in zip(u.draws, evaluator.sample_rigs, strict=True):
+            stop = None
+            if within:
+                before = max(
+                    (evaluator.objective_values(r.metrics)[0] for r in runs), default=-math.inf
+                )
 
-            def stop(partial, k=sample.index, before=before) -> bool:
-                value = max(before, evaluator.objective_values(partial)[0])
-                return math.isfinite(value) and report(k, value)
+                def stop(partial, k=sample.index, before=before) -> bool:
+                    value = max(before, evaluator.objective_values(partial)[0])
+                    return math.isfinite(value) and report(k, value)
 
-        run = run_sample(
-            sample.index, rig, controller, scenarios, sample.noise_seed,
-            aggregate=spec.aggregate, stop=stop,
-        )  # fmt: skip
-        runs.append(run)
-        if run.status == "pruned":
-            so_far = max(evaluator.objective_values(r.metrics)[0] for r in runs)
-            status = "pruned"
-            message = f"worst after {len(runs)} sample(s) ({run.message}): {so_far:.4g}"
-            break
-        if run.status != "ok":
-            status = run.status
-            message = f"{sample.describe(u.parameters)}: {run.message}"
-            break
-        if prunable:
-            so_far = max(evaluator.objective_values(r.metrics)[0] for r in runs)
-            if math.isfinite(so_far) and report(sample.index, so_far):
-                status, message = "pruned", f"worst after {len(runs)} sample(s): {so_far:.4g}"
+            run = run_sample(
+                sample.index, rig, controller, scenarios, sample.noise_seed,
+                aggregate=spec.aggregate, stop=stop,
+            )  # fmt: skip
+            runs.append(run)
+            if run.status == "pruned":
+                so_far = max(evaluator.objective_values(r.metrics)[0] for r in runs)
+                status = "pruned"
+                message = f"worst after {len(runs)} sample(s) ({run.message}): {so_far:.4g}"
                 break
+            if run.status != "ok":
+                status = run.status
+                message = f"{sample.describe(u.parameters)}: {run.message}"
+                break
+            if prunable:
+                so_far = max(evaluator.objective_values(r.metrics)[0] for r in runs)
+                if math.isfinite(so_far) and report(sample.index, so_far):
+                    status, message = "pruned", f"worst after {len(runs)} sample(s): {so_far:.4g}"
+                    break
     if status == "ok" and (gain is not None or delay is not None):
         # the margin checks last, once every sample ran through: they decide no pruning
-        # and no failure, so a trial stopped at its k-th sample does not pay for k of them
-        for k, (sample, rig) in enumerate(zip(u.draws, evaluator.sample_rigs, strict=True)):
-            checks = margin_checks(rig, controller, u.margin_scenario, sample.noise_seed,
-                                   gain, delay)  # fmt: skip
-            runs[k] = dataclasses.replace(runs[k], gain_holds=checks[0], delay_holds=checks[1])
+        # and no failure, so a trial stopped at its k-th sample does not pay for k of them;
+        # all samples' checks in one compiled call (lock-step)
+        checks = margin_checks_batch(evaluator.sample_rigs, controller, u.margin_scenario,
+                                     [d.noise_seed for d in u.draws], gain, delay)  # fmt: skip
+        runs = [dataclasses.replace(r, gain_holds=g, delay_holds=d)
+                for r, (g, d) in zip(runs, checks, strict=True)]  # fmt: skip
     results = {}
     if keep_results:  # the nominal plant, for the report's plots
         for scenario in spec.scenarios:

@@ -205,6 +205,7 @@ def _objective(spec: Study, evaluator: Evaluator):
         t1 = time.perf_counter()
         try:
             controller = evaluator.controller(params)  # the template's name: no second build
+            t2 = time.perf_counter()
         except ValueError as exc:  # a combination the template rejects: penalised, reason kept
             trial.set_user_attr("status", "invalid")
             trial.set_user_attr("message", str(exc))
@@ -222,7 +223,6 @@ def _objective(spec: Study, evaluator: Evaluator):
                 last[:] = [(step, value)]
                 return bound is not None and value > bound
 
-        t2 = time.perf_counter()
         ev = evaluator.evaluate(controller, report=report)
         # where the trial's time went besides simulating (bench, the report): the sampler
         # (its relative sampling ran when the trial was created, before this function)

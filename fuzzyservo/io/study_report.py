@@ -248,6 +248,28 @@ def summary_data(outcome: Outcome, baseline_name: str, trial: int | None) -> dic
     }
 
 
+def _trials_text(outcome: Outcome) -> str:
+    """Complete and pruned trials, and for a robust study its simulations and the
+    sampled plants its trials skipped."""
+    text = f"{outcome.trials_complete} complete"
+    if outcome.trials_pruned:
+        text += f", {outcome.trials_pruned} pruned"
+    if outcome.samples_skipped:
+        text += f" ({outcome.samples_skipped} sampled plants skipped: decided before them)"
+    if outcome.simulations:
+        text += f"; {outcome.simulations} simulations"
+    return text
+
+
+def _split_text(outcome: Outcome, rest_s: float) -> str:
+    """The trials' time by what it went to (a study stored before the split was
+    recorded: simulation and the rest)."""
+    if not outcome.sampler_time_s:
+        return (f"simulation {_duration(outcome.sim_time_s)}, sampler, storage and controller "
+                f"building {_duration(rest_s)}")  # fmt: skip
+    return ", ".join(f"{k} {_duration(v)}" for k, v in time_split(outcome).items())
+
+
 def time_split(outcome: Outcome) -> dict[str, float]:
     """The trials' time (summed over the stored trials) by what it went to; ``storage``
     is the rest: writing the trial, and the storage reads outside the sampler."""
@@ -380,12 +402,9 @@ def _report(
             else []
         ),
         f"| sampler | {sampler} |",
-        f"| trials | {outcome.trials_complete} complete"
-        + (f", {outcome.trials_pruned} pruned" if outcome.trials_pruned else "")
-        + " |",
+        f"| trials | {_trials_text(outcome)} |",
         f"| wall time (this run) | {_duration(outcome.wall_s)} |",
-        f"| time in trials | simulation {_duration(outcome.sim_time_s)}, sampler, storage "
-        f"and controller building {_duration(sampler_s)} (summed over the stored trials) |",
+        f"| time in trials | {_split_text(outcome, sampler_s)} (summed over the stored trials) |",
         f"| storage | `{outcome.storage_url}` |",
         "",
         "## Result",

@@ -251,13 +251,16 @@ def run_study_case(
 ) -> BenchResult:
     """``trials`` trials of ``studies/<study>.yaml`` from scratch on ``workers`` processes.
 
-    Reports the wall time and how the workers' time splits between simulation (the
-    trial's simulations and metrics) and everything else (sampler, storage, process
-    start-up); the ratio is the simulated-time throughput against the wall.
+    Reports the wall time and how the trials' time (summed over the workers) splits:
+    simulation (the trial's simulations and metrics), sampler, building the controllers,
+    and storage (the rest of each trial: writing it, and the storage reads outside the
+    sampler); for a robust study also the simulations per second of wall time and the
+    sampled plants its pruned or failed trials skipped.
     """
     import tempfile
 
     from fuzzyservo.io.studies import load_study
+    from fuzzyservo.io.study_report import time_split
     from fuzzyservo.tuning.runner import run_study
 
     root = root or data_root()
@@ -267,6 +270,7 @@ def run_study_case(
         outcome = run_study(spec, Path(tmp), trials=trials, workers=workers, progress=False)
         wall = time.perf_counter() - t0
     sampler = max(outcome.worker_time_s - outcome.sim_time_s, 0.0)
+    split = time_split(outcome)
     return BenchResult.once(
         ROBUST_STUDY if spec.uncertainty is not None else STUDY,
         f"{trials} trials of studies/{study}.yaml on {workers} worker processes, SQLite storage",
@@ -284,6 +288,8 @@ def run_study_case(
             "trials_pruned": outcome.trials_pruned,
             "simulations": outcome.simulations,
             "simulations_per_s": outcome.simulations / wall,
+            "samples_skipped": outcome.samples_skipped,
+            **{f"{k}_s": v for k, v in split.items()},
         },
     )
 
@@ -442,8 +448,10 @@ _STUDY_LINE = (
     "{errors}"
 )
 _ROBUST_STUDY_LINE = (
-    "{trials} trials on {workers} workers ({trials_pruned} pruned), {trials_per_s:.1f} "
-    "trials/s, {simulations} simulations, {simulations_per_s:.0f} simulations/s; {errors}"
+    "{trials} trials on {workers} workers ({trials_pruned} pruned, {samples_skipped} sampled "
+    "plants skipped), {trials_per_s:.1f} trials/s, {simulations} simulations, "
+    "{simulations_per_s:.0f} simulations/s; in the trials: simulation {simulation_s:.1f} s, "
+    "sampler {sampler_s:.1f} s, storage {storage_s:.1f} s, building {building_s:.2f} s; {errors}"
 )
 _MARGINS_LINE = "{simulations} simulations of 22 s, {ms_per_simulation:.0f} ms each; {errors}"
 _CALIBRATE_LINE = (

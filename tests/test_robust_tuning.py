@@ -393,3 +393,70 @@ def test_standard_error_of_the_mean_and_of_the_worst():
     fresh = fresh_uncertainty(u)
     assert fresh.samples == u.samples and fresh.seed != u.seed
     assert fresh.draws[0].values != u.draws[0].values
+
+
+def test_lock_step_runs_equal_one_by_one(tmp_path):
+    """Sampled plants whose loop settings differ (their I/O delay, a scaled actuator) go
+    through one compiled call and each gets exactly the run it gets alone; so do the
+    margin checks of a trial."""
+    from fuzzyservo.analysis.margins import scaled
+    from fuzzyservo.analysis.robustness import margin_checks, margin_checks_batch
+    from fuzzyservo.simulation import simulate
+    from fuzzyservo.simulation.closed_loop import simulate_batch
+    from fuzzyservo.tuning.robust import sample_rigs
+
+    spec = _small(tmp_path, samples=3)
+    rigs = sample_rigs(spec.rig, spec)
+    assert len({r.io_delay_s for r in rigs}) == 3
+    seeds = [d.noise_seed for d in spec.uncertainty.draws]
+    flc2 = load_controller(DATA / "studies" / "controllers" / "flc2_reshaped.yaml")
+    pairs = [scaled(r, flc2, 2.0) for r in rigs]
+    for batch, controller in ((rigs, flc2), ([r for r, _ in pairs], pairs[0][1])):
+        together = simulate_batch(batch, controller, "steps", seeds)
+        for rig, seed, run in zip(batch, seeds, together, strict=True):
+            alone = simulate(rig, controller, "steps", noise_seed=seed)
+            assert (run.status, run.integration_steps) == (alone.status, alone.integration_steps)
+            for name in ("output", "command", "measured", "actuator"):
+                np.testing.assert_array_equal(getattr(run, name), getattr(alone, name))
+    checks = margin_checks_batch(rigs, flc2, "steps", seeds, 2.0, 0.004)
+    assert checks == [
+        margin_checks(r, flc2, "steps", s, 2.0, 0.004) for r, s in zip(rigs, seeds, strict=True)
+    ]
+
+
+def test_lock_step_trial_equals_sequential_and_pruning_is_exact(tmp_path):
+    """A trial scored in lock-step (nothing can stop it) equals one scored sample by
+    sample; a trial is pruned exactly when its full value exceeds the bound, and an
+    unpruned one scores the same; a pruned one counts the samples it skipped."""
+    evaluator = build_evaluator(_small(tmp_path, samples=3))
+    flc2 = load_controller(DATA / "studies" / "controllers" / "flc2_reshaped.yaml")
+    full = evaluator.evaluate(flc2)
+    one_by_one = evaluator.evaluate(flc2, report=lambda step, value: False)
+
+    def key(ev):
+        return ev.status, ev.values, ev.violations, ev.metrics, ev.scenario_metrics
+
+    assert full.status == "ok" and key(full) == key(one_by_one)
+    assert full.samples_skipped == 0 and full.simulations == 3 * (2 + 1)
+    value = full.values[0]
+    kept = evaluator.evaluate(flc2, report=lambda step, v: v > value)
+    assert key(kept) == key(full)
+    lost = evaluator.evaluate(flc2, report=lambda step, v: v > value * (1 - 1e-9))
+    assert lost.status == "pruned" and lost.simulations <= 3 * 2  # no margin check paid
+    first = evaluator.evaluate(flc2, report=lambda step, v: True)
+    assert first.status == "pruned" and first.samples_skipped == 2 and first.simulations == 1
+
+
+def test_evaluator_scores_its_baseline_when_asked(tmp_path):
+    """A worker that only scores trials does not pay for the baseline (a run per sample
+    and scenario): it is scored on first use, and then as before."""
+    spec = _small(tmp_path)
+    evaluator = build_evaluator(spec)
+    assert evaluator._baseline is None
+    base = evaluator.baseline_evaluation
+    assert base is evaluator.baseline_evaluation and base.results  # kept for the report
+    assert key_values(base) == key_values(build_evaluator(spec).evaluate(spec.baseline))
+
+
+def key_values(ev):
+    return ev.status, ev.values, ev.violations

@@ -120,6 +120,76 @@ def margin_checks(
     return gain_ok, delay_ok
 
 
+def run_samples(
+    indices: Sequence[int],
+    rigs: Sequence[Rig],
+    controller: Controller,
+    scenarios: Sequence[str],
+    noise_seeds: Sequence[int],
+    *,
+    aggregate: str = "worst",
+) -> list[SampleRun]:
+    """:func:`run_sample` on each rig in turn (no margin checks), up to and including the
+    first whose run fails: the runs of a robust trial that nothing else stops early. The
+    rigs go through each scenario in lock-step, in one compiled call
+    (:func:`~fuzzyservo.simulation.closed_loop.simulate_batch`, parallel over the cores);
+    a rig after one that failed is run at most once more, and dropped."""
+    from fuzzyservo.simulation.closed_loop import simulate_batch
+
+    per: list[dict[str, dict[str, float]]] = [{} for _ in rigs]
+    failed: dict[int, tuple[str, str]] = {}
+    alive = len(rigs)  # only rigs before the first failure count
+    for scenario in scenarios:
+        todo = [i for i in range(alive) if i not in failed]
+        if not todo:
+            break
+        results = simulate_batch([rigs[i] for i in todo], controller, scenario,
+                                 [noise_seeds[i] for i in todo])  # fmt: skip
+        for i, r in zip(todo, results, strict=True):
+            per[i][scenario] = result_metrics(r).aggregate
+            if r.status != "ok":
+                failed[i] = (r.status, f"{scenario}: {r.message}")
+        if failed:
+            alive = min(failed) + 1
+    runs = []
+    for i in range(alive):
+        status, message = failed.get(i, ("ok", ""))
+        metrics = _over_scenarios(per[i], aggregate) if status == "ok" else {}
+        runs.append(SampleRun(indices[i], status, message, metrics, per[i]))
+    return runs
+
+
+def margin_checks_batch(
+    rigs: Sequence[Rig],
+    controller: Controller,
+    scenario: str,
+    noise_seeds: Sequence[int],
+    gain: float | None,
+    delay_s: float | None,
+) -> list[tuple[bool | None, bool | None]]:
+    """:func:`margin_checks` on every rig of ``rigs`` (each with its noise seed), each
+    check in one compiled call over the rigs (:func:`~fuzzyservo.simulation.closed_loop.
+    simulate_batch`, parallel over the cores): the same verdicts, one pair per rig."""
+    from fuzzyservo.analysis.margins import delayed, oscillation, scaled
+    from fuzzyservo.simulation.closed_loop import simulate_batch
+
+    def verdicts(pairs: list[tuple[Rig, Controller]]) -> list[bool]:
+        results = simulate_batch([r for r, _ in pairs], pairs[0][1], scenario, noise_seeds)
+        return [not oscillation(r).sustained for r in results]
+
+    n = len(rigs)
+    gain_ok: list[bool | None] = [None] * n
+    delay_ok: list[bool | None] = [None] * n
+    if n and gain is not None:  # as stable_at(multiplier=gain)
+        gain_ok = verdicts(
+            [scaled(r, controller, gain) if gain != 1.0 else (r, controller) for r in rigs]
+        )
+    if n and delay_s is not None:  # as stable_at(extra_delay_s=delay_s)
+        gain_free = [(delayed(r, delay_s) if delay_s > 0.0 else r, controller) for r in rigs]
+        delay_ok = verdicts(gain_free)
+    return list(zip(gain_ok, delay_ok, strict=True))
+
+
 def _over_scenarios(per: dict[str, dict[str, float]], how: str) -> dict[str, float]:
     out = {}
     for m in METRIC_NAMES:

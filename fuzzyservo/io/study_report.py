@@ -253,6 +253,46 @@ def summary_data(outcome: Outcome, baseline_name: str, trial: int | None) -> dic
         "sim_time_s": outcome.sim_time_s,
         # what the trials spent outside the simulations: sampling, storage, building controllers
         "sampler_time_s": max(0.0, outcome.worker_time_s - outcome.sim_time_s),
+        "time_split_s": time_split(outcome),
+        "simulations": outcome.simulations,
+        "trials_pruned": outcome.trials_pruned,
+        # robust studies: sampled plants the trials never ran (pruned or failed before them)
+        "samples_skipped": outcome.samples_skipped,
+    }
+
+
+def _trials_text(outcome: Outcome) -> str:
+    """Complete and pruned trials, and for a robust study its simulations and the
+    sampled plants its trials skipped."""
+    text = f"{outcome.trials_complete} complete"
+    if outcome.trials_pruned:
+        text += f", {outcome.trials_pruned} pruned"
+    if outcome.samples_skipped:
+        text += f" ({outcome.samples_skipped} sampled plants skipped: decided before them)"
+    if outcome.simulations:
+        text += f"; {outcome.simulations} simulations"
+    return text
+
+
+def _split_text(outcome: Outcome, rest_s: float) -> str:
+    """The trials' time by what it went to (a study stored before the split was
+    recorded: simulation and the rest)."""
+    if not outcome.sampler_time_s:
+        return (f"simulation {_duration(outcome.sim_time_s)}, sampler, storage and controller "
+                f"building {_duration(rest_s)}")  # fmt: skip
+    return ", ".join(f"{k} {_duration(v)}" for k, v in time_split(outcome).items())
+
+
+def time_split(outcome: Outcome) -> dict[str, float]:
+    """The study's time by what it went to: the trials' simulations and controller
+    building, the sampler's asks, and ``storage``: the parent writing the batches (batch
+    mode), or the rest of each trial (``--async``: writing it, storage reads)."""
+    rest = outcome.worker_time_s - outcome.sim_time_s - outcome.sampler_time_s
+    return {
+        "simulation": outcome.sim_time_s,
+        "sampler": outcome.sampler_time_s,
+        "building": outcome.build_time_s,
+        "storage": outcome.storage_time_s or max(0.0, rest - outcome.build_time_s),
     }
 
 
@@ -399,12 +439,9 @@ def _report(
             else []
         ),
         f"| sampler | {sampler} |",
-        f"| trials | {outcome.trials_complete} complete"
-        + (f", {outcome.trials_pruned} pruned" if outcome.trials_pruned else "")
-        + " |",
+        f"| trials | {_trials_text(outcome)} |",
         f"| wall time (this run) | {_duration(outcome.wall_s)} |",
-        f"| time in trials | simulation {_duration(outcome.sim_time_s)}, sampler, storage "
-        f"and controller building {_duration(sampler_s)} (summed over the stored trials) |",
+        f"| time in trials | {_split_text(outcome, sampler_s)} (summed over the stored trials) |",
         f"| storage | `{outcome.storage_url}` |",
         "",
         "## Result",

@@ -301,7 +301,7 @@ def closed_loop_batch(
     ref: np.ndarray,
     load: np.ndarray,
     noise: np.ndarray,
-    s: LoopSettings,
+    settings: list[LoopSettings],
     scale: np.ndarray,
     typical: np.ndarray,
     states: np.ndarray,
@@ -314,12 +314,15 @@ def closed_loop_batch(
     """:func:`closed_loop` of one controller on many plants at once: row ``b`` of every
     array but ``cp``, ``ref`` and ``load`` (shared) is plant sample ``b`` (its packed
     parameters, null, start, controller state, noise, tolerances and the recorded
-    signals); ``out[b]`` gets its ``(status, where, steps)``. The samples run in parallel
-    over the cores (numba ``prange``), each exactly as :func:`closed_loop` runs it alone."""
+    signals), ``settings[b]`` its loop settings (a sampled I/O delay, a scaled actuator);
+    ``out[b]`` gets its ``(status, where, steps)``. The samples run in parallel over the
+    cores (numba ``prange``), each exactly as :func:`closed_loop` runs it alone."""
     for b in prange(p.shape[0]):
+        s = settings[np.int64(b)]  # prange counts unsigned; a typed list wants a signed index
         status, where, steps = closed_loop(
-            p[b], null[b], x0[b], ctrl_kind, cp, cs[b], ref, load, noise[b], s, scale[b],
-            typical[b], states[b], measured[b], command[b], actuator[b], saturated[b],
+            p[b], null[b], x0[b], ctrl_kind, cp, cs[b], ref, load, noise[b], s,
+            scale[b], typical[b], states[b], measured[b], command[b], actuator[b],
+            saturated[b],
         )  # fmt: skip
         out[b, 0] = status
         out[b, 1] = where

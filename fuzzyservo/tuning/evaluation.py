@@ -27,6 +27,8 @@ class Evaluation:
     simulations: int = 0  # runs it took (robust studies count them; 0: not counted)
     #: a robust study's objective on each sample (the value is their aggregate); () otherwise
     sample_values: tuple[float, ...] = ()
+    #: sampled plants a robust trial never ran: decided (pruned, failed) before them
+    samples_skipped: int = 0
 
     @property
     def feasible(self) -> bool:

@@ -32,15 +32,34 @@ class Evaluator:
         self.sample_rigs: list[Rig] = []
         if spec.uncertainty is not None:  # a robust study: every trial on the same samples
             self.sample_rigs = sample_rigs(self.rig, spec)
-        self.baseline_evaluation = self.evaluate(self.baseline, keep_results=True)
+        self._baseline: Evaluation | None = None
+        self._scoring_baseline = False
+        if spec.objective.normalize == "baseline":  # the scale is the baseline's: score it now
+            self._score_baseline()
+
+    @property
+    def baseline_evaluation(self) -> Evaluation:
+        """The baseline scored as a trial is (with its results kept, for the report's
+        plots). Scored on first use: a worker process that only scores trials needs it
+        only when the objective is normalised by it (a robust study's baseline costs a
+        run per sample and scenario, and a margin check per sample)."""
+        if self._baseline is None:
+            self._score_baseline()
+        return self._baseline
+
+    def _score_baseline(self) -> None:
+        spec = self.spec
+        self._scoring_baseline = True
+        try:
+            base = self.evaluate(self.baseline, keep_results=True)
+        finally:
+            self._scoring_baseline = False
         if spec.objective.normalize == "baseline":
-            base = self.baseline_evaluation
             for m in spec.objective.metrics:
                 v = base.metrics.get(m, math.nan)
                 self.scale[m] = v if math.isfinite(v) and v > 0 else 1.0
-            self.baseline_evaluation = dataclasses.replace(
-                base, values=self.objective_values(base.metrics)
-            )
+            base = dataclasses.replace(base, values=self.objective_values(base.metrics))
+        self._baseline = base
 
     def controller(self, params: dict[str, float], name: str | None = None) -> Controller:
         """The template with the trial's ``params`` (``ValueError`` when they make none)."""
@@ -108,8 +127,10 @@ class Evaluator:
         others = [c for c in self.spec.constraints if c.metric not in MARGIN_METRICS]
         if any(c.violation(metrics.get(c.metric, math.nan)) > 0 for c in others):
             return False
-        base = getattr(self, "baseline_evaluation", None)
-        if base is None or self.spec.objective.pareto or base.status != "ok":
+        if self._scoring_baseline:
+            return True  # the baseline itself: no reference to be worse than
+        base = self.baseline_evaluation
+        if self.spec.objective.pareto or base.status != "ok":
             return True
         return values[0] <= base.values[0]
 

@@ -6,7 +6,10 @@ mean or CVaR (:func:`~fuzzyservo.tuning.uncertainty.aggregate`). A trial where a
 diverges, fails a step or hits an end stop is infeasible with that sample as its reason
 (and the remaining samples are skipped); a constraint counts broken when it is broken on
 any sample; ``gain_margin >= g`` and ``delay_margin_s >= d`` are checked on every sample
-with one run each (:func:`~fuzzyservo.analysis.robustness.margin_checks`).
+with one run each (:func:`~fuzzyservo.analysis.robustness.margin_checks`), once every
+sample ran through: a trial pruned or failed on its k-th sample pays for no margin check
+(the checks decide neither, so the result is the same). The samples a trial never ran
+are counted (``Evaluation.samples_skipped``; the study's ``samples_skipped``).
 """
 
 from __future__ import annotations
@@ -22,9 +25,10 @@ from fuzzyservo.analysis.robustness import (
     SUMMARY_METRICS,
     MonteCarlo,
     SampleRun,
-    margin_checks,
+    margin_checks_batch,
     monte_carlo,
     run_sample,
+    run_samples,
     summary,
 )
 from fuzzyservo.controllers.base import Controller
@@ -60,6 +64,14 @@ def _margin_bounds(spec) -> tuple[float | None, float | None]:
     return gain, delay
 
 
+def _worst(spec, values: list[float]) -> float:
+    """The worst of the samples' objective values so far; an undefined one (a metric that
+    never settles) already fixes the trial's value at the penalty, whatever follows."""
+    if any(math.isnan(v) for v in values):
+        return spec.penalty
+    return max(values)
+
+
 def evaluate_samples(
     evaluator: Scorer,
     controller: Controller,
@@ -84,41 +96,54 @@ def evaluate_samples(
     within = prunable and _partial_is_lower_bound(spec)
     if within:  # the shortest scenario first: a lost trial stops after the cheapest run
         scenarios.sort(key=lambda s: evaluator.rig.scenario(s).duration_s)
-    for sample, rig in zip(u.draws, evaluator.sample_rigs, strict=True):
-        stop = None
-        if within:
-            before = max(
-                (evaluator.objective_values(r.metrics)[0] for r in runs), default=-math.inf
-            )
+    if report is None:  # only a failure ends the trial early: the samples in lock-step
+        seeds = [d.noise_seed for d in u.draws]
+        indices = [d.index for d in u.draws]
+        runs = run_samples(indices, evaluator.sample_rigs, controller, scenarios, seeds,
+                           aggregate=spec.aggregate)  # fmt: skip
+        if runs[-1].status != "ok":
+            status = runs[-1].status
+            message = f"{u.draws[len(runs) - 1].describe(u.parameters)}: {runs[-1].message}"
+    else:
+        for sample, rig in zip(u.draws, evaluator.sample_rigs, strict=True):
+            stop = None
+            if within:
+                before = max(
+                    (evaluator.objective_values(r.metrics)[0] for r in runs), default=-math.inf
+                )
 
-            def stop(partial, k=sample.index, before=before) -> bool:
-                value = max(before, evaluator.objective_values(partial)[0])
-                return math.isfinite(value) and report(k, value)
+                def stop(partial, k=sample.index, before=before) -> bool:
+                    # a metric still undefined part-way (not settled yet) bounds nothing
+                    value = max(before, evaluator.objective_values(partial)[0])
+                    return math.isfinite(value) and report(k, value)
 
-        run = run_sample(
-            sample.index, rig, controller, scenarios, sample.noise_seed,
-            aggregate=spec.aggregate, stop=stop,
-        )  # fmt: skip
-        runs.append(run)
-        if run.status == "pruned":
-            so_far = max(evaluator.objective_values(r.metrics)[0] for r in runs)
-            status = "pruned"
-            message = f"worst after {len(runs)} sample(s) ({run.message}): {so_far:.4g}"
-            break
-        if run.status != "ok":
-            status = run.status
-            message = f"{sample.describe(u.parameters)}: {run.message}"
-            break
-        if prunable:
-            so_far = max(evaluator.objective_values(r.metrics)[0] for r in runs)
-            if math.isfinite(so_far) and report(sample.index, so_far):
-                status, message = "pruned", f"worst after {len(runs)} sample(s): {so_far:.4g}"
+            run = run_sample(
+                sample.index, rig, controller, scenarios, sample.noise_seed,
+                aggregate=spec.aggregate, stop=stop,
+            )  # fmt: skip
+            runs.append(run)
+            if run.status == "pruned":
+                so_far = max(evaluator.objective_values(r.metrics)[0] for r in runs)
+                status = "pruned"
+                message = f"worst after {len(runs)} sample(s) ({run.message}): {so_far:.4g}"
                 break
-        # the margin checks last: a pruned trial does not pay for them
-        if gain is not None or delay is not None:
-            checks = margin_checks(rig, controller, u.margin_scenario, sample.noise_seed,
-                                   gain, delay)  # fmt: skip
-            runs[-1] = dataclasses.replace(run, gain_holds=checks[0], delay_holds=checks[1])
+            if run.status != "ok":
+                status = run.status
+                message = f"{sample.describe(u.parameters)}: {run.message}"
+                break
+            if prunable:
+                so_far = _worst(spec, [evaluator.objective_values(r.metrics)[0] for r in runs])
+                if report(sample.index, so_far):
+                    status, message = "pruned", f"worst after {len(runs)} sample(s): {so_far:.4g}"
+                    break
+    if status == "ok" and (gain is not None or delay is not None):
+        # the margin checks last, once every sample ran through: they decide no pruning
+        # and no failure, so a trial stopped at its k-th sample does not pay for k of them;
+        # all samples' checks in one compiled call (lock-step)
+        checks = margin_checks_batch(evaluator.sample_rigs, controller, u.margin_scenario,
+                                     [d.noise_seed for d in u.draws], gain, delay)  # fmt: skip
+        runs = [dataclasses.replace(r, gain_holds=g, delay_holds=d)
+                for r, (g, d) in zip(runs, checks, strict=True)]  # fmt: skip
     results = {}
     if keep_results:  # the nominal plant, for the report's plots
         for scenario in spec.scenarios:
@@ -126,6 +151,7 @@ def evaluate_samples(
     sim_time = time.perf_counter() - t0
     sims = sum(len(r.scenario_metrics) + (r.gain_holds is not None) + (r.delay_holds is not None)
                for r in runs)  # fmt: skip
+    skipped = len(u.draws) - len(runs)
     n_values = spec.objective.n_values
     if status != "ok":
         return Evaluation(
@@ -138,6 +164,7 @@ def evaluate_samples(
             sim_time_s=sim_time,
             results=results,
             simulations=sims,
+            samples_skipped=skipped,
         )
     how, alpha = u.aggregate, u.alpha
     metrics = {m: aggregate([r.metrics[m] for r in runs], how, alpha) for m in METRIC_NAMES}

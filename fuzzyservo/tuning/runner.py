@@ -81,6 +81,10 @@ class Outcome:
     #: fresh_feasible}
     selection: list[dict[str, Any]] = field(default_factory=list)
     best_number: int | None = None
+    samples_skipped: int = 0  # sampled plants the robust trials never ran (decided before)
+    sampler_time_s: float = 0.0  # the sampler's time (asking the trials)
+    build_time_s: float = 0.0  # in the trials: building controllers
+    storage_time_s: float = 0.0  # batch mode: the parent writing the batches
 
 
 def storage_url(spec: Study, out_dir: Path, override: str | None = None) -> str:
@@ -420,6 +424,7 @@ def _interruptible():
 
 #: a batch-mode trial's user attribute: [its batch's first trial index, the batch's size]
 BATCH_ATTR = "batch"
+STORAGE_ATTR = "storage_s"  # study attribute: the parent's time writing batches [s]
 
 
 def run_batches(spec: Study, stored, total: int, executor, bar=None) -> None:
@@ -451,12 +456,15 @@ def run_batches(spec: Study, stored, total: int, executor, bar=None) -> None:
     written = _n_trials(stored)
     runner = TrialRunner(spec, json.dumps(fingerprint(spec), sort_keys=True))
     t0 = time.perf_counter()
+    storage_s = stored.user_attrs.get(STORAGE_ATTR, 0.0)  # the parent's writes, resumed too
     n = start
     while n < total:
         size = pending[0] if pending else min(spec.batch_size, total - n)
+        asked = time.perf_counter()
         bound = _best_feasible_value(memory) if _prunes(spec) else None
         trials = [memory.ask() for _ in range(size)]
         tasks = [Task(t.number, _suggest(t, spec), bound) for t in trials]
+        sample_s = (time.perf_counter() - asked) / size
         kept = {}  # the trials of a half-written batch, asked again identically
         for task in tasks if pending else ():
             old = pending[1].get(task.number)
@@ -469,7 +477,9 @@ def run_batches(spec: Study, stored, total: int, executor, bar=None) -> None:
         scored = executor.map(runner, todo, done)
         results = {**kept, **{t.number: r for t, r in zip(todo, scored, strict=True)}}
         for trial in trials:
-            _tell(memory, trial, spec, results[trial.number], [n, size])
+            result = results[trial.number]
+            result.user_attrs.setdefault("work", {})["sample_s"] = sample_s
+            _tell(memory, trial, spec, result, [n, size])
         if _n_trials(stored) != written:
             from fuzzyservo.errors import ConfigError
 
@@ -478,7 +488,10 @@ def run_batches(spec: Study, stored, total: int, executor, bar=None) -> None:
                 "owns its study: run every process sharing one with --async"
             )
         new = [t for t in memory.get_trials(deepcopy=False)[n : n + size] if t.number not in kept]
+        writing = time.perf_counter()
         stored.add_trials(new)
+        storage_s += time.perf_counter() - writing
+        stored.set_user_attr(STORAGE_ATTR, storage_s)
         written += len(new)
         pending = None
         n += size
@@ -610,6 +623,12 @@ def _warm_kernels(spec: Study) -> None:
 
     rig = spec.rig
     simulate(rig, spec.template, spec.scenarios[0], duration_s=10 * rig.sample_time_s)
+    if spec.uncertainty is not None:  # its trials run their samples' checks in lock-step
+        from fuzzyservo.simulation.closed_loop import simulate_batch
+        from fuzzyservo.tuning.robust import sample_rigs
+
+        seeds = [d.noise_seed for d in spec.uncertainty.draws[:2]]
+        simulate_batch(sample_rigs(rig, spec)[:2], spec.template, spec.scenarios[0], seeds)
 
 
 def _refresh(bar, study) -> None:
@@ -684,6 +703,7 @@ def collect(spec: Study, url: str, *, wall_s: float = 0.0, executor=None) -> Out
     from optuna.trial import TrialState
 
     study = open_study(spec, url)
+    stored_time = float(study.user_attrs.get(STORAGE_ATTR, 0.0))
     trials = study.get_trials(deepcopy=False, states=(TrialState.COMPLETE,))
     if not trials:
         raise RuntimeError(f"study {spec.name!r} has no complete trial yet in {url}")
@@ -758,7 +778,16 @@ def collect(spec: Study, url: str, *, wall_s: float = 0.0, executor=None) -> Out
         trials_pruned=len(finished) - len(trials),
         selection=selection,
         best_number=best_trial.number,
+        samples_skipped=sum(_work(t, "samples_skipped") for t in finished),
+        sampler_time_s=sum(_work(t, "sample_s") for t in finished),
+        build_time_s=sum(_work(t, "build_s") for t in finished),
+        storage_time_s=stored_time,
     )
+
+
+def _work(trial, key: str) -> float:
+    """One figure of a stored trial's ``work`` record (0 for a study stored before it)."""
+    return trial.user_attrs.get("work", {}).get(key, 0)
 
 
 def select_on_fresh_samples(spec: Study, pool: list, executor=None) -> tuple[Any, list[dict]]:

@@ -55,6 +55,7 @@ def score(spec: Study, evaluator: Evaluator, params: dict[str, float],
             constraints=tuple(1e300 for _ in spec.constraints),
             user_attrs={"status": "invalid", "message": str(exc)},
         )
+    built = time.perf_counter()
     report = None
     last: list[tuple[int, float]] = []
     if spec.uncertainty is not None and spec.objective.n_values == 1:
@@ -74,6 +75,9 @@ def score(spec: Study, evaluator: Evaluator, params: dict[str, float],
     if ev.sample_values:
         attrs["sample_values"] = [v if math.isfinite(v) else None for v in ev.sample_values]
     attrs["trial_time_s"] = time.perf_counter() - t0
+    # where the time went besides simulating (bench, the report); the runner adds its
+    # sampler's share (sample_s)
+    attrs["work"] = {"build_s": built - t0, "samples_skipped": ev.samples_skipped}
     return TrialResult(
         values=ev.values,
         constraints=tuple(v if math.isfinite(v) else 1e300 for v in ev.violations),

@@ -21,7 +21,7 @@ objective:
   # pareto: [settling_time_s, saturation_time_s, sse_abs]
 aggregate: worst                   # over scenarios: worst | mean
 constraints: ["overshoot_pct <= 5"]
-sampler: tpe                       # tpe | cmaes | nsga2 | random
+sampler: tpe                       # tpe | cmaes | nsga2 | gp | qmc | random
 seed: 1
 trials: 300
 timeout_s: 600

@@ -169,6 +169,11 @@ def make_sampler(spec: Study, seed: int | None):
         return optuna.samplers.NSGAIISampler(seed=seed, **legacy)
     if spec.sampler == "cmaes":
         return optuna.samplers.CmaEsSampler(seed=seed, warn_independent_sampling=False)
+    if spec.sampler == "qmc":  # scrambled Sobol points: space-filling, learns nothing
+        return optuna.samplers.QMCSampler(seed=seed, scramble=True, warn_independent_sampling=False)
+    if spec.sampler == "gp":  # Gaussian-process Bayesian optimisation (needs PyTorch)
+        require("torch", "gp", "the gp sampler (Optuna's GPSampler runs on PyTorch)")
+        return optuna.samplers.GPSampler(seed=seed, **legacy)
     return optuna.samplers.RandomSampler(seed=seed)
 
 

@@ -60,6 +60,10 @@ CSS = """
 .fs-metrics td:first-child, .fs-metrics th:first-child {text-align: left;}
 .fs-error {color: #b00020;}
 """
+# a table's cells in the sidebar or beside a figure: small enough for six numbers in 370 px
+DENSE_TABLE = (
+    ".tabulator-cell, .tabulator-col-title {font-size: 12px;} .tabulator-cell {padding: 4px 3px;}"
+)
 
 
 def _colour(k: int) -> str:
@@ -615,18 +619,18 @@ class Designer:
         s = self.s
         studies = s.study_files()
         self.study_select = pn.widgets.Select(
-            name="study", options=studies, width=165, css_classes=["fs-study"],
+            name="study", options=studies, width=160, css_classes=["fs-study"],
             value=MAIN_STUDY if MAIN_STUDY in studies else None,
         )  # fmt: skip
         self.storage_input = pn.widgets.TextInput(
             name="storage URL", width=280, css_classes=["fs-storage"]
         )
         self.study_select.param.watch(lambda ev: self._guard(self._pick_study, ev.new), "value")
-        open_btn = pn.widgets.Button(name="Open storage", width=110, css_classes=["fs-open-study"])
+        open_btn = pn.widgets.Button(name="Open storage", width=105, css_classes=["fs-open-study"])
         open_btn.on_click(lambda ev: self._guard(self._open_study))
         import pandas as pd
 
-        self.trials_table = pn.widgets.Tabulator(pd.DataFrame(), selectable="checkbox", width=280, css_classes=["fs-trials"],
+        self.trials_table = pn.widgets.Tabulator(pd.DataFrame(), selectable="checkbox", width=280, stylesheets=[DENSE_TABLE], css_classes=["fs-trials"],
                                                  height=240, show_index=False, disabled=True)  # fmt: skip
         compare = pn.widgets.Button(name="Compare selected", width=135, css_classes=["fs-compare"])
         compare.on_click(lambda ev: self._guard(self._compare))
@@ -637,7 +641,7 @@ class Designer:
         dash = pn.widgets.Button(name="optuna-dashboard", width=135)
         dash.on_click(lambda ev: self._guard(self._dashboard))
         self.dash_link = pn.pane.HTML("")
-        self.trials_note = pn.pane.HTML("", width=280, css_classes=["fs-trials-note"])
+        self.trials_note = pn.pane.HTML("", width=280)
         if self.study_select.value:
             self._guard(self._pick_study, self.study_select.value)
         return pn.Column(
@@ -658,11 +662,9 @@ class Designer:
         try:
             self._open_study()
         except FuzzyservoError as exc:
-            import pandas as pd
-
             self.study = None
-            self.trials_table.value = pd.DataFrame()
-            self.trials_note.object = f"<span class='fs-error'>{_esc(exc)}</span>"
+            self.trials_table.value = self.trials_table.value.iloc[0:0]
+            self.trials_note.object = f"<div id='fs-trials-note' class='fs-error'>{_esc(exc)}</div>"
 
     def _open_study(self) -> None:
         import pandas as pd
@@ -676,7 +678,7 @@ class Designer:
         note = (
             f"{view.spec.name}: {view.complete} complete trials; the best {len(view.trials)} listed"
         )
-        self.trials_note.object = _esc(note)
+        self.trials_note.object = f"<div id='fs-trials-note'>{_esc(note)}</div>"
         self._say(f"{note} (storage {view.url})")
 
     def _selected_trials(self):
@@ -722,7 +724,8 @@ class Designer:
         boxes = []
         for role, (fig, *_rest) in self.mf_figs.items():
             table = pn.widgets.Tabulator(pd.DataFrame(), show_index=False, sortable=False,
-                                         selectable=False, width=METRICS_WIDTH)  # fmt: skip
+                                         selectable=False, width=METRICS_WIDTH, layout="fit_columns",
+                                         widths={"term": 42, "shape": 56}, stylesheets=[DENSE_TABLE])  # fmt: skip
             table.on_edit(
                 lambda ev, role=role, table=table: self._guard(self._on_breakpoint, role, table, ev)
             )

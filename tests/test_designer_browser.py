@@ -86,7 +86,9 @@ def server(tmp_path_factory):
             cwd=work,
             env={
                 **os.environ,
-                "PYTHONPATH": os.pathsep.join([str(ROOT), os.environ.get("PYTHONPATH", "")]),
+                "PYTHONPATH": os.pathsep.join(
+                    p for p in (str(ROOT), os.environ.get("PYTHONPATH")) if p
+                ),
             },
             stdout=sink,
             stderr=subprocess.STDOUT,

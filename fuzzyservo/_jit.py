@@ -71,7 +71,7 @@ def cache_is_cold() -> bool:
 
 #: seconds each long kernel takes to compile on a 2-core machine (measured on the closed loop of
 #: dinca_cylinder, numba 0.68); the estimate until this machine has compiled them once
-TYPICAL_COMPILE_S = {"plant_signals": 5.0, "closed_loop": 45.0, "signal_table": 4.0}
+TYPICAL_COMPILE_S = {"plant_signals": 4.0, "closed_loop": 45.0, "signal_table": 3.0}
 _TIMES_FILE = "compile_seconds.json"
 
 

@@ -59,8 +59,8 @@ def progress_bar(total: int, desc: str) -> ProgressBar:
 def note_compiling() -> None:
     """Before a run that may compile (the first after an install or a change of the compiled
     kernels): say so, then one line per long kernel as it starts, with an estimate from
-    this machine's last compile (else a typical one, scaled by how fast the first kernels
-    went), a line every ``TICK_S`` while it compiles, and its time when done. Plain lines
+    this machine's last compile (else a typical one, scaled up when the first kernels
+    went slower), a line every ``TICK_S`` while it compiles, and its time when done. Plain lines
     on stderr, on a terminal or not."""
     from fuzzyservo._jit import cache_is_cold, compile_estimates, watch_compiles
 
@@ -85,7 +85,7 @@ _watching = False  # one watch per process, however many commands it runs
 
 
 class _KernelLines:
-    """The lines of :func:`note_compiling` (the estimate is scaled by the kernels done so far)."""
+    """The lines of :func:`note_compiling` (the estimate is scaled up by slow kernels done so far)."""
 
     def __init__(self, estimates: dict[str, float]):
         self.estimates, self.scale = estimates, 1.0
@@ -112,7 +112,13 @@ class _KernelLines:
 
         def tick(stop: threading.Event = self._stop) -> None:
             while not stop.wait(TICK_S):
-                self._say(f"  {name}: {time.perf_counter() - t0:.0f} s of about {expected:.0f} s")
+                took = time.perf_counter() - t0
+                of = (
+                    f"of about {expected:.0f} s"
+                    if took < expected
+                    else "(a busy machine takes longer)"
+                )
+                self._say(f"  {name}: {took:.0f} s {of}")
 
         threading.Thread(target=tick, daemon=True).start()
 
@@ -122,5 +128,8 @@ class _KernelLines:
         if self._stop is not None:
             self._stop.set()
         self.took[name] = seconds
-        self.scale = sum(self.took.values()) / sum(self.estimates[k] for k in self.took)
+        # only ever up: a short kernel's time is mostly fixed costs, so a fast first kernel
+        # says little about the long one, while a slow one means a slow (or busy) machine
+        ratio = sum(self.took.values()) / sum(self.estimates[k] for k in self.took)
+        self.scale = max(1.0, ratio)
         self._say(f"compiled {name} in {seconds:.0f} s")

@@ -43,6 +43,9 @@ def test_each_top_level_compile_is_reported_and_its_time_kept(cache_in_tmp):
 
 
 def test_lines_per_kernel_with_an_estimate_scaled_by_the_kernels_done(capsys):
+    fast = _KernelLines({"plant_signals": 10.0, "closed_loop": 30.0})
+    fast.end("plant_signals", 2.0)  # a fast first kernel: the long one's estimate stays
+    assert fast.scale == 1.0
     lines = _KernelLines({"plant_signals": 10.0, "closed_loop": 30.0})
     lines.start("plant_signals")
     lines.end("plant_signals", 20.0)  # this machine is twice as slow as the typical one
@@ -51,6 +54,7 @@ def test_lines_per_kernel_with_an_estimate_scaled_by_the_kernels_done(capsys):
     lines.start("term_index")  # short kernels: no line
     lines.end("term_index", 0.1)
     assert capsys.readouterr().err.splitlines() == [
+        "compiled plant_signals in 2 s",
         "compiling kernel 1/2 plant_signals: about 10 s (40 s left in all)",
         "compiled plant_signals in 20 s",
         "compiling kernel 2/2 closed_loop: about 60 s (60 s left in all)",

@@ -19,15 +19,20 @@ from __future__ import annotations
 import ast
 import hashlib
 import importlib.util
+import json
 import os
 import sys
 import tempfile
+import threading
+import time
+from collections.abc import Callable
 from functools import cache
 from pathlib import Path
 from types import ModuleType
 
 import numba
 from numba import njit
+from numba.core import event as numba_event
 
 _PACKAGE = Path(__file__).resolve().parent
 _KERNEL_DIRS = ("components", "controllers", "plants", "simulation")
@@ -62,6 +67,82 @@ def cache_is_cold() -> bool:
     (Loading a rig compiles and caches a few small kernels; they do not count.)"""
     folder = numba.config.CACHE_DIR
     return not folder or not any(Path(folder).rglob("*.closed_loop-*.nbi"))
+
+
+#: seconds each long kernel takes to compile on a 2-core machine (measured on the closed loop of
+#: dinca_cylinder, numba 0.68); the estimate until this machine has compiled them once
+TYPICAL_COMPILE_S = {"plant_signals": 4.0, "closed_loop": 45.0, "signal_table": 3.0}
+_TIMES_FILE = "compile_seconds.json"
+
+
+def _times_path() -> Path | None:
+    """Where this machine's compile times are kept: beside the fingerprinted folders (they
+    outlive a source change), or in the user's ``NUMBA_CACHE_DIR``."""
+    folder = numba.config.CACHE_DIR
+    if not folder:
+        return None
+    folder = Path(folder)
+    return (
+        folder / _TIMES_FILE if os.environ.get("NUMBA_CACHE_DIR") else folder.parent / _TIMES_FILE
+    )
+
+
+def compile_estimates() -> dict[str, float]:
+    """Seconds each long kernel takes to compile: this machine's last times, else
+    :data:`TYPICAL_COMPILE_S`."""
+    path = _times_path()
+    try:
+        known = json.loads(path.read_text(encoding="utf-8"))
+        return {k: float(known.get(k, v)) for k, v in TYPICAL_COMPILE_S.items()}
+    except (OSError, ValueError, TypeError, AttributeError):
+        return dict(TYPICAL_COMPILE_S)
+
+
+def _record_compile_time(name: str, seconds: float) -> None:
+    path = _times_path()
+    if path is None or name not in TYPICAL_COMPILE_S:
+        return
+    try:
+        known = {**compile_estimates(), name: round(seconds, 1)}
+        tmp = path.with_suffix(f".{os.getpid()}.tmp")
+        tmp.write_text(json.dumps(known), encoding="utf-8")
+        os.replace(tmp, path)
+    except OSError:  # a read-only cache: the estimate stays the typical one
+        pass
+
+
+class _CompileWatch(numba_event.Listener):
+    """Calls ``on_start(name)`` and ``on_end(name, seconds)`` around each top-level numba
+    compilation in this process (a kernel compiled because another calls it is part of
+    that one's time). numba sends these events only on a cache miss."""
+
+    def __init__(self, on_start: Callable[[str], None], on_end: Callable[[str, float], None]):
+        self.on_start_, self.on_end_ = on_start, on_end
+        self.local = threading.local()
+
+    def on_start(self, event) -> None:
+        stack = self.local.__dict__.setdefault("stack", [])
+        stack.append(time.perf_counter())
+        if len(stack) == 1:
+            self.on_start_(event.data["dispatcher"].py_func.__name__)
+
+    def on_end(self, event) -> None:
+        t0 = self.local.stack.pop()
+        if not self.local.stack:
+            name = event.data["dispatcher"].py_func.__name__
+            seconds = time.perf_counter() - t0
+            _record_compile_time(name, seconds)
+            self.on_end_(name, seconds)
+
+
+def watch_compiles(
+    on_start: Callable[[str], None], on_end: Callable[[str, float], None]
+) -> Callable[[], None]:
+    """Report every kernel this process compiles from now on (see :class:`_CompileWatch`);
+    the compile times are kept for :func:`compile_estimates`. Returns a function that stops it."""
+    watch = _CompileWatch(on_start, on_end)
+    numba_event.register("numba:compile", watch)
+    return lambda: numba_event.unregister("numba:compile", watch)
 
 
 def _generated_dir() -> Path:
@@ -167,4 +248,4 @@ def bind_plant(binding: str) -> ModuleType:
     return module
 
 
-__all__ = ["bind_plant", "cache_is_cold", "njit"]
+__all__ = ["bind_plant", "cache_is_cold", "compile_estimates", "njit", "watch_compiles"]

@@ -3,9 +3,12 @@
 Starts ``fuzzyservo designer`` as a process (the default rig and controller), loads the
 page, moves a slider, waits for the metrics table to change, and measures the time from
 a key press on a slider to the redrawn page (the metrics table of the new update in the
-DOM; all figures and the table arrive in one patch) over 20 changes. Screenshots and the
-measured times go to ``out/designer_test/`` in the checkout (``FUZZYSERVO_SCREENSHOTS``
-overrides it). Times are written, never asserted.
+DOM; all figures and the table arrive in one patch) over 20 changes; in a 1,280 x 800
+window it checks that nothing sticks out sideways and that a tuned study's trials are
+listed. The designer runs in a temporary folder where ``fuzzyservo tune dinca_flc`` would
+have left its study (``out/dinca_flc``). Screenshots and the measured times go to a
+temporary folder (``FUZZYSERVO_SCREENSHOTS`` names another). Times are written, never
+asserted.
 
 Skips when Chromium (``/usr/bin/chromium``, ``apt-get install chromium``) or the
 ``playwright`` package is missing. The test never runs ``playwright install``.
@@ -37,8 +40,8 @@ ARGS = [
 ROOT = Path(__file__).resolve().parent.parent
 from support import DATA  # noqa: E402
 
-SHOTS = Path(os.environ.get("FUZZYSERVO_SCREENSHOTS", ROOT / "out" / "designer_test"))
 CHANGES = 20
+STUDY_TRIALS = 6
 
 pytestmark = pytest.mark.skipif(
     not CHROMIUM.is_file(), reason=f"no Chromium at {CHROMIUM} (apt-get install chromium)"
@@ -52,9 +55,21 @@ def _free_port() -> int:
 
 
 @pytest.fixture(scope="module")
+def shots(tmp_path_factory) -> Path:
+    given = os.environ.get("FUZZYSERVO_SCREENSHOTS")
+    folder = Path(given) if given else tmp_path_factory.mktemp("designer_shots")
+    folder.mkdir(parents=True, exist_ok=True)
+    return folder
+
+
+@pytest.fixture(scope="module")
 def server(tmp_path_factory):
-    out = tmp_path_factory.mktemp("designer_out")
-    log = out.parent / "designer.log"
+    """The designer's URL and output folder; it runs in a folder of its own (its working
+    folder: ``out/<study>`` there is where ``tune`` keeps a study)."""
+    work = tmp_path_factory.mktemp("designer_work")
+    out = work / "out" / "designer"
+    out.mkdir(parents=True)
+    log = work / "designer.log"
     port = _free_port()
     with open(log, "w") as sink:
         proc = subprocess.Popen(
@@ -68,7 +83,13 @@ def server(tmp_path_factory):
                 "--out",
                 str(out),
             ],
-            cwd=ROOT,
+            cwd=work,
+            env={
+                **os.environ,
+                "PYTHONPATH": os.pathsep.join(
+                    p for p in (str(ROOT), os.environ.get("PYTHONPATH")) if p
+                ),
+            },
             stdout=sink,
             stderr=subprocess.STDOUT,
             text=True,
@@ -99,6 +120,18 @@ def page(server):
         browser.close()
 
 
+@pytest.fixture(scope="module")
+def study(server) -> Path:
+    """``dinca_flc`` with a few trials where ``fuzzyservo tune dinca_flc`` keeps it."""
+    from fuzzyservo.io.studies import load_study
+    from fuzzyservo.tuning.runner import run_study
+
+    folder = server[1].parent / "dinca_flc"
+    run_study(load_study(DATA / "studies" / "dinca_flc.yaml"), folder, trials=STUDY_TRIALS,
+              progress=False)  # fmt: skip
+    return folder / "dinca_flc.db"
+
+
 def _metrics(page) -> tuple[int, str]:
     table = page.locator("#fs-metrics")
     return int(table.get_attribute("data-update")), table.inner_text()
@@ -112,11 +145,10 @@ def _status(page) -> str:
     return page.locator("#fs-status").inner_text()
 
 
-def test_move_a_slider_and_the_metrics_change(page, server):
-    SHOTS.mkdir(parents=True, exist_ok=True)
+def test_move_a_slider_and_the_metrics_change(page, server, shots):
     update, before = _metrics(page)
     assert "flc2_reshaped (edited)" in before and "p_k10" in before
-    page.screenshot(path=str(SHOTS / "designer_loaded.png"), full_page=True)
+    page.screenshot(path=str(shots / "designer_loaded.png"), full_page=True)
 
     handle = _slider_handle(page, "input reshape")
     handle.focus()
@@ -129,7 +161,7 @@ def test_move_a_slider_and_the_metrics_change(page, server):
             break
         time.sleep(0.1)
     assert after != before, "the metrics table did not change after moving the reshape slider"
-    page.screenshot(path=str(SHOTS / "designer_after_reshape.png"), full_page=True)
+    page.screenshot(path=str(shots / "designer_after_reshape.png"), full_page=True)
 
     # the time from one change to the redrawn page, over CHANGES changes
     handle = _slider_handle(page, "input translate")
@@ -146,8 +178,8 @@ def test_move_a_slider_and_the_metrics_change(page, server):
         server_ms.append(float(_status(page).rsplit("redrawn in ", 1)[-1].split(" ms")[0]))
         if os.environ.get("FUZZYSERVO_DESIGNER_PROFILE"):
             print(f"seen at {time.time():.3f}")
-    page.screenshot(path=str(SHOTS / "designer_after_20_changes.png"), full_page=True)
-    (SHOTS / "redraw_times.json").write_text(
+    page.screenshot(path=str(shots / "designer_after_20_changes.png"), full_page=True)
+    (shots / "redraw_times.json").write_text(
         json.dumps(
             {
                 "changes": CHANGES,
@@ -168,7 +200,7 @@ def test_move_a_slider_and_the_metrics_change(page, server):
     )
 
 
-def test_no_file_access_outside_the_folders(page, server):
+def test_no_file_access_outside_the_folders(page, server, shots):
     _, out = server
     page.get_by_placeholder("studies/controllers/flc1_translated.yaml").fill("/etc/passwd")
     page.locator(".fs-open-path button").click()
@@ -187,7 +219,7 @@ def test_no_file_access_outside_the_folders(page, server):
     page.locator(".fs-save-yaml button").click()
     _wait_text(page, "saved")
     assert (out / "designed.yaml").is_file()
-    page.screenshot(path=str(SHOTS / "designer_saved.png"), full_page=True)
+    page.screenshot(path=str(shots / "designer_saved.png"), full_page=True)
 
 
 # Screen position of a data point (x, y) in the Bokeh figure whose title starts with a text.
@@ -206,7 +238,7 @@ _POINT_ON_SCREEN = """([title, x, y]) => {
 }"""
 
 
-def test_drag_a_breakpoint(page):
+def test_drag_a_breakpoint(page, shots):
     update, before = _metrics(page)
     table = page.locator("#fs-metrics")
     # PS's peak (its b) from the input's breakpoint table, the first table with a PS row
@@ -224,13 +256,13 @@ def test_drag_a_breakpoint(page):
         time.sleep(0.1)
     new_peak = float(b.inner_text())
     assert new_peak > peak, f"PS's peak did not move right: {peak} -> {new_peak}"
-    page.screenshot(path=str(SHOTS / "designer_dragged_breakpoint.png"), full_page=True)
+    page.screenshot(path=str(shots / "designer_dragged_breakpoint.png"), full_page=True)
 
 
-def test_curve_rules_and_firing_tabs(page):
+def test_curve_rules_and_firing_tabs(page, shots):
     page.locator(".bk-tab", has_text="Control curve").click()
     page.wait_for_timeout(1000)
-    page.screenshot(path=str(SHOTS / "designer_control_curve.png"), full_page=True)
+    page.screenshot(path=str(shots / "designer_control_curve.png"), full_page=True)
     page.locator(".bk-tab", has_text="Rules and firing").click()
     picked = page.locator(".fs-pick-e input")
     picked.fill("0.3")
@@ -239,30 +271,94 @@ def test_curve_rules_and_firing_tabs(page):
     while "e = 0.3 V" not in page.locator("#fs-command").inner_text():
         assert time.monotonic() < deadline, "the command at the picked input was not shown"
         time.sleep(0.1)
-    page.screenshot(path=str(SHOTS / "designer_rules_firing.png"), full_page=True)
+    page.screenshot(path=str(shots / "designer_rules_firing.png"), full_page=True)
     page.locator(".bk-tab", has_text="Membership functions").click()
 
 
-def test_open_a_study_storage_and_compare_its_best_trials(page, server):
-    from fuzzyservo.io.studies import load_study
-    from fuzzyservo.tuning.runner import run_study
-
-    _, out = server
-    spec = load_study(DATA / "studies" / "dinca_flc.yaml")
-    run_study(spec, out / "dinca_flc", trials=6, progress=False)
+def test_open_a_study_storage_and_compare_its_best_trials(page, study, shots):
     page.locator(".fs-study select").select_option("dinca_flc")  # the main job is preselected
     storage = page.locator(".fs-storage input")
-    storage.fill(f"sqlite:///{out / 'dinca_flc' / 'dinca_flc.db'}")
+    storage.fill(f"sqlite:///{study}")
     storage.press("Enter")
     page.locator(".fs-open-study button").click()
-    _wait_text(page, "6 complete trials")
+    _wait_text(page, f"{STUDY_TRIALS} complete trials")
     update, _ = _metrics(page)
     page.locator(".fs-trials .tabulator-row input[type='checkbox']").first.click()
     page.locator(".fs-compare button").click()
     page.wait_for_selector(f"#fs-metrics[data-update='{update + 1}']", timeout=60_000)
     _, text = _metrics(page)
     assert "#" in text.splitlines()[0], f"no trial column in the metrics table: {text[:200]}"
-    page.screenshot(path=str(SHOTS / "designer_study_compare.png"), full_page=True)
+    page.screenshot(path=str(shots / "designer_study_compare.png"), full_page=True)
+
+
+# The right and bottom edges of every visible Bokeh canvas on the page.
+_FIGURE_BOXES = """() => {
+  const boxes = [];
+  const walk = (v) => {
+    if (v == null) return;
+    if (v.canvas_view) {
+      const b = v.canvas_view.el.getBoundingClientRect();
+      if (b.width > 0) boxes.push([v.model.title ? v.model.title.text : "?", b.left, b.right]);
+    }
+    for (const child of v.child_views || []) walk(child);
+  };
+  Object.values(Bokeh.index).forEach(walk);
+  return boxes;
+}"""
+# what a user reaches for in the sidebar and the main column
+KEY_ELEMENTS = (".fs-study select", ".fs-open-study button", ".fs-storage input", ".fs-trials",
+                ".fs-compare button", ".fs-open-path button", ".fs-save-yaml button",
+                ".fs-save-name input", ".fs-metrics", "#fs-status", ".bk-tab")  # fmt: skip
+
+
+def test_fits_a_1280_by_800_window_and_lists_a_study_s_trials(page, study, shots):
+    page.set_viewport_size({"width": 1280, "height": 800})
+    try:
+        page.wait_for_timeout(500)
+        width = page.evaluate("document.documentElement.scrollWidth")
+        assert width <= 1280, f"the page is {width} px wide in a 1,280 px window"
+        for selector in KEY_ELEMENTS:
+            for k in range(page.locator(selector).count()):
+                box = page.locator(selector).nth(k).bounding_box()
+                if box is not None and box["width"] > 0:
+                    assert box["x"] >= 0 and box["x"] + box["width"] <= 1280, (selector, k, box)
+        figures = page.evaluate(_FIGURE_BOXES)
+        assert figures, "no figure on the page"
+        for title, left, right in figures:
+            assert left >= 0 and right <= 1280, f"figure {title!r} spans {left:.0f}..{right:.0f} px"
+
+        # picking a tuned study lists its trials, without another click (one never tuned: none)
+        rows = page.locator(".fs-trials .tabulator-row")
+        page.locator(".fs-study select").select_option("dinca_pi")
+        deadline = time.monotonic() + 60
+        while rows.count() or "tune dinca_pi" not in page.locator("#fs-trials-note").inner_text():
+            assert time.monotonic() < deadline, (
+                f"picking an untuned study left {rows.count()} trials listed; "
+                f"{page.locator('#fs-trials-note').inner_text()!r}"
+            )
+            time.sleep(0.2)
+        page.locator(".fs-study select").select_option("dinca_flc")
+        deadline = time.monotonic() + 60
+        while rows.count() < STUDY_TRIALS:
+            assert time.monotonic() < deadline, (
+                f"{rows.count()} trial rows listed, {STUDY_TRIALS} expected; "
+                f"{page.locator('#fs-trials-note').inner_text()!r}"
+            )
+            time.sleep(0.2)
+        assert f"{STUDY_TRIALS} complete trials" in page.locator("#fs-trials-note").inner_text()
+        assert (
+            page.locator(".fs-trials .tabulator-row")
+            .first.locator("[tabulator-field='trial']")
+            .inner_text()
+            .strip()
+            .isdigit()
+        )
+        box = page.locator(".fs-trials").bounding_box()
+        assert box["x"] + box["width"] <= 1280, box
+        page.screenshot(path=str(shots / "designer_1280x800.png"))
+        page.screenshot(path=str(shots / "designer_1280x800_full.png"), full_page=True)
+    finally:
+        page.set_viewport_size({"width": 1420, "height": 1250})
 
 
 @pytest.mark.parametrize(

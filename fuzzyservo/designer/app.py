@@ -47,13 +47,23 @@ TERM_COLOURS = ("#1f77b4", "#ff7f0e", "#2ca02c", "#d62728", "#9467bd", "#8c564b"
 REFERENCE_COLOUR = to_hex("tab:green")
 MAX_COMPARED = 5
 _PROFILE = bool(os.environ.get("FUZZYSERVO_DESIGNER_PROFILE"))
-WIDTH = 820
+# sized for a 1,280 x 800 window (a laptop): sidebar, loop figures and metrics side by side,
+# the tabs below as wide as the figures and metrics together; nothing scrolls sideways
+SIDEBAR = 300
+WIDTH = 560
+METRICS_WIDTH = 370
+TAB_WIDTH = WIDTH + METRICS_WIDTH + 10
 CSS = """
-.fs-metrics table {border-collapse: collapse; font: 13px monospace;}
-.fs-metrics td, .fs-metrics th {border-bottom: 1px solid #ddd; padding: 2px 8px; text-align: right;}
+.fs-metrics {overflow-x: auto;}
+.fs-metrics table {border-collapse: collapse; font: 12px monospace;}
+.fs-metrics td, .fs-metrics th {border-bottom: 1px solid #ddd; padding: 2px 5px; text-align: right;}
 .fs-metrics td:first-child, .fs-metrics th:first-child {text-align: left;}
 .fs-error {color: #b00020;}
 """
+# a table's cells in the sidebar or beside a figure: small enough for six numbers in 370 px
+DENSE_TABLE = (
+    ".tabulator-cell, .tabulator-col-title {font-size: 12px;} .tabulator-cell {padding: 4px 3px;}"
+)
 
 
 def _colour(k: int) -> str:
@@ -70,21 +80,23 @@ class Designer:
         self.study: StudyView | None = None
         self.status = pn.pane.HTML("", css_classes=["fs-status"], sizing_mode="stretch_width")
         self.title = pn.pane.HTML("", sizing_mode="stretch_width")
-        self.metrics = pn.pane.HTML("", css_classes=["fs-metrics"], width=470)
+        self.metrics = pn.pane.HTML("", css_classes=["fs-metrics"], width=METRICS_WIDTH)
         self._build_response()
         self._build_curve()
         self._build_firing()
         self.design_box = pn.Column(sizing_mode="stretch_width")
         self.mf_box = pn.Column()
         self.rules_box = pn.Column()
-        self.yaml_view = pn.widgets.TextAreaInput(value="", height=400, width=WIDTH, disabled=True)
+        self.yaml_view = pn.widgets.TextAreaInput(
+            value="", height=400, width=TAB_WIDTH, disabled=True
+        )
         self.sidebar = pn.Column(
             self._rig_widgets(),
             pn.pane.Markdown("### Seven-term design and gains"),
             self.design_box,
             self._file_widgets(),
             self._study_widgets(),
-            width=380,
+            width=SIDEBAR,
         )
         self.rebuild()
 
@@ -245,8 +257,8 @@ class Designer:
         fig.multi_line("xs", "ys", source=lines, color="colour", line_width=2)
         points = ColumnDataSource({"x": [], "y": [], "term": [], "k": [], "colour": []})
         dots = fig.scatter("x", "y", source=points, size=9, color="colour", alpha=0.7)
-        labels = ColumnDataSource({"x": [], "y": [], "term": []})
-        fig.text("x", "y", text="term", source=labels, text_align="center",
+        labels = ColumnDataSource({"x": [], "y": [], "term": [], "align": []})
+        fig.text("x", "y", text="term", source=labels, text_align="align",
                  text_font_size="9pt", y_offset=-2)  # fmt: skip
         draw = PointDrawTool(renderers=[dots], add=False)
         fig.add_tools(draw, HoverTool(renderers=[dots], tooltips=[("term", "@term"), ("x", "@x")]))
@@ -285,6 +297,7 @@ class Designer:
                 "x": peaks,
                 "y": [1.02] * len(peaks),
                 "term": [t.name for t in var.terms],
+                "align": [_label_align(x, var.low, var.high) for x in peaks],
             }
             fig.x_range.start, fig.x_range.end = var.low, var.high
             fig.title.text = (
@@ -304,7 +317,7 @@ class Designer:
         """The control curve (one input) or surface (two), built once per structure."""
         tools = "pan,wheel_zoom,box_zoom,reset,save"
         if n_inputs == 1:
-            fig = figure(title="control curve u = G_u·F(G_e·e) (before limits)", width=WIDTH,
+            fig = figure(title="control curve u = G_u·F(G_e·e) (before limits)", width=TAB_WIDTH,
                          height=330, tools=tools)  # fmt: skip
             for k, (name, c) in enumerate(self.s.baselines.items(), start=1):
                 if hasattr(c, "curve") and len(c.system.inputs) == 1:
@@ -315,7 +328,7 @@ class Designer:
             fig.legend.location = "top_left"
             fig.xaxis.axis_label, fig.yaxis.axis_label = "error e [V]", "command u [V]"
         else:
-            fig = figure(title="control surface u(e, ė) (before limits)", width=WIDTH, height=420,
+            fig = figure(title="control surface u(e, ė) (before limits)", width=TAB_WIDTH, height=420,
                          tools=tools)  # fmt: skip
             self.surface_mapper = LinearColorMapper(palette="Viridis256")
             fig.image("image", x="x", y="y", dw="dw", dh="dh", source=self.src_surface,
@@ -357,7 +370,7 @@ class Designer:
         )
         self.pick_out = pn.pane.HTML("", css_classes=["fs-command"])
         self.src_fire = ColumnDataSource({"rule": [], "w": []})
-        self.fig_fire = figure(title="rule firing strengths at the picked input", width=WIDTH,
+        self.fig_fire = figure(title="rule firing strengths at the picked input", width=TAB_WIDTH,
                                height=260, x_range=FactorRange(), y_range=Range1d(0, 1.05),
                                tools="")  # fmt: skip
         self.fig_fire.vbar(x="rule", top="w", source=self.src_fire, width=0.8, color=_colour(0))
@@ -443,7 +456,7 @@ class Designer:
             name="rule lines ('NB -> NB', 'NS and PS -> Z 0.5', '~Z or PB -> PS'; '-' no condition)",
             value="\n".join(s.rule_lines()),
             height=180,
-            width=WIDTH // 2,
+            width=TAB_WIDTH // 2,
         )
         apply = pn.widgets.Button(name="Apply rule lines", button_type="primary", width=160)
         apply.on_click(lambda ev: self._guard(self._on_rule_lines, lines.value))
@@ -464,10 +477,10 @@ class Designer:
         rigs = folders.names("rigs")
         current = self.s.rig_path.stem
         self.rig_select = pn.widgets.Select(
-            name="rig", options=sorted({*rigs, current}), value=current, width=170
+            name="rig", options=sorted({*rigs, current}), value=current, width=135
         )
         self.scenario_select = pn.widgets.Select(
-            name="scenario", options=list(self.s.rig.scenarios), value=self.s.scenario, width=170
+            name="scenario", options=list(self.s.rig.scenarios), value=self.s.scenario, width=135
         )
 
         def on_rig(ev) -> None:
@@ -551,15 +564,15 @@ class Designer:
     def _file_widgets(self):
         f = self.s.folders
         self.open_select = pn.widgets.Select(
-            name="controller file", options=f.controller_files(), width=250
+            name="controller file", options=f.controller_files(), width=195
         )
-        open_btn = pn.widgets.Button(name="Open", width=80)
+        open_btn = pn.widgets.Button(name="Open", width=75)
         open_btn.on_click(lambda ev: self._guard(self._open, self.open_select.value))
-        self.open_path = pn.widgets.TextInput(name="or a path (project or output folder)", width=250,
+        self.open_path = pn.widgets.TextInput(name="or a path (project or output folder)", width=195,
                                               placeholder="studies/controllers/flc1_translated.yaml")  # fmt: skip
-        open_path_btn = pn.widgets.Button(name="Open path", width=80, css_classes=["fs-open-path"])
+        open_path_btn = pn.widgets.Button(name="Open path", width=75, css_classes=["fs-open-path"])
         open_path_btn.on_click(lambda ev: self._guard(self._open, self.open_path.value))
-        upload = pn.widgets.FileInput(accept=".yaml,.yml,.fis", name="upload")
+        upload = pn.widgets.FileInput(accept=".yaml,.yml,.fis", name="upload", width=280)
 
         def on_upload(ev) -> None:
             self.s.open_upload(upload.filename, upload.value)
@@ -570,7 +583,7 @@ class Designer:
         self.save_name = pn.widgets.TextInput(
             name=f"save as (in {f.output})",
             value="designed.yaml",
-            width=250,
+            width=280,
             css_classes=["fs-save-name"],
         )
         save_yaml = pn.widgets.Button(name="Save YAML", width=100, css_classes=["fs-save-yaml"])
@@ -606,55 +619,67 @@ class Designer:
         s = self.s
         studies = s.study_files()
         self.study_select = pn.widgets.Select(
-            name="study", options=studies, width=250, css_classes=["fs-study"],
+            name="study", options=studies, width=160, css_classes=["fs-study"],
             value=MAIN_STUDY if MAIN_STUDY in studies else None,
         )  # fmt: skip
         self.storage_input = pn.widgets.TextInput(
-            name="storage URL", width=330, css_classes=["fs-storage"]
+            name="storage URL", width=280, css_classes=["fs-storage"]
         )
-        if self.study_select.value:
-            self.storage_input.value = s.default_storage(self.study_select.value)
-        self.study_select.param.watch(
-            lambda ev: self._guard(lambda: setattr(self.storage_input, "value", s.default_storage(ev.new))),
-            "value",
-        )  # fmt: skip
-        open_btn = pn.widgets.Button(name="Open storage", width=120, css_classes=["fs-open-study"])
+        self.study_select.param.watch(lambda ev: self._guard(self._pick_study, ev.new), "value")
+        open_btn = pn.widgets.Button(name="Open storage", width=105, css_classes=["fs-open-study"])
         open_btn.on_click(lambda ev: self._guard(self._open_study))
         import pandas as pd
 
-        self.trials_table = pn.widgets.Tabulator(pd.DataFrame(), selectable="checkbox", width=360, css_classes=["fs-trials"],
+        self.trials_table = pn.widgets.Tabulator(pd.DataFrame(), selectable="checkbox", width=280, stylesheets=[DENSE_TABLE], css_classes=["fs-trials"],
                                                  height=240, show_index=False, disabled=True)  # fmt: skip
-        compare = pn.widgets.Button(name="Compare selected", width=140, css_classes=["fs-compare"])
+        compare = pn.widgets.Button(name="Compare selected", width=135, css_classes=["fs-compare"])
         compare.on_click(lambda ev: self._guard(self._compare))
-        load = pn.widgets.Button(name="Edit first selected", width=140)
+        load = pn.widgets.Button(name="Edit first selected", width=135)
         load.on_click(lambda ev: self._guard(self._load_trial))
-        clear = pn.widgets.Button(name="Clear comparison", width=140)
+        clear = pn.widgets.Button(name="Clear comparison", width=135)
         clear.on_click(lambda ev: self._guard(self._clear_compare))
-        dash = pn.widgets.Button(name="optuna-dashboard", width=140)
+        dash = pn.widgets.Button(name="optuna-dashboard", width=135)
         dash.on_click(lambda ev: self._guard(self._dashboard))
         self.dash_link = pn.pane.HTML("")
+        self.trials_note = pn.pane.HTML("", width=280)
+        if self.study_select.value:
+            self._guard(self._pick_study, self.study_select.value)
         return pn.Column(
             pn.pane.Markdown("### Tuning study"),
             pn.Row(self.study_select, open_btn),
             self.storage_input,
             self.trials_table,
+            self.trials_note,
             pn.Row(compare, load),
             pn.Row(clear, dash),
             self.dash_link,
         )
+
+    def _pick_study(self, study: str | None) -> None:
+        """A study picked (or preselected when the page opens): its default storage, and its
+        trials listed at once when that storage holds any (else a line saying how to get some)."""
+        self.storage_input.value = self.s.default_storage(study) if study else ""
+        try:
+            self._open_study()
+        except FuzzyservoError as exc:
+            self.study = None
+            self.trials_table.value = self.trials_table.value.iloc[0:0]
+            self.trials_note.object = f"<div id='fs-trials-note' class='fs-error'>{_esc(exc)}</div>"
 
     def _open_study(self) -> None:
         import pandas as pd
 
         view = self.s.open_study(self.study_select.value, self.storage_input.value)
         self.study = view
-        rows = [{"trial": t.number, **{f"value{k}" if k else "value": v for k, v in enumerate(t.values)},
-                 "status": t.status, **{p: round(v, 4) for p, v in t.params.items()}}
+        rows = [{"trial": t.number, **{f"value{k}" if k else "value": _short(v) for k, v in enumerate(t.values)},
+                 "status": t.status, **{p: _short(v) for p, v in t.params.items()}}
                 for t in view.trials]  # fmt: skip
         self.trials_table.value = pd.DataFrame(rows)
-        self._say(
-            f"{view.spec.name}: {view.complete} complete trials in {view.url}; best {len(view.trials)} listed"
+        note = (
+            f"{view.spec.name}: {view.complete} complete trials; the best {len(view.trials)} listed"
         )
+        self.trials_note.object = f"<div id='fs-trials-note'>{_esc(note)}</div>"
+        self._say(f"{note} (storage {view.url})")
 
     def _selected_trials(self):
         if self.study is None:
@@ -699,7 +724,8 @@ class Designer:
         boxes = []
         for role, (fig, *_rest) in self.mf_figs.items():
             table = pn.widgets.Tabulator(pd.DataFrame(), show_index=False, sortable=False,
-                                         selectable=False, width=WIDTH // 2 + 80)  # fmt: skip
+                                         selectable=False, width=METRICS_WIDTH, layout="fit_columns",
+                                         widths={"term": 42, "shape": 56}, stylesheets=[DENSE_TABLE])  # fmt: skip
             table.on_edit(
                 lambda ev, role=role, table=table: self._guard(self._on_breakpoint, role, table, ev)
             )
@@ -807,7 +833,7 @@ class Designer:
 
     def rebuild_soft(self) -> None:
         """Put the tables and dragged points back to the last good controller after a refused edit."""
-        if [*self.mf_figs] == self.s.roles():
+        if [*getattr(self, "mf_figs", {})] == self.s.roles():
             self._drawn_vars = {}
             self._draw_mf()
 
@@ -821,6 +847,17 @@ def _column(*figs):
     from bokeh.layouts import column
 
     return column(*figs)
+
+
+def _short(value: float) -> float:
+    """A number for the trials table: 4 significant digits, so the columns stay narrow."""
+    return float(f"{value:.4g}")
+
+
+def _label_align(x: float, low: float, high: float) -> str:
+    """A term's name centred on its peak, except at a range end, where centring would cut it."""
+    edge = 0.02 * (high - low)
+    return "left" if x <= low + edge else "right" if x >= high - edge else "center"
 
 
 def _set_legend(fig, renderer, label: str) -> None:

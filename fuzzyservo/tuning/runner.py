@@ -383,6 +383,10 @@ def run_study(
     try:
         study = open_study(spec, url)  # creates it (and its tables) before any worker starts
         done_before = count_complete(study)
+        if done_before and progress:
+            left = max(total - done_before, 0)
+            print(f"resuming study {spec.name}: {done_before} of {total} trials done, "
+                  f"{left} to run ({url})", file=sys.stderr, flush=True)  # fmt: skip
         t0 = time.perf_counter()
         _warm_kernels(spec)  # before the bar: its rate (and ETA) should not count compiling
         bar = _bar(total, done_before, spec.name, progress)

@@ -26,6 +26,7 @@ from fuzzyservo.analysis.robustness import SUMMARY_METRICS
 from fuzzyservo.io.jsonfile import write_json
 from fuzzyservo.metrics import METRIC_DOCS, METRIC_NAMES
 from fuzzyservo.tuning.evaluation import Evaluation
+from fuzzyservo.tuning.objective import measured_margins
 from fuzzyservo.tuning.robust import Comparison, compare_controllers
 from fuzzyservo.tuning.runner import Outcome, build_evaluator
 
@@ -93,6 +94,9 @@ def write_outputs(
         comparison = _compare(evaluator, best_controller, check_samples, progress)
         paths["check"] = _check_figure(comparison, out_dir)
     summary = summary_data(outcome, evaluator.baseline.name, trial)
+    measured = _measured_margins(evaluator, best_controller)
+    if measured:
+        summary["measured_margins"] = measured
     if comparison is not None:
         summary["comparison"] = {
             "samples": comparison.samples,
@@ -103,9 +107,24 @@ def write_outputs(
         }
     paths["summary"] = write_json(out_dir / SUMMARY_FILE, summary)
     paths["report"] = out_dir / REPORT_FILE
-    text = _report(outcome, evaluator, trial, check, paths, out_dir, comparison)
+    text = _report(outcome, evaluator, trial, check, paths, out_dir, comparison, measured)
     paths["report"].write_text(text, encoding="utf-8")
     return paths
+
+
+def _measured_margins(evaluator, best_controller) -> dict[str, dict[str, float | None]]:
+    """The margins the constraints bound, measured on the nominal plant for the best and
+    the baseline: {metric: {"best", "baseline"}} (None where the loop never oscillates in
+    the searched range)."""
+    spec = evaluator.spec
+    scenario = spec.uncertainty.margin_scenario if spec.uncertainty is not None else ""
+    scenario = scenario or spec.scenarios[0]
+    out: dict[str, dict[str, float | None]] = {}
+    for who, controller in (("best", best_controller), ("baseline", evaluator.baseline)):
+        found = measured_margins(evaluator.rig, controller, scenario, list(spec.constraints))
+        for metric, value in found.items():
+            out.setdefault(metric, {})[who] = value if math.isfinite(value) else None
+    return out
 
 
 def comparison_controllers(evaluator, best_controller) -> list:
@@ -405,6 +424,7 @@ def _report(
     paths: dict[str, Path],
     out_dir: Path,
     comparison: Comparison | None = None,
+    measured: dict[str, dict[str, float | None]] | None = None,
 ) -> str:
     spec = outcome.spec
     best, base = outcome.best, outcome.baseline
@@ -458,6 +478,15 @@ def _report(
     ]
     for c, v in zip(spec.constraints, best.violations, strict=True):
         met = "met" if v <= 0 else "broken"
+        if measured and c.metric in measured:  # the search checked the loop at the bound
+            m = measured[c.metric]
+            where = "on every sampled plant" if spec.uncertainty is not None else "at the bound"
+            lines.append(
+                f"- `{c}`: best {_num(m['best'])} measured on the nominal plant ({met} "
+                f"{where}), baseline {_num(m['baseline'])} (`fuzzyservo margins`: the loop "
+                "gain or added delay at which the loop starts to oscillate)"
+            )
+            continue
         lines.append(
             f"- `{c}`: best {_num(best.metrics.get(c.metric))} ({met}), "
             f"baseline {_num(base.metrics.get(c.metric))}"

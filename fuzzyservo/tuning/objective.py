@@ -164,3 +164,19 @@ def margin_metrics(
             find = gain_margin if gain else delay_margin
             out[c.metric] = find(rig, controller, scenario, rel_tol=0.02).value
     return out
+
+
+def measured_margins(
+    rig: Rig, controller: Controller, scenario: str, constraints: list[Constraint]
+) -> dict[str, float]:
+    """The margins the margin constraints bound, measured (by bisection to 2 %, as
+    ``fuzzyservo margins`` does) on the nominal ``rig``: what a report puts next to each
+    bound, where the search itself only checked the loop at the bound."""
+    from fuzzyservo.analysis.margins import delay_margin, gain_margin
+
+    out: dict[str, float] = {}
+    for c in constraints:
+        if c.metric in MARGIN_METRICS and c.metric not in out:
+            find = gain_margin if c.metric == "gain_margin" else delay_margin
+            out[c.metric] = find(rig, controller, scenario, rel_tol=0.02).value
+    return out

@@ -353,6 +353,11 @@ def summary_text(rows: Sequence[dict]) -> str:
             text = f"{fmt(v['p50'] * k)}/{fmt(v['p90'] * k)}/{fmt(v['worst'] * k)}"
             line += "  " + text.rjust(26)
         lines.append(line)
+    lines.append(
+        "failures: samples whose run did not end ok (diverged, end stop, cavitation) or whose "
+        "loop oscillates at the checked margin; gain ok: samples that hold the gain margin; "
+        "p50/p90/max over the samples that ran through"
+    )
     return "\n".join(lines)
 
 

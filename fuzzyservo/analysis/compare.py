@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from collections.abc import Iterator, Mapping, Sequence
 from dataclasses import dataclass
 from functools import cached_property
@@ -72,6 +73,14 @@ class ComparisonResult(Result, Mapping[str, SimResult]):
             left_out = ", ".join(m for m in METRIC_NAMES if m not in shown)
             lines.append(f"not shown: {left_out} (step metrics; this scenario's reference is "
                          "tracked, not stepped)")  # fmt: skip
+        blank = [m for m in shown if any(not math.isfinite(row.get(m, math.nan)) for row in rows)]
+        if blank:
+            lines.append(
+                f"n/a ({', '.join(blank)}): undefined on this run; step metrics need a step in "
+                "the reference (a constant reference has none: this scenario tests a "
+                "disturbance, read iae/ise), settling needs a response that settles, and a "
+                "run that did not end ok has only its status"
+            )
         if any(self.heave.values()):
             pct = (f"{n}: {format_value(h.get('compensation_pct'))}" for n, h in self.heave.items())
             lines.append("compensation_pct [%]  " + "  ".join(pct))

@@ -22,8 +22,10 @@ def format_value(value: float | None) -> str:
 
 
 def unit_notes(unit: str) -> dict[str, str]:
-    """The units of the error integrals for a feedback in ``unit``, as table suffixes."""
-    return {"sse_abs": f" [{unit}]", "iae": f" [{unit}·s]", "ise": f" [{unit}²·s]", "itae": f" [{unit}·s²]",
+    """The units of the error integrals for a feedback in ``unit``, as table suffixes
+    (a compound unit is bracketed before it is squared: ``(rad/s)²·s``)."""
+    squared = f"({unit})²" if any(c in unit for c in "/·* ") else f"{unit}²"
+    return {"sse_abs": f" [{unit}]", "iae": f" [{unit}·s]", "ise": f" [{squared}·s]", "itae": f" [{unit}·s²]",
             "peak_command": " [V]"}  # fmt: skip
 
 

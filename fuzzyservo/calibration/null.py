@@ -47,7 +47,7 @@ from fuzzyservo.calibration.replay import Replay
 
 DRAWS = 200  # surrogate records per round (numpy only: ~5 ms each with 10 candidates)
 LIMIT_DRAWS = 40  # of them, used for a candidate's detection limit (a bisection on s)
-MIN_SHARE = 0.1  # an added effect moves the outputs by >= this share of the residual level
+MIN_SHARE = 0.25  # an added effect moves the outputs by >= this share of the residual level
 REQUIRED = 0.9  # detection limit: passes in this share of draws (as detection.py)
 SEED = 28  # the surrogates' phases: a calibration is repeatable
 

@@ -58,6 +58,7 @@ class CalibrationResult(Result):
             best = summary["candidates"][:5]
             ranking = ", ".join(f"{c['name']} {format_value(c['score'])}" for c in best)
             lines.append(f"ranking (score, lower is better): {ranking}")
+        lines += [f"verdict: {line}" for line in summary["verdict"]]
         return "\n".join(lines)
 
 

@@ -217,6 +217,22 @@ def independent_run(
     ``params`` (default: the middle of the typical range), sampled at 100 Hz, with white
     noise of ``noise`` (signal -> σ, SI) on the recorded channels, and the model error
     ``mismatch`` (one of :data:`MISMATCHES`, or None)."""
+    (data,) = independent_draws(
+        effect, noise, (seed,), params=params, duration_s=duration_s, mismatch=mismatch
+    )
+    return data
+
+
+def independent_draws(
+    effect: str | None,
+    noise: dict[str, float],
+    seeds: tuple[int, ...],
+    *,
+    params: dict[str, float] | None = None,
+    duration_s: float = 22.0,
+    mismatch: str | None = None,
+) -> list[Measured]:
+    """:func:`independent_run` with each noise seed of ``seeds``: one simulation."""
     plant = _Plant(effect, dict(params or MIDDLE.get(effect, {})), mismatch)
     delay = plant.p.get("d", 0.0) if effect == "transport_delay" else 0.0
     n = round(duration_s / T_S)
@@ -246,6 +262,12 @@ def independent_run(
                 raise RuntimeError(f"independent run failed at {a:.3f} s: {sol.message}")
             x = sol.y[:, -1]
         i_prev = i_cmd
+    return [_record(t, rows, refs, currents, noise, seed, mismatch, effect) for seed in seeds]
+
+
+def _record(t, rows, refs, currents, noise, seed, mismatch, effect) -> Measured:
+    """One logged record of a simulated run: its states ``rows`` with noise of ``seed``."""
+    n = t.size
     rng = np.random.default_rng(seed)
     names = {"y": 0, "p_s": 2, "p_t": 3, "p_a": 4, "p_b": 5}  # the rig's names of p1..p4
     signals = {"ref": (refs - FB_OFFSET) / FB_GAIN, "i": currents}

@@ -183,11 +183,13 @@ def null_round(
     *,
     draws: int = DRAWS,
     seed: int = SEED,
+    candidates: int | None = None,
 ) -> Null:
     """The null of a round that starts from ``base`` (channels on the data grid) and
     fitted the candidates whose channels are ``models``, best first (finite ones are
-    tested; the residual is the best finite one's)."""
-    bonferroni = threshold(len(models))
+    tested; the residual is the best finite one's). ``candidates``: how many the
+    Bonferroni threshold splits the rate over (default: the models)."""
+    bonferroni = threshold(candidates or len(models))
     usable = [m for m in models if _finite(replay, m)]
     residual, levels = residual_levels(replay, usable[0] if usable else base)
     if draws <= 0 or not usable or not all(np.isfinite(r).all() for r in residual.values()):

@@ -29,7 +29,7 @@ force, 30 mA rated current). The generator returns a :class:`Measured` like a lo
 
 ``mismatch`` adds a model error of the size a real bench has, which no library effect
 is (issue 28): ``adc`` (the position read and logged through 16 µm ADC codes),
-``sensor_filter`` (a first-order position sensor of 3 ms), ``orifice`` (the valve
+``sensor_filter`` (a first-order position sensor of 1 ms, 160 Hz), ``orifice`` (the valve
 orifices' laminar transition at 0.3 bar instead of 0.1) or ``flow_gain`` (the valve's
 flow gain 5 % above the declared one).
 """
@@ -80,7 +80,7 @@ MIDDLE = {
 
 MISMATCHES = ("adc", "sensor_filter", "orifice", "flow_gain")
 ADC_CODE_M = 16e-6  # position code of the "adc" mismatch [m]
-SENSOR_TAU_S = 3e-3  # time constant of the "sensor_filter" mismatch [s]
+SENSOR_TAU_S = 1e-3  # "sensor_filter": a 160 Hz position sensor in a 100 Hz loop [s]
 ORIFICE_P_LAM = 0.3e5  # laminar transition of the "orifice" mismatch [Pa]
 FLOW_GAIN_ERROR = 1.05  # the "flow_gain" mismatch
 

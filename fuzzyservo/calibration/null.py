@@ -29,9 +29,12 @@ candidate explains little, so this is the residual of the fitted nominal model u
    to the predicted outputs over the record, ``share = ‖δ/σ‖ / ‖r/σ‖`` (pooled over
    channels), is at least ``MIN_SHARE`` of the residual level and its fitted size is at
    least its detection limit on this record: the smallest scale ``s`` of its fitted
-   contribution that passes the threshold in ``REQUIRED`` of the surrogate draws (the
-   effect ``s·δ`` added to each) with ``s·share ≥ MIN_SHARE``. An effect that passes the
-   test and not these is reported as negligible, with its size.
+   contribution with ``s·share ≥ MIN_SHARE`` that passes the threshold in ``REQUIRED``
+   of records like this one. Linearised, z grows in proportion to ``s`` (the
+   log-likelihood ratio with ``s²``, its spread with ``s``), so that is the ``s`` at
+   which the data's ``z`` scales to the threshold plus the ``REQUIRED`` quantile of the
+   candidate's z over the surrogates (its null spread). An effect that passes the test
+   and not these is reported as negligible, with its size.
 """
 
 from __future__ import annotations
@@ -41,12 +44,13 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
+from scipy.stats import norm
 
 from fuzzyservo.calibration.decision import ALPHA, evidence, held_out_lags, threshold
 from fuzzyservo.calibration.replay import Replay
 
 DRAWS = 200  # surrogate records per round (numpy only: ~5 ms each with 10 candidates)
-LIMIT_DRAWS = 40  # of them, used for a candidate's detection limit (a bisection on s)
+LIMIT_DRAWS = 40  # of them, for a candidate's interval and null spread of z
 MIN_SHARE = 0.25  # an added effect moves the outputs by >= this share of the residual level
 REQUIRED = 0.9  # detection limit: passes in this share of draws (as detection.py)
 SEED = 28  # the surrogates' phases: a calibration is repeatable
@@ -228,12 +232,18 @@ def assess(
     level = sum(float(r @ r) for r in residual.values())
     share = math.sqrt(direction.power() / level) if level > 0.0 else 0.0
     draws = null.surrogates[:LIMIT_DRAWS]
+    limit = MIN_SHARE / share if share > 0.0 else math.inf
+    interval = (math.nan, math.nan)
     if draws:
-        spread = float(np.std([direction.fit(d) for d in draws]))
+        fits = [direction.z(d) for d in draws]
+        spread = float(np.std([a for _, a in fits]))
         interval = (1.0 - 1.96 * spread, 1.0 + 1.96 * spread)
-        limit = max(_limit(direction, draws, null.threshold), MIN_SHARE / max(share, 1e-300))
-    else:
-        interval, limit = (math.nan, math.nan), MIN_SHARE / max(share, 1e-300)
+        # z grows in proportion to the size (the log-likelihood ratio with its square,
+        # its spread with the size): found in REQUIRED of the records where its expected
+        # z is the threshold plus that quantile of the null's spread of z
+        z_spread = float(np.std([z for z, _ in fits]))
+        needed = null.threshold + float(norm.ppf(REQUIRED)) * z_spread
+        limit = max(limit, needed / z if z > 0.0 else math.inf)
     if z <= null.threshold:
         verdict = "not established"
     elif share >= MIN_SHARE and limit <= 1.0:
@@ -241,27 +251,3 @@ def assess(
     else:
         verdict = "negligible"
     return Assessment(name, z, share, limit, interval, verdict)
-
-
-def _limit(direction: _Direction, draws: Sequence[Mapping[str, np.ndarray]], z_min: float) -> float:
-    """Smallest scale of the contribution found in ``REQUIRED`` of ``draws`` (bisection on
-    a log scale, to 5 %; inf beyond 1000)."""
-
-    def found(scale: float) -> bool:
-        return np.mean([direction.z(d, scale)[0] > z_min for d in draws]) >= REQUIRED
-
-    lo, hi = 0.0, 1.0
-    while not found(hi):
-        lo, hi = hi, hi * 4.0
-        if hi > 1e3:
-            return math.inf
-    if lo == 0.0:
-        lo = hi / 4.0
-        while found(lo):
-            hi, lo = lo, lo / 4.0
-            if lo < 1e-4:
-                return hi
-    while hi / lo > 1.05:
-        mid = math.sqrt(lo * hi)
-        lo, hi = (lo, mid) if found(mid) else (mid, hi)
-    return hi

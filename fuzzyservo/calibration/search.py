@@ -495,9 +495,8 @@ def calibrate(
                               draws=bootstrap_draws, seed=SEED + len(rounds))  # fmt: skip
             z_min = null.threshold
             best = results[0] if results else None
-            judged = _judge(replay, current_model, results, null)
-            accept = bool(judged) and judged[0].verdict == "added"
-            ambiguous = _ties(replay, results, z_min) if accept else ()
+            significant = best is not None and _significant(best, z_min)
+            ambiguous = _ties(replay, results, z_min) if significant else ()
             if ambiguous:  # parsimony: the simplest of the tied candidates goes first
                 tied = [c for c in results if c.name in (best.name, *ambiguous)]
                 simplest = min(tied, key=lambda c: (c.n_params, c.score))
@@ -506,7 +505,10 @@ def calibrate(
                     results.insert(0, simplest)
                     ambiguous = tuple(c.name for c in tied if c is not simplest)
                     best = simplest
-                    judged = _judge(replay, current_model, results, null, added=True)
+            judged = _judge(replay, current_model, results, null)
+            accept = bool(judged) and judged[0].verdict == "added"
+            if not accept:
+                ambiguous = ()
             experiments: tuple[Separation, ...] = ()
             first = getattr(replay, "records", (replay,))[0]
             if ambiguous:
@@ -675,25 +677,16 @@ def _uncertainty(
 
 
 def _judge(
-    replay: Replay,
-    base_model: dict[str, np.ndarray],
-    ranked: Sequence[Candidate],
-    null: Null,
-    *,
-    added: bool = False,
+    replay: Replay, base_model: dict[str, np.ndarray], ranked: Sequence[Candidate], null: Null
 ) -> tuple[Assessment, ...]:
-    """The first JUDGED candidates against the round's ``null`` (null.assess); ``added``:
-    the first is added whatever its own verdict (the simplest of candidates tied with
-    one that passed)."""
+    """The first JUDGED candidates against the round's ``null`` (null.assess)."""
     out = []
-    for c in ranked[:JUDGED]:
+    for k, c in enumerate(ranked[:JUDGED]):
         z = c.evidence.z if c.evidence is not None else math.nan
-        out.append(assess(replay, base_model, c.model, c.name, z, null))
-    if added and out:
-        out[0] = dataclasses.replace(out[0], verdict="added")
-    for k, a in enumerate(out[1:], start=1):  # only the first of a round can be added
-        if a.verdict == "added":
-            out[k] = dataclasses.replace(a, verdict="out-ranked")
+        a = assess(replay, base_model, c.model, c.name, z, null)
+        if k and a.verdict == "added":  # only the first of a round can be added
+            a = dataclasses.replace(a, verdict="out-ranked")
+        out.append(a)
     return tuple(out)
 
 

@@ -19,7 +19,7 @@ from __future__ import annotations
 from pathlib import Path
 
 import pytest
-from independent_rig import MIDDLE, independent_run
+from independent_rig import MIDDLE, MISMATCHES, independent_run
 from support import controller_named
 from test_calibration import NOISE, old_loop
 
@@ -62,3 +62,16 @@ def test_independent_null_run_adds_nothing(tmp_path: Path) -> None:
     ctl = controller_named("p_k10")
     data = independent_run(None, NOISE, seed=11)
     assert calibrate(make_replay(rig, data, ctl), rig).added == ()
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("mismatch", MISMATCHES)
+def test_model_mismatch_alone_adds_nothing(tmp_path: Path, mismatch: str) -> None:
+    """No effect, one model error of a real bench's size (issue 28: ADC codes, a sensor
+    filter, another orifice smoothing, a 5 % flow-gain error): the record's null
+    (calibration/null.py) and the practical-significance rule add nothing. One draw
+    here; tests/mismatch_null.py measures the rate over 20 (README)."""
+    rig = load_rig(old_loop(tmp_path))
+    data = independent_run(None, NOISE, seed=11, mismatch=mismatch)
+    outcome = calibrate(make_replay(rig, data, controller_named("p_k10")), rig, max_effects=1)
+    assert outcome.added == ()

@@ -5,6 +5,7 @@ from __future__ import annotations
 from collections.abc import Callable, Sequence
 from typing import TYPE_CHECKING
 
+from fuzzyservo.calibration.null import DRAWS
 from fuzzyservo.calibration.run import Calibration, CalibrationResult, prepare
 
 if TYPE_CHECKING:
@@ -23,6 +24,7 @@ def calibrate(
     per_record: Sequence[str] = (),
     workers: int = 1,
     progress: Callable[[str], object] | None = None,
+    bootstrap_draws: int = DRAWS,
 ) -> CalibrationResult:
     """Fit ``rig`` to measured ``data`` (a :class:`Measured`; read a data file with
     :func:`fuzzyservo.io.measured.read_rig_data`): its unknowns
@@ -32,12 +34,20 @@ def calibrate(
     shared, the unknowns named in ``per_record`` (rig-file keys) fitted per record.
     ``workers`` > 1 fits each round's candidates in that many processes.
 
+    Each round adds its best candidate only when it passes the held-out test at a
+    threshold calibrated on ``bootstrap_draws`` surrogate records of its own residual
+    (model error included; calibration/null.py) and matters (its contribution and size
+    against the residual level and its detection limit); the result states the
+    false-positive rate on the record, negligible effects and candidates not established.
+
     With a ``controller`` the data's reference drives the closed loop; without, its
     recorded valve input drives the plant. Print the result, or write the report and
     the calibrated rig file with :func:`fuzzyservo.io.calibration_report.write_calibration`.
     """
     setup = prepare(rig, data, controller, effects=effects, per_record=per_record)
-    return setup.run(max_effects=max_effects, workers=workers, progress=progress)
+    return setup.run(
+        max_effects=max_effects, workers=workers, progress=progress, bootstrap_draws=bootstrap_draws
+    )
 
 
 __all__ = ["Calibration", "CalibrationResult", "calibrate", "prepare"]

@@ -11,6 +11,7 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
 
+from fuzzyservo.calibration.null import DRAWS
 from fuzzyservo.calibration.replay import Replay
 from fuzzyservo.calibration.search import Outcome, candidate_effects
 from fuzzyservo.components.effects import LIBRARY
@@ -94,14 +95,17 @@ class Calibration:
         max_effects: int = 2,
         workers: int = 1,
         progress: Callable[[str], object] | None = None,
+        bootstrap_draws: int = DRAWS,
     ) -> CalibrationResult:
         """Fit the unknowns, then add up to ``max_effects`` effects; ``progress(name)``
-        as each candidate starts (one worker) or ends (several)."""
+        as each candidate starts (one worker) or ends (several). ``bootstrap_draws``:
+        surrogate records of each round's null (null.py; no simulation)."""
         from fuzzyservo.calibration.search import calibrate as search
 
         effects = None if self.effects is None else list(self.effects)
         outcome = search(self.replay, self.rig, effects=effects, max_effects=max_effects,
-                         progress=progress, workers=workers)  # fmt: skip
+                         progress=progress, workers=workers,
+                         bootstrap_draws=bootstrap_draws)  # fmt: skip
         return CalibrationResult(outcome, self.replay)
 
 

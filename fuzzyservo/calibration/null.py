@@ -3,10 +3,12 @@
 decision.py's error rate holds where the replay reproduces the data up to noise. A real
 record never does: a rig differs from its model by more than its sensor noise, and that
 model error is correlated in time and across channels. So each round's decision is
-calibrated on the record at hand, with the residual ``r_c = y_c − ŷ_c`` (the whole
-record, every channel c of noise floor σ_c) that the round's best candidate leaves: what
-an effect explains is not disturbance, and on a record without a missing effect the best
-candidate explains little, so this is the residual of the fitted nominal model up to that:
+calibrated on the record at hand, with the residual ``r_c = y_c − ŷ_c`` of the round's
+starting model (the whole record, every channel c of noise floor σ_c) less what the
+round's candidates together explain of it (least squares on all their contributions):
+what effects explain is not disturbance (with two effects missing, the one the best
+candidate leaves is no model error), and on a record without a missing effect they
+explain little, so this is the residual of the fitted nominal model up to that:
 
 1. **The residual's own level and correlation** (:func:`residual_levels`): its RMS in
    noise units and its correlation time (the first lag at which its autocorrelation
@@ -25,16 +27,17 @@ candidate explains little, so this is the residual of the fitted nominal model u
    are at hand. The round's threshold is the larger of decision.py's (Bonferroni) and
    the ``1 − ALPHA`` quantile of the largest z over the candidates in each draw; the
    share of draws whose largest z passes it is the false-positive rate on this record.
-3. **Practical significance** (:func:`assess`). An effect matters when its contribution
-   to the predicted outputs over the record, ``share = ‖δ/σ‖ / ‖r/σ‖`` (pooled over
-   channels), is at least ``MIN_SHARE`` of the residual level and its fitted size is at
-   least its detection limit on this record: the smallest scale ``s`` of its fitted
-   contribution with ``s·share ≥ MIN_SHARE`` that passes the threshold in ``REQUIRED``
-   of records like this one. Linearised, z grows in proportion to ``s`` (the
-   log-likelihood ratio with ``s²``, its spread with ``s``), so that is the ``s`` at
-   which the data's ``z`` scales to the threshold plus the ``REQUIRED`` quantile of the
-   candidate's z over the surrogates (its null spread). An effect that passes the test
-   and not these is reported as negligible, with its size.
+3. **Practical significance** (:func:`assess`). An effect is added when it passes the
+   test (its size is above the one that would just pass on this record) and its
+   contribution to the predicted outputs over the record, ``share = ‖δ/σ‖ / ‖r/σ‖``
+   (pooled over channels), is at least ``MIN_SHARE`` of the residual level; one that
+   passes the test and not this is reported as negligible, with its size. Each judged
+   candidate carries its detection limit on this record: the smallest scale ``s`` of
+   its fitted contribution with ``s·share ≥ MIN_SHARE`` that passes the threshold in
+   ``REQUIRED`` of records like this one. Linearised, z grows in proportion to ``s``
+   (the log-likelihood ratio with ``s²``, its spread with ``s``), so that is the ``s``
+   at which the data's ``z`` scales to the threshold plus the ``REQUIRED`` quantile of
+   the candidate's z over the surrogates (its null spread).
 """
 
 from __future__ import annotations
@@ -127,11 +130,13 @@ def _correlation_time(r: np.ndarray) -> int:
 def surrogates(
     residual: Mapping[str, np.ndarray], draws: int, seed: int
 ) -> tuple[dict[str, np.ndarray], ...]:
-    """``draws`` phase-randomised surrogates of the channels ``residual`` (one set of
-    random phases for all channels; the mean and, for an even length, the Nyquist
+    """``draws`` phase-randomised surrogates of the channels ``residual`` about their
+    means (one set of random phases for all channels; for an even length the Nyquist
     term kept)."""
     rng = np.random.default_rng(seed)
-    spectra = {c: np.fft.rfft(r) for c, r in residual.items()}
+    # about its mean: a constant residual is no disturbance (a null shift would take
+    # it in every draw), and the spectrum's zero-frequency term cannot be randomised
+    spectra = {c: np.fft.rfft(r - np.mean(r)) for c, r in residual.items()}
     n = next(iter(residual.values())).size
     m = n // 2 + 1
     out = []
@@ -180,6 +185,20 @@ def _finite(replay: Replay, model: Mapping[str, np.ndarray]) -> bool:
     return all(np.isfinite(model[c]).all() for c in replay.channels)
 
 
+def _unexplained(
+    residual: Mapping[str, np.ndarray], directions: Sequence[_Direction]
+) -> dict[str, np.ndarray]:
+    """What of ``residual`` no combination of the candidates' contributions explains:
+    its least-squares remainder on all of them together (whole record, noise units)."""
+    channels = list(residual)
+    r = np.concatenate([residual[c] for c in channels])
+    basis = np.column_stack([np.concatenate([d.delta[c] for c in channels]) for d in directions])
+    coef, *_ = np.linalg.lstsq(basis, r, rcond=None)
+    rest = r - basis @ coef
+    sizes = np.cumsum([0] + [residual[c].size for c in channels])
+    return {c: rest[sizes[k] : sizes[k + 1]] for k, c in enumerate(channels)}
+
+
 def null_round(
     replay: Replay,
     base: Mapping[str, np.ndarray],
@@ -190,15 +209,21 @@ def null_round(
     candidates: int | None = None,
 ) -> Null:
     """The null of a round that starts from ``base`` (channels on the data grid) and
-    fitted the candidates whose channels are ``models``, best first (finite ones are
-    tested; the residual is the best finite one's). ``candidates``: how many the
-    Bonferroni threshold splits the rate over (default: the models)."""
+    fitted the candidates whose channels are ``models`` (finite ones are tested; the
+    residual is what they leave together). ``candidates``: how many the Bonferroni
+    threshold splits the rate over (default: the models)."""
     bonferroni = threshold(candidates or len(models))
     usable = [m for m in models if _finite(replay, m)]
-    residual, levels = residual_levels(replay, usable[0] if usable else base)
+    residual, levels = residual_levels(replay, base)
     if draws <= 0 or not usable or not all(np.isfinite(r).all() for r in residual.values()):
         return Null(0, bonferroni, bonferroni, math.nan, math.nan, math.nan, levels)
     directions = [_Direction(replay, base, m) for m in usable]
+    residual = _unexplained(residual, directions)
+    dt = float(replay.data.sample_period_s)
+    levels = {
+        c: Level(float(np.sqrt(np.mean(r * r))), _correlation_time(r) * dt)
+        for c, r in residual.items()
+    }
     draws_ = surrogates(residual, draws, seed)
     largest = np.array([max(d.z(s)[0] for d in directions) for s in draws_])
     quantile = float(np.quantile(largest, 1.0 - ALPHA))
@@ -246,7 +271,7 @@ def assess(
         limit = max(limit, needed / z if z > 0.0 else math.inf)
     if z <= null.threshold:
         verdict = "not established"
-    elif share >= MIN_SHARE and limit <= 1.0:
+    elif share >= MIN_SHARE:
         verdict = "added"
     else:
         verdict = "negligible"

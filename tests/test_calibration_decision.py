@@ -156,11 +156,13 @@ def test_null_data_adds_an_effect_in_at_most_5_percent_of_20_draws(rig) -> None:
 def test_leakage_and_null_shift_are_ambiguous_and_the_suggested_experiment_separates(
     rig,
 ) -> None:
-    """On position alone, a leakage near its detection limit and a valve null shift leave
-    the same residual under the pulses: calibration says so and proposes an experiment;
-    run on that experiment, the leakage is named and no longer tied with the shift."""
+    """On position alone, a leakage a little above its detection limit and a valve null
+    shift leave the same residual under the pulses: calibration says so and proposes an
+    experiment; run on that experiment, the leakage is named and no longer tied with the
+    shift. (At 3e-14 the leakage moves the position by 23 % of the residual level, below
+    null.MIN_SHARE: since issue 28 it is reported as negligible, not added.)"""
     ctl = controller_named("p_k10")
-    leak = {"internal_leakage": {"coefficient": 3e-14}}
+    leak = {"internal_leakage": {"coefficient": 5e-14}}
     data = synthetic_run(rig, ctl, "pulses", leak, {"y": NOISE["y"]}, seed=7)
     outcome = calibrate(make_replay(rig, data, ctl), rig, max_effects=1)
     first = outcome.rounds[0]

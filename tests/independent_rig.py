@@ -26,6 +26,12 @@ supply_droop        a 6 l/min pump into a 0.2 l supply node with a relief valve 
 
 Sizes are the middle of docs/modelling.md's typical ranges (cylinder, 4.9 kN stall
 force, 30 mA rated current). The generator returns a :class:`Measured` like a logger's.
+
+``mismatch`` adds a model error of the size a real bench has, which no library effect
+is (issue 28): ``adc`` (the position read and logged through 16 µm ADC codes),
+``sensor_filter`` (a first-order position sensor of 1 ms, 160 Hz), ``orifice`` (the valve
+orifices' laminar transition at 0.3 bar instead of 0.1) or ``flow_gain`` (the valve's
+flow gain 5 % above the declared one).
 """
 
 from __future__ import annotations
@@ -72,8 +78,15 @@ MIDDLE = {
 }
 
 
-def _sqrt_flow(k: float, dp: float) -> float:
-    return k * dp / math.sqrt(math.sqrt(dp * dp + P_LAM * P_LAM))
+MISMATCHES = ("adc", "sensor_filter", "orifice", "flow_gain")
+ADC_CODE_M = 16e-6  # position code of the "adc" mismatch [m]
+SENSOR_TAU_S = 1e-3  # "sensor_filter": a 160 Hz position sensor in a 100 Hz loop [s]
+ORIFICE_P_LAM = 0.3e5  # laminar transition of the "orifice" mismatch [Pa]
+FLOW_GAIN_ERROR = 1.05  # the "flow_gain" mismatch
+
+
+def _sqrt_flow(k: float, dp: float, p_lam: float = P_LAM) -> float:
+    return k * dp / math.sqrt(math.sqrt(dp * dp + p_lam * p_lam))
 
 
 def _reference(t: float) -> float:
@@ -85,10 +98,22 @@ class _Plant:
     """States: y, v, p1, p2, p3, p4, then the effect's own (LuGre z, spool x and ẋ,
     line-node pressures, supply-node pressure)."""
 
-    def __init__(self, effect: str | None, params: dict[str, float]):
+    def __init__(self, effect: str | None, params: dict[str, float], mismatch: str | None = None):
+        if mismatch is not None and mismatch not in MISMATCHES:
+            raise ValueError(f"mismatch must be one of {MISMATCHES}, but got {mismatch!r}")
         self.effect = effect
         self.p = params
         self.e = params["e"] if effect == "bulk_modulus" else E_OIL
+        self.mismatch = mismatch
+        self.p_lam = ORIFICE_P_LAM if mismatch == "orifice" else P_LAM
+        self.b_slot = B_SLOT * (FLOW_GAIN_ERROR if mismatch == "flow_gain" else 1.0)
+
+    def sensed(self, x: np.ndarray) -> float:
+        """The position the sensor gives (read by the loop and logged) [m]."""
+        y = x[-1] if self.mismatch == "sensor_filter" else x[0]
+        if self.mismatch == "adc":
+            y = ADC_CODE_M * math.floor(y / ADC_CODE_M + 0.5)
+        return y
 
     def x0(self) -> np.ndarray:
         x = [0.0, 0.0, P_S, P_R, P30, P40]
@@ -100,6 +125,8 @@ class _Plant:
             x += [P30, P40]
         elif self.effect == "supply_droop":
             x.append(P_S)
+        if self.mismatch == "sensor_filter":
+            x.append(0.0)
         return np.array(x)
 
     def current(self, i: float) -> float:
@@ -121,8 +148,8 @@ class _Plant:
             dx[6] = vs_
             dx[7] = wn * wn * (di - xs) - 2 * zeta * wn * vs_
             di = xs
-        c14 = max(A_SLOT + B_SLOT * di, 0.0) if di > -I_CL else 0.0
-        c23 = max(A_SLOT - B_SLOT * di, 0.0) if di < I_CL else 0.0
+        c14 = max(A_SLOT + self.b_slot * di, 0.0) if di > -I_CL else 0.0
+        c23 = max(A_SLOT - self.b_slot * di, 0.0) if di < I_CL else 0.0
         ps = x[6] if self.effect == "supply_droop" else P_S
         qa = _sqrt_flow(R_A, ps - p1)
         qr = _sqrt_flow(R_R, p2 - P_R)
@@ -130,10 +157,10 @@ class _Plant:
             pa_, pb_ = x[6], x[7]  # line-node pressures at the valve ports
         else:
             pa_, pb_ = p3, p4
-        q1 = _sqrt_flow(c14, p1 - pa_)
-        q2 = _sqrt_flow(c23, pa_ - p2)
-        q3 = _sqrt_flow(c23, p1 - pb_)
-        q4 = _sqrt_flow(c14, pb_ - p2)
+        q1 = _sqrt_flow(c14, p1 - pa_, self.p_lam)
+        q2 = _sqrt_flow(c23, pa_ - p2, self.p_lam)
+        q3 = _sqrt_flow(c23, p1 - pb_, self.p_lam)
+        q4 = _sqrt_flow(c14, pb_ - p2, self.p_lam)
         qa3, qb4 = q1 - q2, q3 - q4  # flow into chamber 3 / 4 from the valve
         if self.effect == "line_resistance":
             k, v_line = self.p["k"], 1e-6
@@ -172,6 +199,8 @@ class _Plant:
         dx[3] = self.e / V2 * (q2 + q4 - qr)
         dx[4] = self.e / v3 * (qa3 - q_leak - S3 * v)
         dx[5] = self.e / v4 * (qb4 + q_leak + S4 * v)
+        if self.mismatch == "sensor_filter":
+            dx[-1] = (y - x[-1]) / SENSOR_TAU_S
         return dx
 
 
@@ -182,11 +211,29 @@ def independent_run(
     params: dict[str, float] | None = None,
     seed: int = 0,
     duration_s: float = 22.0,
+    mismatch: str | None = None,
 ) -> Measured:
     """Seed-002 P K=10 pulses with ``effect`` (a key of :data:`MIDDLE`, or None) at
     ``params`` (default: the middle of the typical range), sampled at 100 Hz, with white
-    noise of ``noise`` (signal -> σ, SI) on the recorded channels."""
-    plant = _Plant(effect, dict(params or MIDDLE.get(effect, {})))
+    noise of ``noise`` (signal -> σ, SI) on the recorded channels, and the model error
+    ``mismatch`` (one of :data:`MISMATCHES`, or None)."""
+    (data,) = independent_draws(
+        effect, noise, (seed,), params=params, duration_s=duration_s, mismatch=mismatch
+    )
+    return data
+
+
+def independent_draws(
+    effect: str | None,
+    noise: dict[str, float],
+    seeds: tuple[int, ...],
+    *,
+    params: dict[str, float] | None = None,
+    duration_s: float = 22.0,
+    mismatch: str | None = None,
+) -> list[Measured]:
+    """:func:`independent_run` with each noise seed of ``seeds``: one simulation."""
+    plant = _Plant(effect, dict(params or MIDDLE.get(effect, {})), mismatch)
     delay = plant.p.get("d", 0.0) if effect == "transport_delay" else 0.0
     n = round(duration_s / T_S)
     t = np.arange(n) * T_S
@@ -197,8 +244,9 @@ def independent_run(
     i_prev = I_BIAS
     for k in range(n):
         rows[k] = x[:6]
+        rows[k, 0] = x[-1] if mismatch == "sensor_filter" else x[0]
         ref = _reference(t[k])
-        u = K_P * (ref - (FB_OFFSET + FB_GAIN * x[0]))
+        u = K_P * (ref - (FB_OFFSET + FB_GAIN * plant.sensed(x)))
         u = min(max(u, -10.0), 10.0)
         i_cmd = min(max(K_UI * u, -I_MAX), I_MAX)
         refs[k], currents[k] = ref, i_cmd
@@ -214,12 +262,20 @@ def independent_run(
                 raise RuntimeError(f"independent run failed at {a:.3f} s: {sol.message}")
             x = sol.y[:, -1]
         i_prev = i_cmd
+    return [_record(t, rows, refs, currents, noise, seed, mismatch, effect) for seed in seeds]
+
+
+def _record(t, rows, refs, currents, noise, seed, mismatch, effect) -> Measured:
+    """One logged record of a simulated run: its states ``rows`` with noise of ``seed``."""
+    n = t.size
     rng = np.random.default_rng(seed)
     names = {"y": 0, "p_s": 2, "p_t": 3, "p_a": 4, "p_b": 5}  # the rig's names of p1..p4
     signals = {"ref": (refs - FB_OFFSET) / FB_GAIN, "i": currents}
     units = {"ref": "m", "i": "A"}
     for name, sigma in noise.items():
         signals[name] = rows[:, names[name]] + rng.normal(0.0, sigma, n)
+        if name == "y" and mismatch == "adc":  # the logger reads the noisy sensor's codes
+            signals[name] = ADC_CODE_M * np.floor(signals[name] / ADC_CODE_M + 0.5)
         units[name] = "m" if name == "y" else "Pa"
     return Measured(
         t=t,

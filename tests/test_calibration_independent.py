@@ -19,7 +19,7 @@ from __future__ import annotations
 from pathlib import Path
 
 import pytest
-from independent_rig import MIDDLE, independent_run
+from independent_rig import MIDDLE, MISMATCHES, independent_run
 from support import controller_named
 from test_calibration import NOISE, old_loop
 
@@ -62,3 +62,32 @@ def test_independent_null_run_adds_nothing(tmp_path: Path) -> None:
     ctl = controller_named("p_k10")
     data = independent_run(None, NOISE, seed=11)
     assert calibrate(make_replay(rig, data, ctl), rig).added == ()
+
+
+# mismatch -> why an effect is still added (an xfail): measured on issue 28's rule
+MISMATCH_MISSES: dict[str, str] = {
+    "sensor_filter": "a 1 ms first-order sensor in the loop is a 1 ms loop delay: "
+    "transport_delay is added at 0.99 ms (z 32, most of the residual); the library has no "
+    "sensor-lag effect that would name it",
+}
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize(
+    "mismatch",
+    [
+        pytest.param(m, marks=pytest.mark.xfail(reason=MISMATCH_MISSES[m], strict=False))
+        if m in MISMATCH_MISSES
+        else m
+        for m in MISMATCHES
+    ],
+)
+def test_model_mismatch_alone_adds_nothing(tmp_path: Path, mismatch: str) -> None:
+    """No effect, one model error of a real bench's size (issue 28: ADC codes, a sensor
+    filter, another orifice smoothing, a 5 % flow-gain error): the record's null
+    (calibration/null.py) and the practical-significance rule add nothing. One draw
+    here; tests/mismatch_null.py measures the rate over 20 (README)."""
+    rig = load_rig(old_loop(tmp_path))
+    data = independent_run(None, NOISE, seed=11, mismatch=mismatch)
+    outcome = calibrate(make_replay(rig, data, controller_named("p_k10")), rig, max_effects=1)
+    assert outcome.added == ()

@@ -5,6 +5,7 @@ from __future__ import annotations
 from collections.abc import Callable, Sequence
 from typing import TYPE_CHECKING
 
+from fuzzyservo.calibration.null import DRAWS
 from fuzzyservo.calibration.run import Calibration, CalibrationResult, prepare
 
 if TYPE_CHECKING:
@@ -24,6 +25,7 @@ def calibrate(
     workers: int = 1,
     cluster: str | None = None,
     progress: Callable[[str], object] | None = None,
+    bootstrap_draws: int = DRAWS,
 ) -> CalibrationResult:
     """Fit ``rig`` to measured ``data`` (a :class:`Measured`; read a data file with
     :func:`fuzzyservo.io.measured.read_rig_data`): its unknowns
@@ -34,13 +36,19 @@ def calibrate(
     ``workers`` > 1 fits each round's candidates in that many processes, ``cluster`` (a
     Dask scheduler, ``tcp://HOST:PORT``) on its workers: the same result either way.
 
+    Each round adds its best candidate only when it passes the held-out test at a
+    threshold calibrated on ``bootstrap_draws`` surrogate records of its own residual
+    (model error included; calibration/null.py) and matters (its contribution and size
+    against the residual level and its detection limit); the result states the
+    false-positive rate on the record, negligible effects and candidates not established.
+
     With a ``controller`` the data's reference drives the closed loop; without, its
     recorded valve input drives the plant. Print the result, or write the report and
     the calibrated rig file with :func:`fuzzyservo.io.calibration_report.write_calibration`.
     """
     setup = prepare(rig, data, controller, effects=effects, per_record=per_record)
     return setup.run(max_effects=max_effects, workers=workers, cluster=cluster,
-                     progress=progress)  # fmt: skip
+                     progress=progress, bootstrap_draws=bootstrap_draws)  # fmt: skip
 
 
 __all__ = ["Calibration", "CalibrationResult", "calibrate", "prepare"]

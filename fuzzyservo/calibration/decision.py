@@ -62,10 +62,10 @@ def threshold(candidates: int, alpha: float = ALPHA) -> float:
     return float(norm.isf(alpha / max(candidates, 1)))
 
 
-def _lags(replay: Replay, n: int) -> int:
+def held_out_lags(replay: Replay) -> int:
+    """Longest lag the long-run variance of ``replay``'s held-out residuals looks at."""
     dt = float(replay.data.sample_period_s)
-    lags = max(25, round(CORRELATION_TIME_S / dt)) if dt > 0 else 25
-    return int(min(lags, max(n // 4, 1)))
+    return max(25, round(CORRELATION_TIME_S / dt)) if dt > 0 else 25
 
 
 def long_run_variance(w: np.ndarray, lags: int) -> float:
@@ -87,23 +87,32 @@ def held_out_evidence(
     """Evidence on the held-out part that ``model_b`` (channels on the data grid) beats
     ``model_a``. A model with non-finite samples (a diverged replay) always loses."""
     part = slice(replay.split, None)
-    log_lr = 0.0
-    variance = 0.0
-    gamma = 0.0
-    samples = 0
     finite_a = all(np.isfinite(model_a[c][part]).all() for c in replay.channels)
     finite_b = all(np.isfinite(model_b[c][part]).all() for c in replay.channels)
     if not finite_b or not finite_a:
         z = -math.inf if not finite_b else math.inf
         return Evidence(log_lr=z, z=z, n_eff=0.0, samples=0)
+    e_a, e_b = {}, {}
     for channel in replay.channels:
         y = replay.measured(channel)[part]
         sigma = replay.sigma[channel]
-        e_a = (y - model_a[channel][part]) / sigma
-        e_b = (y - model_b[channel][part]) / sigma
-        log_lr += 0.5 * float(e_a @ e_a - e_b @ e_b)
-        w = e_b * (e_a - e_b)
-        variance += long_run_variance(w, _lags(replay, w.size))
+        e_a[channel] = (y - model_a[channel][part]) / sigma
+        e_b[channel] = (y - model_b[channel][part]) / sigma
+    return evidence(e_a, e_b, held_out_lags(replay))
+
+
+def evidence(e_a: Mapping[str, np.ndarray], e_b: Mapping[str, np.ndarray], lags: int) -> Evidence:
+    """The test on held-out residuals in noise units of model a (``e_a``) and model b
+    (``e_b``), channel -> samples; the long-run variance looks ``lags`` samples back."""
+    log_lr = 0.0
+    variance = 0.0
+    gamma = 0.0
+    samples = 0
+    for channel, ea in e_a.items():
+        eb = e_b[channel]
+        log_lr += 0.5 * float(ea @ ea - eb @ eb)
+        w = eb * (ea - eb)
+        variance += long_run_variance(w, min(lags, max(w.size // 4, 1)))
         gamma += float(w @ w)
         samples += int(w.size)
     spread = math.sqrt(variance)

@@ -6,8 +6,9 @@ effect at a ladder of sizes, each over several noise draws.
 * **false-positive rate**: the full calibration on runs without any effect; the share
   of draws in which an effect is added (decision.py promises at most ``ALPHA``).
 * **detection limit**: for each effect, the smallest size at which the effect's own
-  candidate passes the decision test at the threshold of the full library (the one a
-  calibration would apply in its first round) in at least ``REQUIRED`` of the draws.
+  candidate is added by the first round's rule (null.py: the test at the threshold of
+  the full library and of the record's bootstrap, and a contribution that matters) in
+  at least ``REQUIRED`` of the draws.
   Only the true effect is fitted (a whole library per draw would take hours); whether
   it is also ranked first is checked by the tests at the typical sizes.
 
@@ -19,7 +20,8 @@ from __future__ import annotations
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 
-from fuzzyservo.calibration.decision import held_out_evidence, threshold
+from fuzzyservo.calibration.decision import held_out_evidence
+from fuzzyservo.calibration.null import assess, null_round
 from fuzzyservo.calibration.replay import make_replay
 from fuzzyservo.calibration.search import calibrate, candidate_effects, fit
 from fuzzyservo.calibration.synthetic import synthetic_run
@@ -79,9 +81,9 @@ def detected(
     replay = make_replay(rig, data, controller)
     nominal, _ = replay.run(rig)
     _, candidate = fit(replay, rig, effect)
-    return held_out_evidence(replay, nominal, candidate.model).z > threshold(
-        len(candidate_effects(rig))
-    )
+    z = held_out_evidence(replay, nominal, candidate.model).z
+    null = null_round(replay, nominal, [candidate.model], candidates=len(candidate_effects(rig)))
+    return assess(replay, nominal, candidate.model, effect, z, null).verdict == "added"
 
 
 def detection_ladder(

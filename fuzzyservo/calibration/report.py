@@ -10,6 +10,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from fuzzyservo.calibration.joint import split_field
+from fuzzyservo.calibration.null import MIN_SHARE, REQUIRED, Assessment, Null
 from fuzzyservo.calibration.replay import Replay
 from fuzzyservo.calibration.residuals import (
     noise_floor,
@@ -17,9 +18,9 @@ from fuzzyservo.calibration.residuals import (
     signature_regression,
     whiteness,
 )
-from fuzzyservo.calibration.search import Outcome, fit_table
+from fuzzyservo.calibration.search import Outcome, Round, fit_table
 from fuzzyservo.calibration.signatures import mean_share, signatures
-from fuzzyservo.components.effects import owner
+from fuzzyservo.components.effects import LIBRARY, owner
 from fuzzyservo.rig import Rig
 
 if TYPE_CHECKING:
@@ -134,6 +135,8 @@ def summary_data(outcome: Outcome, replay: Replay) -> dict[str, Any]:
                 {"name": e.name, "description": e.description, "distance": e.distance}
                 for e in r.experiments
             ],
+            "null": _null_data(r.null),
+            "judged": [_judged(outcome, r, a) for a in r.assessments],
             "candidates": [
                 {
                     "name": c.name,
@@ -187,7 +190,131 @@ def summary_data(outcome: Outcome, replay: Replay) -> dict[str, Any]:
         "channels": dict(replay.channels),
     }
     data["seconds"] = outcome.seconds
+    data["false_positive_rate"] = _false_positive_rate(outcome)
+    data["negligible"] = [
+        j for r in data["rounds"] for j in r["judged"] if j["verdict"] == "negligible"
+    ]
+    last = data["rounds"][-1]["judged"] if data["rounds"] else []
+    data["not_established"] = [j for j in last if j["verdict"] == "not established" and j["z"] > 0]
+    data["verdict"] = verdict_lines(data)
     return data
+
+
+def _false_positive_rate(outcome: Outcome) -> float | None:
+    """The first round's rate on its record's null (what adding any effect risks)."""
+    nulls = [r.null for r in outcome.rounds if r.null is not None and r.null.draws]
+    return nulls[0].false_positive_rate if nulls else None
+
+
+def _null_data(null: Null | None) -> dict[str, Any] | None:
+    if null is None:
+        return None
+    return {
+        "draws": null.draws,
+        "threshold_z": null.threshold,
+        "bonferroni_z": null.bonferroni,
+        "bootstrap_quantile_z": null.quantile,
+        "false_positive_rate": null.false_positive_rate,
+        "false_positive_rate_bonferroni": null.bonferroni_rate,
+        "residual": {
+            c: {"rms_over_noise": lv.rms_sigma, "correlation_s": lv.correlation_s}
+            for c, lv in null.levels.items()
+        },
+    }
+
+
+def _judged(outcome: Outcome, r: Round, a: Assessment) -> dict[str, Any]:
+    """A judged candidate: its fitted size, z, share of the residual, the 95 % interval
+    and detection limit of its size (as scales of the fitted contribution, and in SI
+    for the effect's first parameter when it is off at 0) and the experiment that would
+    establish it."""
+    candidate = next(c for c in r.candidates if c.name == a.name)
+    out: dict[str, Any] = {
+        "name": a.name,
+        "verdict": a.verdict,
+        "params": dict(candidate.params),
+        "z": a.z,
+        "share_of_residual": a.share,
+        "interval_scale": list(a.interval),
+        "limit_scale": a.limit,
+    }
+    size = _size_param(outcome.declared, a.name)
+    if size is not None and size in candidate.params:
+        value = candidate.params[size]
+        out["size"] = {
+            "param": size,
+            "value": value,
+            "interval": [value * a.interval[0], value * a.interval[1]],
+            "limit": value * a.limit,
+        }
+    for name, experiment, recorded in r.establish:
+        if name == a.name:
+            out["experiment"] = {
+                "name": experiment.name,
+                "description": experiment.description,
+                "distance": experiment.distance,
+                "distance_recorded": recorded,
+            }
+    return out
+
+
+def _size_param(rig: Rig, effect: str) -> str | None:
+    """The key of an effect's size: its first fitted parameter, if the effect is off at 0
+    (a bulk modulus or a pump flow is not a size)."""
+    fitted = LIBRARY[effect].fitted
+    if not fitted:
+        return None
+    lo, _ = fitted[0].value_bounds(rig.scales())
+    return fitted[0].key if lo <= 0.0 or fitted[0].signed else None
+
+
+def verdict_lines(summary: dict[str, Any]) -> list[str]:
+    """The verdict in words: what was added, what is negligible, what is likely but not
+    established on this record and the experiment that would establish it."""
+    lines = []
+    fpr = summary.get("false_positive_rate")
+    rate = f"{100 * fpr:.1f} %" if fpr is not None else "n/a"
+    added = summary["effects_added"]
+    if added:
+        lines.append(
+            "added: "
+            + "; ".join(f"{e['name']} ({_sizes(e['params'])}, z {e['z']:.1f})" for e in added)
+        )
+    else:
+        lines.append("added: no effect")
+    lines.append(
+        f"false-positive rate of the decision on this record's null (bootstrap of its "
+        f"residual): {rate}"
+    )
+    for j in summary["negligible"]:
+        lines.append(
+            f"negligible: {j['name']} ({_sizes(j['params'])}, z {j['z']:.1f}): it moves the "
+            f"outputs by {100 * j['share_of_residual']:.1f} % of the residual level, below "
+            f"its detection limit on this record ({_limit(j)})"
+        )
+    for j in summary["not_established"]:
+        line = (
+            f"not established: {j['name']} of about {_sizes(j['params'])} (z "
+            f"{j['z']:.2f}, limit on this record {_limit(j)})"
+        )
+        if "experiment" in j:
+            e = j["experiment"]
+            ratio = (
+                e["distance"] / e["distance_recorded"] if e["distance_recorded"] else float("inf")
+            )
+            line += f"; would need {e['name']}: {e['description']} ({ratio:.3g}× the recorded separation)"
+        lines.append(line)
+    return lines
+
+
+def _sizes(params: dict[str, float]) -> str:
+    return ", ".join(f"{k} = {v:.3g}" for k, v in params.items())
+
+
+def _limit(j: dict[str, Any]) -> str:
+    if "size" in j:
+        return f"{j['size']['param']} ≥ {j['size']['limit']:.3g}"
+    return f"{j['limit_scale']:.3g}× the fitted contribution"
 
 
 def warnings(outcome: Outcome) -> list[str]:
@@ -240,6 +367,38 @@ def data_warnings(data: Measured, channels: Iterable[str]) -> list[str]:
     return out
 
 
+def _null_lines(r: dict[str, Any]) -> list[str]:
+    """A round's null (threshold, false-positive rate, residual) and judged candidates."""
+    null = r["null"]
+    if not null or not null["draws"]:
+        return []
+    lines = [
+        f"Null: {null['draws']} surrogate records; threshold z > {null['threshold_z']:.2f} "
+        f"(Bonferroni {null['bonferroni_z']:.2f}, bootstrap 95 % {null['bootstrap_quantile_z']:.2f}); "
+        f"false-positive rate {100 * null['false_positive_rate']:.1f} % "
+        f"(Bonferroni alone: {100 * null['false_positive_rate_bonferroni']:.1f} %). Residual: "
+        + ", ".join(
+            f"{c} {v['rms_over_noise']:.3g} σ over {1e3 * v['correlation_s']:.3g} ms"
+            for c, v in null["residual"].items()
+        )
+        + ".",
+        "",
+        "| effect | verdict | z | share of residual | size 95 % (× fitted) | limit (× fitted) | "
+        "experiment that would establish it |",
+        "|---|---|---|---|---|---|---|",
+    ]
+    for j in r["judged"]:
+        a, b = j["interval_scale"]
+        e = j.get("experiment")
+        lines.append(
+            f"| {j['name']} | {j['verdict']} | {j['z']:.2f} | {100 * j['share_of_residual']:.1f} % | "
+            f"[{a:.3g}, {b:.3g}] | {j['limit_scale']:.3g} | "
+            + (f"{e['name']}: {e['description']}" if e else "")
+            + " |"
+        )
+    return [*lines, ""]
+
+
 def _round_of(outcome: Outcome, name: str):
     """The round in which effect ``name`` was added."""
     return next(r for r in outcome.rounds if r.added == name)
@@ -267,6 +426,10 @@ def report_markdown(
         *[f"> **Warning:** {w}" + "\n" for w in summary["warnings"]],
         f"**Effects added: {summary['decision']}**"
         + (f" → calibrated rig `{rel('rig')}`" if "rig" in paths else ""),
+        "",
+        "## Verdict",
+        "",
+        *[f"- {line}" for line in summary["verdict"]],
         "",
         "## Fit on held-out data (MATLAB `compare`: 100·(1 − ‖y − ŷ‖/‖y − ȳ‖))",
         "",
@@ -346,8 +509,13 @@ def report_markdown(
         "(1 = a perfect model). z: the held-out log-likelihood ratio over the round's "
         "starting model divided by its noise-driven spread (effective sample size from the "
         "residual's autocorrelation). The best is added when its z exceeds the round's "
-        "threshold Φ⁻¹(1 − 0.05/K) for K candidates: on data without a missing effect, "
-        "an effect is added in at most 5 % of runs.",
+        "threshold: the larger of Φ⁻¹(1 − 0.05/K) for K candidates and the 95 % quantile "
+        "of the largest z on surrogate records of this one without a missing effect (the "
+        "round's residual with its spectrum kept and its phases randomised, added to the "
+        "starting model's replay; null.py), and when it matters: its contribution to the "
+        f"outputs is at least {MIN_SHARE:.0%} of the residual level and its size at least "
+        f"its detection limit on this record (found in {REQUIRED:.0%} of the surrogates). "
+        "Else it is negligible.",
         "",
     ]
     for k, r in enumerate(outcome.rounds, start=1):
@@ -356,6 +524,7 @@ def report_markdown(
             f"{r.threshold:.2f}, added: {r.added or 'none'}"
             + (f" (ambiguous with {', '.join(r.ambiguous_with)})" if r.ambiguous_with else ""),
             "",
+            *_null_lines(summary["rounds"][k - 1]),
             "| rank | effect | score | z | parameters | runs | s |",
             "|---|---|---|---|---|---|---|",
         ]

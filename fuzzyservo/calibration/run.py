@@ -11,6 +11,7 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
 
+from fuzzyservo.calibration.null import DRAWS
 from fuzzyservo.calibration.replay import Replay
 from fuzzyservo.calibration.search import Outcome, candidate_effects
 from fuzzyservo.components.effects import LIBRARY
@@ -58,6 +59,7 @@ class CalibrationResult(Result):
             best = summary["candidates"][:5]
             ranking = ", ".join(f"{c['name']} {format_value(c['score'])}" for c in best)
             lines.append(f"ranking (score, lower is better): {ranking}")
+        lines += [f"verdict: {line}" for line in summary["verdict"]]
         return "\n".join(lines)
 
 
@@ -94,15 +96,18 @@ class Calibration:
         workers: int = 1,
         cluster: str | None = None,
         progress: Callable[[str], object] | None = None,
+        bootstrap_draws: int = DRAWS,
     ) -> CalibrationResult:
         """Fit the unknowns, then add up to ``max_effects`` effects; ``progress(name)``
         as each candidate ends; ``workers`` local processes or the Dask ``cluster``
-        (``tcp://HOST:PORT``) fit a round's candidates (the same result)."""
+        (``tcp://HOST:PORT``) fit a round's candidates (the same result).
+        ``bootstrap_draws``: surrogate records of each round's null (null.py; no simulation)."""
         from fuzzyservo.calibration.search import calibrate as search
 
         effects = None if self.effects is None else list(self.effects)
         outcome = search(self.replay, self.rig, effects=effects, max_effects=max_effects,
-                         progress=progress, workers=workers, cluster=cluster)  # fmt: skip
+                         progress=progress, workers=workers, cluster=cluster,
+                         bootstrap_draws=bootstrap_draws)  # fmt: skip
         return CalibrationResult(outcome, self.replay)
 
 

@@ -30,13 +30,10 @@ import numpy as np
 from scipy.optimize import least_squares, minimize_scalar
 
 from fuzzyservo.calibration import gains as _gains
-from fuzzyservo.calibration.decision import (
-    Evidence,
-    held_out_evidence,
-    threshold,
-)
+from fuzzyservo.calibration.decision import Evidence, held_out_evidence
 from fuzzyservo.calibration.identifiability import Separation, separating_experiments
 from fuzzyservo.calibration.joint import record_field, split_field
+from fuzzyservo.calibration.null import DRAWS, SEED, Assessment, Null, assess, null_round
 from fuzzyservo.calibration.replay import DIVERGED_COST, Replay
 from fuzzyservo.calibration.residuals import fit_percent
 from fuzzyservo.calibration.uncertainty import Estimate, effective_samples, estimates
@@ -64,6 +61,7 @@ JACOBIAN_STEP = 0.01  # absolute finite-difference step on the unit box
 # ones start the lowering, loses its Stribeck friction when screened on 10 000).
 SCREEN_SAMPLES = 10_000
 SCREEN_RATIO = 3
+JUDGED = 3  # candidates of a round judged and reported (size, z, interval, limit)
 
 
 @dataclass(frozen=True)
@@ -98,6 +96,11 @@ class Round:
     threshold: float = math.inf  # the z the best had to exceed
     ambiguous_with: tuple[str, ...] = ()  # candidates the data cannot tell from the best
     experiments: tuple[Separation, ...] = ()  # excitations that would separate them, best first
+    null: Null | None = None  # the record's null: threshold and false-positive rate (null.py)
+    # the best candidates judged against it (the added one first if any), and for those
+    # not added, the experiment that drives each furthest from the round's starting model
+    assessments: tuple[Assessment, ...] = ()
+    establish: tuple[tuple[str, Separation, float], ...] = ()  # (name, experiment, D recorded)
 
 
 @dataclass(frozen=True)
@@ -448,6 +451,7 @@ def calibrate(
     workers: int = 1,
     screen_samples: int | None = SCREEN_SAMPLES,
     cluster: str | None = None,
+    bootstrap_draws: int = DRAWS,
 ) -> Outcome:
     """Fit the rig's unknowns, then add up to ``max_effects`` effects from the library.
 
@@ -457,6 +461,9 @@ def calibrate(
     each candidate's name as it ends. A training part SCREEN_RATIO times longer
     than ``screen_samples`` (None: never) screens the candidates on its first
     ``screen_samples`` and refits the best on all of it (:func:`_confirm`).
+    Each round's decision is calibrated on ``bootstrap_draws`` surrogate records of its
+    residual (null.py; 0: decision.py's threshold alone) and an effect is added only
+    when it matters (:func:`~fuzzyservo.calibration.null.assess`).
     """
     start = time.perf_counter()
     names = candidate_effects(rig, effects)
@@ -490,10 +497,12 @@ def calibrate(
             results.sort(key=lambda c: c.score)
             if _screened(replay, screen_samples) is not replay:
                 results = _confirm(replay, current, current_model, results)
-            z_min = threshold(len(results))
+            null = null_round(replay, current_model, [c.model for c in results],
+                              draws=bootstrap_draws, seed=SEED + len(rounds))  # fmt: skip
+            z_min = null.threshold
             best = results[0] if results else None
-            accept = best is not None and _significant(best, z_min)
-            ambiguous = _ties(replay, results, z_min) if accept else ()
+            significant = best is not None and _significant(best, z_min)
+            ambiguous = _ties(replay, results, z_min) if significant else ()
             if ambiguous:  # parsimony: the simplest of the tied candidates goes first
                 tied = [c for c in results if c.name in (best.name, *ambiguous)]
                 simplest = min(tied, key=lambda c: (c.n_params, c.score))
@@ -502,11 +511,16 @@ def calibrate(
                     results.insert(0, simplest)
                     ambiguous = tuple(c.name for c in tied if c is not simplest)
                     best = simplest
+            judged = _judge(replay, current_model, results, null)
+            accept = bool(judged) and judged[0].verdict == "added"
+            if not accept:
+                ambiguous = ()
             experiments: tuple[Separation, ...] = ()
+            first = getattr(replay, "records", (replay,))[0]
             if ambiguous:
                 tied = {c.name: c.rig for c in results if c.name in (best.name, *ambiguous)}
-                first = getattr(replay, "records", (replay,))[0]
                 experiments = tuple(separating_experiments(first, tied))
+            establish = () if accept else _establishing(first, current, results, judged)
             rounds.append(
                 Round(
                     cost,
@@ -515,6 +529,9 @@ def calibrate(
                     threshold=z_min,
                     ambiguous_with=ambiguous,
                     experiments=experiments,
+                    null=null,
+                    assessments=judged,
+                    establish=establish,
                 )
             )
             if not accept:
@@ -615,6 +632,38 @@ def _uncertainty(
     cost_train = replay.cost(model, slice(0, replay.split))
     found = estimates(jac, z, values, space.value, space.bounds, cost_train, samples, effective)
     return {f: e for (_, f), e in zip(space.names, found, strict=True)}
+
+
+def _judge(
+    replay: Replay, base_model: dict[str, np.ndarray], ranked: Sequence[Candidate], null: Null
+) -> tuple[Assessment, ...]:
+    """The first JUDGED candidates against the round's ``null`` (null.assess)."""
+    out = []
+    for k, c in enumerate(ranked[:JUDGED]):
+        z = c.evidence.z if c.evidence is not None else math.nan
+        a = assess(replay, base_model, c.model, c.name, z, null)
+        if k and a.verdict == "added":  # only the first of a round can be added
+            a = dataclasses.replace(a, verdict="out-ranked")
+        out.append(a)
+    return tuple(out)
+
+
+def _establishing(
+    record: Replay, base: Rig, ranked: Sequence[Candidate], judged: Sequence[Assessment]
+) -> tuple[tuple[str, Separation, float], ...]:
+    """For each judged candidate not added that the data lean towards (z > 0): the
+    excitation (identifiability.py) that drives it furthest from ``base``, with the
+    distance the recorded experiment gives (noise units)."""
+    out = []
+    rigs = {c.name: c.rig for c in ranked}
+    for a in judged:
+        if a.verdict == "failed" or not a.z > 0.0 or rigs.get(a.name) is None:
+            continue
+        ranked_ex = separating_experiments(record, {"starting model": base, a.name: rigs[a.name]})
+        recorded = next((s.distance for s in ranked_ex if s.name == "recorded"), math.nan)
+        if ranked_ex and np.isfinite(ranked_ex[0].distance):
+            out.append((a.name, ranked_ex[0], recorded))
+    return tuple(out)
 
 
 def _significant(candidate: Candidate, z_min: float) -> bool:

@@ -1,0 +1,278 @@
+"""What the decision would see on this record if no effect were missing (issue 28).
+
+decision.py's error rate holds where the replay reproduces the data up to noise. A real
+record never does: a rig differs from its model by more than its sensor noise, and that
+model error is correlated in time and across channels. So each round's decision is
+calibrated on the record at hand, with the residual ``r_c = y_c − ŷ_c`` of the round's
+starting model (the whole record, every channel c of noise floor σ_c) less what the
+round's candidates together explain of it (least squares on all their contributions):
+what effects explain is not disturbance (with two effects missing, the one the best
+candidate leaves is no model error), and on a record without a missing effect they
+explain little, so this is the residual of the fitted nominal model up to that:
+
+1. **The residual's own level and correlation** (:func:`residual_levels`): its RMS in
+   noise units and its correlation time (the first lag at which its autocorrelation
+   falls below 1/e).
+2. **A parametric bootstrap of that null** (:func:`null_round`). A record like this one
+   without a missing effect is the starting model's replay plus a disturbance with the
+   residual's spectrum: a multivariate phase-randomised surrogate of ``r`` (Prichard &
+   Theiler 1994, Phys. Rev. Lett. 73, 951): the Fourier transform of every channel's
+   residual, one set of random phases for all channels, and back. It keeps each
+   channel's spectrum (its level and autocorrelation) and the cross-spectra between
+   channels, and scrambles its timing against the input, which no effect can follow.
+   Each candidate is refitted on each surrogate along the direction it took on the data,
+   ``ŷ + a·δ`` with ``δ`` its model minus the starting one (least squares in ``a`` on the
+   training part: the fit linearised about the data's), and tested as decision.py tests
+   it. No simulation is needed: the replays of the starting model and of each candidate
+   are at hand. The round's threshold is the larger of decision.py's (Bonferroni) and
+   the ``1 − ALPHA`` quantile of the largest z over the candidates in each draw; the
+   share of draws whose largest z passes it is the false-positive rate on this record.
+3. **Practical significance** (:func:`assess`). An effect is added when it passes the
+   test (its size is above the one that would just pass on this record) and its
+   contribution to the predicted outputs over the record, ``share = ‖δ/σ‖ / ‖r/σ‖``
+   (pooled over channels), is at least ``MIN_SHARE`` of the residual level; one that
+   passes the test and not this is reported as negligible, with its size. Each judged
+   candidate carries its detection limit on this record: the smallest scale ``s`` of
+   its fitted contribution with ``s·share ≥ MIN_SHARE`` that passes the threshold in
+   ``REQUIRED`` of records like this one. Linearised, z grows in proportion to ``s``
+   (the log-likelihood ratio with ``s²``, its spread with ``s``), so that is the ``s``
+   at which the data's ``z`` scales to the threshold plus the ``REQUIRED`` quantile of
+   the candidate's z over the surrogates (its null spread).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy.stats import norm
+
+from fuzzyservo.calibration.decision import ALPHA, evidence, held_out_lags, threshold
+from fuzzyservo.calibration.replay import Replay
+
+DRAWS = 200  # surrogate records per round (numpy only: ~5 ms each with 10 candidates)
+LIMIT_DRAWS = 40  # of them, for a candidate's interval and null spread of z
+MIN_SHARE = 0.25  # an added effect moves the outputs by >= this share of the residual level
+REQUIRED = 0.9  # detection limit: passes in this share of draws (as detection.py)
+SEED = 28  # the surrogates' phases: a calibration is repeatable
+
+
+@dataclass(frozen=True)
+class Level:
+    """One channel's residual: RMS in noise units, correlation time [s]."""
+
+    rms_sigma: float
+    correlation_s: float
+
+
+@dataclass(frozen=True)
+class Null:
+    """A round's null distribution on its record.
+
+    ``threshold``: the z the best must exceed, the larger of ``bonferroni`` and the
+    bootstrap ``quantile``; ``false_positive_rate``: share of the ``draws`` whose largest
+    z passes ``threshold`` (``bonferroni_rate``: ``bonferroni`` alone would pass)."""
+
+    draws: int
+    threshold: float
+    bonferroni: float
+    quantile: float
+    false_positive_rate: float
+    bonferroni_rate: float
+    levels: dict[str, Level]
+    surrogates: tuple[dict[str, np.ndarray], ...] = field(default=(), repr=False, compare=False)
+
+
+@dataclass(frozen=True)
+class Assessment:
+    """Whether a fitted candidate matters: ``share`` of the residual level its
+    contribution reaches, its size as a ``scale`` of the fitted contribution that the
+    data support (``interval``, 95 %) and its detection limit on this record as a
+    scale (``limit``; inf: not reachable). ``verdict``: ``added``, ``negligible``
+    (passes the test, too small to matter), ``not established``, ``failed`` (the run
+    diverged) or ``out-ranked`` (would be added, but another ranks first)."""
+
+    name: str
+    z: float
+    share: float
+    limit: float
+    interval: tuple[float, float]
+    verdict: str
+
+
+def residual_levels(
+    replay: Replay, model: Mapping[str, np.ndarray]
+) -> tuple[dict[str, np.ndarray], dict[str, Level]]:
+    """The residual of ``model`` in noise units per channel (whole record) and its level."""
+    dt = float(replay.data.sample_period_s)
+    residual, levels = {}, {}
+    for channel in replay.channels:
+        r = (replay.measured(channel) - model[channel]) / replay.sigma[channel]
+        residual[channel] = r
+        levels[channel] = Level(float(np.sqrt(np.mean(r * r))), _correlation_time(r) * dt)
+    return residual, levels
+
+
+def _correlation_time(r: np.ndarray) -> int:
+    """First lag (samples) at which the autocorrelation of ``r`` is below 1/e."""
+    centred = r - np.mean(r)
+    n = centred.size
+    spectrum = np.fft.rfft(centred, 2 * n)
+    acf = np.fft.irfft(spectrum * np.conj(spectrum))[:n]
+    if acf[0] <= 0.0:
+        return 0
+    below = np.flatnonzero(acf / acf[0] < math.exp(-1.0))
+    return int(below[0]) if below.size else n
+
+
+def surrogates(
+    residual: Mapping[str, np.ndarray], draws: int, seed: int
+) -> tuple[dict[str, np.ndarray], ...]:
+    """``draws`` phase-randomised surrogates of the channels ``residual`` about their
+    means (one set of random phases for all channels; for an even length the Nyquist
+    term kept)."""
+    rng = np.random.default_rng(seed)
+    # about its mean: a constant residual is no disturbance (a null shift would take
+    # it in every draw), and the spectrum's zero-frequency term cannot be randomised
+    spectra = {c: np.fft.rfft(r - np.mean(r)) for c, r in residual.items()}
+    n = next(iter(residual.values())).size
+    m = n // 2 + 1
+    out = []
+    for _ in range(draws):
+        phase = np.exp(2j * np.pi * rng.random(m))
+        phase[0] = 1.0
+        if n % 2 == 0:
+            phase[-1] = 1.0
+        out.append({c: np.fft.irfft(s * phase, n) for c, s in spectra.items()})
+    return tuple(out)
+
+
+class _Direction:
+    """A candidate's fitted contribution ``δ`` in noise units and the test of ``ŷ + a·δ``
+    against ``ŷ`` on a record ``ŷ + d`` (d: a disturbance in noise units)."""
+
+    def __init__(
+        self, replay: Replay, base: Mapping[str, np.ndarray], model: Mapping[str, np.ndarray]
+    ):
+        self.split = replay.split
+        self.lags = held_out_lags(replay)
+        self.delta = {c: (model[c] - base[c]) / replay.sigma[c] for c in replay.channels}
+        self.norm_train = sum(float(d[: self.split] @ d[: self.split]) for d in self.delta.values())
+
+    def power(self) -> float:
+        return sum(float(d @ d) for d in self.delta.values())
+
+    def fit(self, d: Mapping[str, np.ndarray]) -> float:
+        """Least-squares ``a`` of ``d ≈ a·δ`` on the training part."""
+        if self.norm_train <= 0.0:
+            return 0.0
+        s = self.split
+        return sum(float(d[c][:s] @ v[:s]) for c, v in self.delta.items()) / self.norm_train
+
+    def z(self, d: Mapping[str, np.ndarray], scale: float = 0.0) -> tuple[float, float]:
+        """(z, fitted a) on the record carrying ``scale·δ`` and the disturbance ``d``."""
+        s = self.split
+        data = {c: d[c] + scale * v for c, v in self.delta.items()}
+        a = self.fit(data)
+        e_a = {c: x[s:] for c, x in data.items()}
+        e_b = {c: x[s:] - a * self.delta[c][s:] for c, x in data.items()}
+        return evidence(e_a, e_b, self.lags).z, a
+
+
+def _finite(replay: Replay, model: Mapping[str, np.ndarray]) -> bool:
+    return all(np.isfinite(model[c]).all() for c in replay.channels)
+
+
+def _unexplained(
+    residual: Mapping[str, np.ndarray], directions: Sequence[_Direction]
+) -> dict[str, np.ndarray]:
+    """What of ``residual`` no combination of the candidates' contributions explains:
+    its least-squares remainder on all of them together (whole record, noise units)."""
+    channels = list(residual)
+    r = np.concatenate([residual[c] for c in channels])
+    basis = np.column_stack([np.concatenate([d.delta[c] for c in channels]) for d in directions])
+    coef, *_ = np.linalg.lstsq(basis, r, rcond=None)
+    rest = r - basis @ coef
+    sizes = np.cumsum([0] + [residual[c].size for c in channels])
+    return {c: rest[sizes[k] : sizes[k + 1]] for k, c in enumerate(channels)}
+
+
+def null_round(
+    replay: Replay,
+    base: Mapping[str, np.ndarray],
+    models: Sequence[Mapping[str, np.ndarray]],
+    *,
+    draws: int = DRAWS,
+    seed: int = SEED,
+    candidates: int | None = None,
+) -> Null:
+    """The null of a round that starts from ``base`` (channels on the data grid) and
+    fitted the candidates whose channels are ``models`` (finite ones are tested; the
+    residual is what they leave together). ``candidates``: how many the Bonferroni
+    threshold splits the rate over (default: the models)."""
+    bonferroni = threshold(candidates or len(models))
+    usable = [m for m in models if _finite(replay, m)]
+    residual, levels = residual_levels(replay, base)
+    if draws <= 0 or not usable or not all(np.isfinite(r).all() for r in residual.values()):
+        return Null(0, bonferroni, bonferroni, math.nan, math.nan, math.nan, levels)
+    directions = [_Direction(replay, base, m) for m in usable]
+    residual = _unexplained(residual, directions)
+    dt = float(replay.data.sample_period_s)
+    levels = {
+        c: Level(float(np.sqrt(np.mean(r * r))), _correlation_time(r) * dt)
+        for c, r in residual.items()
+    }
+    draws_ = surrogates(residual, draws, seed)
+    largest = np.array([max(d.z(s)[0] for d in directions) for s in draws_])
+    quantile = float(np.quantile(largest, 1.0 - ALPHA))
+    z_min = max(bonferroni, quantile)
+    return Null(
+        draws=draws,
+        threshold=z_min,
+        bonferroni=bonferroni,
+        quantile=quantile,
+        false_positive_rate=float(np.mean(largest > z_min)),
+        bonferroni_rate=float(np.mean(largest > bonferroni)),
+        levels=levels,
+        surrogates=draws_,
+    )
+
+
+def assess(
+    replay: Replay,
+    base: Mapping[str, np.ndarray],
+    model: Mapping[str, np.ndarray],
+    name: str,
+    z: float,
+    null: Null,
+) -> Assessment:
+    """Share, size interval, detection limit and verdict of candidate ``name`` (channels
+    ``model``, held-out ``z``) against the round's ``null``."""
+    if not _finite(replay, model) or not math.isfinite(z):
+        return Assessment(name, z, math.nan, math.inf, (math.nan, math.nan), "failed")
+    direction = _Direction(replay, base, model)
+    residual, _ = residual_levels(replay, base)
+    level = sum(float(r @ r) for r in residual.values())
+    share = math.sqrt(direction.power() / level) if level > 0.0 else 0.0
+    draws = null.surrogates[:LIMIT_DRAWS]
+    limit = MIN_SHARE / share if share > 0.0 else math.inf
+    interval = (math.nan, math.nan)
+    if draws:
+        fits = [direction.z(d) for d in draws]
+        spread = float(np.std([a for _, a in fits]))
+        interval = (1.0 - 1.96 * spread, 1.0 + 1.96 * spread)
+        # z grows in proportion to the size (the log-likelihood ratio with its square,
+        # its spread with the size): found in REQUIRED of the records where its expected
+        # z is the threshold plus that quantile of the null's spread of z
+        z_spread = float(np.std([z for z, _ in fits]))
+        needed = null.threshold + float(norm.ppf(REQUIRED)) * z_spread
+        limit = max(limit, needed / z if z > 0.0 else math.inf)
+    if z <= null.threshold:
+        verdict = "not established"
+    elif share >= MIN_SHARE:
+        verdict = "added"
+    else:
+        verdict = "negligible"
+    return Assessment(name, z, share, limit, interval, verdict)

@@ -275,6 +275,7 @@ def wrapper(model: FmuModel, fmi: int = 3) -> str:
     kinds = ", ".join({"input": "1", "parameter": "2"}.get(x.causality, "0") for x in v)
     api = FMI3 if fmi == 3 else FMI2
     body = (_CORE + (_FMI3 if fmi == 3 else _FMI2)).replace("@MODEL@", _model_code(model))
+    body = body.replace("@ADVANCE@", _ADVANCE)
     body = body.replace("@P@", model.identifier).replace("@NV@", str(len(v)))
     body = body.replace("@START@", start).replace("@KINDS@", kinds)
     body = body.replace("@INCLUDE@", f'#include "fmi{fmi}Functions.h"')
@@ -313,6 +314,24 @@ static const double START[N_VARS] = { @START@ };
 static const int KIND[N_VARS] = { @KINDS@ };
 """
 
+# one communication step: a controller samples when its period is due (the FMU may be
+# stepped faster), an inference system at every step; v[0] is the time
+_ADVANCE = r"""static void advance(Instance *m, double t, double h)
+{
+#if IS_CONTROLLER
+    double ts = m->v[PERIOD_VR], eps = 1e-9 * ts;
+    if (t + eps >= m->next_sample) {
+        model_sample(m);
+        m->next_sample += ts;
+        if (m->next_sample <= t + eps) m->next_sample = t + ts;
+    }
+#else
+    model_sample(m);
+#endif
+    m->v[0] = t + h;
+}
+"""
+
 _FMI3 = r"""
 typedef struct {
     @P@_state s;
@@ -323,6 +342,7 @@ typedef struct {
 } Instance;
 
 @MODEL@
+@ADVANCE@
 
 static void model_reset(Instance *m)
 {
@@ -440,19 +460,7 @@ fmi3Status fmi3DoStep(fmi3Instance instance, fmi3Float64 currentCommunicationPoi
     Instance *m = (Instance *)instance;
     double t = currentCommunicationPoint;
     (void)noSetFMUStatePriorToCurrentPoint;
-#if IS_CONTROLLER
-    {
-        double ts = m->v[PERIOD_VR], eps = 1e-9 * ts;
-        if (t + eps >= m->next_sample) {
-            model_sample(m);
-            m->next_sample += ts;
-            if (m->next_sample <= t + eps) m->next_sample = t + ts;
-        }
-    }
-#else
-    model_sample(m);
-#endif
-    m->v[0] = t + communicationStepSize;
+    advance(m, t, communicationStepSize);
     *eventHandlingNeeded = fmi3False;
     *terminateSimulation = fmi3False;
     *earlyReturn = fmi3False;
@@ -471,6 +479,7 @@ typedef struct {
 } Instance;
 
 @MODEL@
+@ADVANCE@
 
 static void model_reset(Instance *m)
 {
@@ -577,19 +586,7 @@ fmi2Status fmi2DoStep(fmi2Component c, fmi2Real currentCommunicationPoint,
     Instance *m = (Instance *)c;
     double t = currentCommunicationPoint;
     (void)noSetFMUStatePriorToCurrentPoint;
-#if IS_CONTROLLER
-    {
-        double ts = m->v[PERIOD_VR], eps = 1e-9 * ts;
-        if (t + eps >= m->next_sample) {
-            model_sample(m);
-            m->next_sample += ts;
-            if (m->next_sample <= t + eps) m->next_sample = t + ts;
-        }
-    }
-#else
-    model_sample(m);
-#endif
-    m->v[0] = t + communicationStepSize;
+    advance(m, t, communicationStepSize);
     return fmi2OK;
 }
 

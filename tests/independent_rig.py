@@ -1,7 +1,7 @@
 """An independent data generator for calibration tests (issue 12, item 5).
 
 Seed 002's open-centre valve and asymmetric cylinder under P K=10 (Dinca & Corcau,
-eq. 1-19), written again here in pressure form with scipy's ``solve_ivp`` (LSODA, tight
+eq. 1-19), written again here with scipy's ``solve_ivp`` (LSODA, tight
 tolerances) and none of the project's kernels, so that the effects follow formulations
 the library did not write:
 
@@ -19,7 +19,7 @@ valve_bias          a null shift of the torque motor: Δi_eff = Δi + b
 valve_lag           second-order spool, ωn = 2π·100 Hz, ζ = 0.7
 transport_delay     a delay of 4.3 ms, not a whole number of 10 ms samples (exact:
                     the held command switches at k·T + d)
-bulk_modulus        0.45 GPa (hoses, entrained air) in the pressure-form chambers
+bulk_modulus        0.45 GPa (hoses, entrained air) in the chambers
 supply_droop        a 6 l/min pump into a 0.2 l supply node with a relief valve at the
                     supply pressure (no ideal pressure source)
 ==================  ==================================================================
@@ -197,8 +197,10 @@ class _Plant:
         dx[1] = (p3 * S3 - p4 * S4 - VISCOUS * v - friction) / MASS
         dx[2] = self.e / V1 * (qa - q1 - q3)
         dx[3] = self.e / V2 * (q2 + q4 - qr)
-        dx[4] = self.e / v3 * (qa3 - q_leak - S3 * v)
-        dx[5] = self.e / v4 * (qb4 + q_leak + S4 * v)
+        # the seed's mass form (eq. 8-9), as the seed-002 rig: flows are volumes at
+        # reference density, so the displacement flow carries the compression (1 + p/E)
+        dx[4] = self.e / v3 * (qa3 - q_leak - S3 * v * (1.0 + p3 / self.e))
+        dx[5] = self.e / v4 * (qb4 + q_leak + S4 * v * (1.0 + p4 / self.e))
         if self.mismatch == "sensor_filter":
             dx[-1] = (y - x[-1]) / SENSOR_TAU_S
         return dx

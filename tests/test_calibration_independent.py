@@ -6,12 +6,13 @@ turbulent line loss, a 4.3 ms delay that is not a whole number of samples, a
 second-order spool, a pump with a relief valve …) at the middle of docs/modelling.md's
 typical ranges. ``calibrate`` gets the nominal seed-002 rig and the CSV-like record.
 
-The generator's chambers follow the pressure form dp/dt = E/V·(Q − dV/dt) (Merritt),
-as the seed-002 rig's composition does. (Before the compositions became the only plants
-the seed-002 rig followed the seed's mass form, whose chamber pressure carries
-(1 + p/E), and a 0.2 % difference in flow gain left its null run at a held-out cost of
-1.6 against the composition's 0.95; internal_leakage and bulk_modulus, whose
-signatures are smaller than that, were tested on the composed twin.)
+The generator's chambers follow the seed's mass form (eq. 8-9: the displacement flow
+carries (1 + p/E)), as the seed-002 rig does (the oil's ``mass_form``). The chamber law
+matters: with the generator in the pressure form and the rig in the mass form, the 0.2 %
+difference in displacement flow is a model error larger than these effects' signatures,
+and round 1 named stribeck_friction for coulomb_friction, valve_deadband for
+internal_leakage and valve_bias for bulk_modulus (measured, issue 25; issue 28's null
+does not absorb it yet).
 """
 
 from __future__ import annotations

@@ -314,9 +314,17 @@ static const double START[N_VARS] = { @START@ };
 static const int KIND[N_VARS] = { @KINDS@ };
 """
 
-# one communication step: a controller samples when its period is due (the FMU may be
-# stepped faster), an inference system at every step; v[0] is the time
-_ADVANCE = r"""static void advance(Instance *m, double t, double h)
+# what both FMI versions' instances do alike: reset to the start values, and one
+# communication step (a controller samples when its period is due, the FMU may be stepped
+# faster; an inference system at every step; v[0] is the time)
+_ADVANCE = r"""static void model_reset(Instance *m)
+{
+    memcpy(m->v, START, sizeof START);
+    model_init(m);
+    m->next_sample = 0;
+}
+
+static void advance(Instance *m, double t, double h)
 {
 #if IS_CONTROLLER
     double ts = m->v[PERIOD_VR], eps = 1e-9 * ts;
@@ -343,13 +351,6 @@ typedef struct {
 
 @MODEL@
 @ADVANCE@
-
-static void model_reset(Instance *m)
-{
-    memcpy(m->v, START, sizeof START);
-    model_init(m);
-    m->next_sample = 0;
-}
 
 static fmi3Status fail(Instance *m, const char *message)
 {
@@ -480,13 +481,6 @@ typedef struct {
 
 @MODEL@
 @ADVANCE@
-
-static void model_reset(Instance *m)
-{
-    memcpy(m->v, START, sizeof START);
-    model_init(m);
-    m->next_sample = 0;
-}
 
 static fmi2Status fail(Instance *m, const char *message)
 {

@@ -15,7 +15,15 @@ from support import controller_named, rig_named
 
 ROOT = Path(__file__).resolve().parents[1]
 # what tools leave in any checkout: not output of ours
-_CACHES = ("__pycache__", ".pytest_cache", ".hypothesis", ".ruff_cache", ".grimp_cache", ".egg-info", ".venv")
+_CACHES = (
+    "__pycache__",
+    ".pytest_cache",
+    ".hypothesis",
+    ".ruff_cache",
+    ".grimp_cache",
+    ".egg-info",
+    ".venv",
+)
 
 
 def _checkout_files() -> set[str] | None:

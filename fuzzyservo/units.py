@@ -167,6 +167,7 @@ def parse_unit(text: str) -> Unit:
     if expr in _NAMED:
         return _NAMED[expr]
     expr = expr.replace("^", "**").replace("·", "*").replace("%", "pct")
+    expr = expr.replace("²", "**2").replace("³", "**3")
     expr = _TOKEN_WITH_POWER.sub(lambda m: f"{m.group(1)}**{m.group(2)}", expr)
     try:
         tree = ast.parse(expr, mode="eval")

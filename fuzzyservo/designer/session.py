@@ -21,6 +21,7 @@ import numpy as np
 from fuzzyservo.controllers.fuzzy import FuzzyController
 from fuzzyservo.controllers.fuzzy.system import NO_TERM, term_index
 from fuzzyservo.designer.files import Folders
+from fuzzyservo.display import metric_units
 from fuzzyservo.errors import ConfigError
 from fuzzyservo.io.controllers import read_controller_data
 from fuzzyservo.metrics import METRIC_NAMES, result_metrics
@@ -462,5 +463,6 @@ def fmt(value: float | None) -> str:
 
 
 def metrics_rows(runs: list[Run]) -> list[list[str]]:
-    """One row per metric (name, then one formatted value per run)."""
-    return [[m, *(fmt(r.metrics.get(m)) for r in runs)] for m in METRIC_NAMES]
+    """One row per metric (name, then one value per run in its display unit, formatted)."""
+    units = metric_units(runs[0].result)
+    return [[m, *(fmt(units.value(m, r.metrics.get(m))) for r in runs)] for m in METRIC_NAMES]

@@ -674,9 +674,7 @@ class Designer:
                  "status": t.status, **{p: _short(v) for p, v in t.params.items()}}
                 for t in view.trials]  # fmt: skip
         self.trials_table.value = pd.DataFrame(rows)
-        note = (
-            f"{view.spec.name}: {view.complete} complete trials; the best {len(view.trials)} listed"
-        )
+        note = f"{view.spec.name}: trials {view.counts}; the best {len(view.trials)} listed"
         self.trials_note.object = f"<div id='fs-trials-note'>{_esc(note)}</div>"
         self._say(f"{note} (storage {view.url})")
 

@@ -132,7 +132,8 @@ def tuning_text(outcome: Outcome, summary: dict[str, Any]) -> str:
     if note := undefined_note(METRIC_NAMES, rows):
         lines.append(note)
     values = [", ".join(format_value(v) for v in e.values) for e in (best, base)]
-    lines.append(f"objective: best {values[0]} against baseline {values[1]}")
+    lines.append(f"objective: best {values[0]} against baseline {values[1]} "
+                 f"({outcome.spec.objective.describe()}{_si_note(outcome.spec, units)})")  # fmt: skip
     if "comparison" in summary:
         lines.append(comparison_text(summary["comparison"], units))
     return "\n".join(lines)
@@ -311,6 +312,13 @@ def summary_data(outcome: Outcome, baseline_name: str, trial: int | None) -> dic
     }
 
 
+def _si_note(spec, units: MetricUnits) -> str:
+    """The objective weighs metrics in SI: say so for those the tables show in another
+    unit (``sse_abs`` in m, shown in mm)."""
+    si = [f"{m} in {units.si(m)}" for m in spec.objective.metrics if units.unit(m) != units.si(m)]
+    return f"; over the metrics in SI: {', '.join(si)}" if si else ""
+
+
 def _counts(outcome: Outcome) -> str:
     """Asked, complete, pruned and failed trials (a study collected before the asked
     and failed ones were counted: complete and pruned are all it asked)."""
@@ -487,7 +495,7 @@ def _report(
         f"| scenarios | {', '.join(spec.scenarios)} ({spec.aggregate} over scenarios) |",
         f"| template | {spec.template.name} |",
         f"| baseline | {evaluator.baseline.name} |",
-        f"| objective | {spec.objective.describe()} (minimised) |",
+        f"| objective | {spec.objective.describe()} (minimised{_si_note(spec, units)}) |",
         f"| constraints | {', '.join(f'`{c}`' for c in spec.constraints) or 'none'} |",
         *(
             [

@@ -124,3 +124,28 @@ def test_undefined_metrics_are_explained_where_they_are_printed():
     note = undefined_note(("rise_time_s", "iae"), rows)
     assert note.startswith("n/a (rise_time_s): undefined") and "brake" in note
     assert undefined_note(("iae",), rows) == ""
+
+
+def test_tune_explains_the_brake_scenarios_n_a_and_counts_its_trials(tmp_path):
+    """A study scored on the ehs160 brake (a constant reference: no step metrics) prints
+    why its metrics are n/a and why the objective is the penalty, in the console text and
+    in report.md; the trials read asked / complete / pruned / failed."""
+    from support import DATA
+
+    from fuzzyservo.io.jsonfile import read_json
+    from fuzzyservo.io.studies import load_study
+    from fuzzyservo.io.study_report import tuning_text, write_outputs
+    from fuzzyservo.tuning.runner import run_study
+
+    spec = dataclasses.replace(
+        load_study(DATA / "studies" / "ehs160_flc.yaml"), scenarios=("steps", "brake")
+    )
+    outcome = run_study(spec, tmp_path, trials=2, workers=1, progress=False)
+    paths = write_outputs(outcome, tmp_path)
+    text = tuning_text(outcome, read_json(paths["summary"]))
+    report = paths["report"].read_text(encoding="utf-8")
+    for shown in (text, report):
+        assert "n/a (rise_time_s, settling_time_s" in shown and "brake" in shown
+        assert "2 asked: 2 complete, 0 pruned, 0 failed" in shown
+    assert "baseline: status undefined (" in text
+    assert "sse_abs [rad/s]" in text and "| `ise` [(rad/s)²·s] |" in report

@@ -134,6 +134,9 @@ def tuning_text(outcome: Outcome, summary: dict[str, Any]) -> str:
     values = [", ".join(format_value(v) for v in e.values) for e in (best, base)]
     lines.append(f"objective: best {values[0]} against baseline {values[1]} "
                  f"({outcome.spec.objective.describe()}{_si_note(outcome.spec, units)})")  # fmt: skip
+    for who, e in (("best", best), ("baseline", base)):
+        if e.status != "ok":  # its objective is the penalty or undefined: say why
+            lines.append(f"{who}: status {_status(e)}")
     if "comparison" in summary:
         lines.append(comparison_text(summary["comparison"], units))
     return "\n".join(lines)
@@ -384,6 +387,11 @@ def _selection_lines(outcome: Outcome) -> list[str]:
     return [*lines, ""]
 
 
+def _status(ev: Evaluation) -> str:
+    """A scored controller's status and why (an objective that is the penalty or n/a)."""
+    return ev.status + (f" ({ev.message})" if ev.message else "")
+
+
 def _objective_value(ev: Evaluation) -> float | list[float]:
     return ev.values[0] if len(ev.values) == 1 else list(ev.values)
 
@@ -520,9 +528,9 @@ def _report(
     which = "the reported best" if trial is None else f"trial #{trial}"
     lines += [
         f"Best: {which}, objective {_values_text(best.values)} against the baseline's "
-        f"{_values_text(base.values)}; status {best.status}"
-        + (f" ({best.message})" if best.message else "")
-        + f", {'feasible' if best.feasible else 'infeasible'}.",
+        f"{_values_text(base.values)}; status {_status(best)}, "
+        f"{'feasible' if best.feasible else 'infeasible'}."
+        + (f" The baseline's status: {_status(base)}." if base.status != "ok" else ""),
         "",
     ]
     for c, v in zip(spec.constraints, best.violations, strict=True):

@@ -16,7 +16,8 @@ Rigs, controllers and studies can also be built in code (``compose_rig``, ``P``,
 is one function here (``compare``, ``margins``, ``frequency``, ``robustness``,
 ``calibrate``, ``benchmark``, ``export``, ``evaluate``, ``fit_valve``) returning a result
 object: ``print(result)`` shows what the command prints, ``result.to_json()`` what its
-``--json`` writes.
+``--json`` writes. JSON numbers are SI; ``METRIC_UNITS`` is the units schema of the
+metrics (``{y}``: the rig's output unit), and each JSON file names its units.
 """
 
 from __future__ import annotations
@@ -66,6 +67,7 @@ _LAZY = {
     "SimResult": ("fuzzyservo.simulation", "SimResult"),
     "simulate_reference": ("fuzzyservo.simulation.reference", "simulate_reference"),
     "result_metrics": ("fuzzyservo.metrics", "result_metrics"),
+    "METRIC_UNITS": ("fuzzyservo.metrics", "METRIC_UNITS"),
     "ConfigError": ("fuzzyservo.errors", "ConfigError"),
 }
 

@@ -178,10 +178,8 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
 
 
 def cmd_tune(args: argparse.Namespace) -> int:
-    from fuzzyservo.analysis.robustness import comparison_text
     from fuzzyservo.io.studies import load_study, with_warm_start
-    from fuzzyservo.io.study_report import write_outputs
-    from fuzzyservo.metrics import format_value, metrics_table
+    from fuzzyservo.io.study_report import tuning_text, write_outputs
     from fuzzyservo.tuning.runner import run_study
     from fuzzyservo.tuning.spec import storage_problem
 
@@ -217,13 +215,8 @@ def cmd_tune(args: argparse.Namespace) -> int:
     paths = write_outputs(outcome, out, check_samples=check, progress=bar and bar.update)
     if bar is not None:
         bar.close()
-    best, base = outcome.best, outcome.baseline
-    print(metrics_table(["baseline", "best"], [base.metrics, best.metrics], {}))
-    values = [", ".join(format_value(v) for v in e.values) for e in (best, base)]
-    print(f"objective: best {values[0]} against baseline {values[1]}")
     summary = read_json(paths["summary"])  # as written
-    if bar is not None:
-        print(comparison_text(summary["comparison"]))
+    print(tuning_text(outcome, summary))
     print(f"report: {paths['report']}")
     _json(args.json, summary)
     return 0

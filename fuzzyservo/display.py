@@ -1,20 +1,28 @@
-"""How signals are shown: display units, axis labels, colours and saturated spans.
+"""How signals and metrics are shown: display units, tables, axis labels, colours, saturated spans.
 
-SI signals in, an engineer's units out (bar, mA, l/min unless the rig says otherwise).
-Shared by the matplotlib figures (:mod:`fuzzyservo.plots`) and the designer's browser
-plots, so both show a signal the same way; nothing here draws.
+SI in, an engineer's units out (mm, bar, mA, l/min, s, % unless the rig says otherwise).
+The one place a number gets its display unit: shared by the console tables (``compare``,
+``tune``, ``robustness``, calibration), the tuning report, the matplotlib figures
+(:mod:`fuzzyservo.plots`) and the designer's browser plots, so all show a quantity the
+same way; nothing here draws. JSON stays SI (units schema:
+:data:`fuzzyservo.metrics.METRIC_UNITS`).
 """
 
 from __future__ import annotations
 
+import math
+from collections.abc import Iterable, Mapping, Sequence
+from dataclasses import dataclass
+
 import numpy as np
 
+from fuzzyservo.metrics import METRIC_NAMES, METRIC_UNITS, format_value, metric_unit
 from fuzzyservo.simulation.result import SimResult
 from fuzzyservo.units import parse_unit, to_si
 
 # The unit a quantity is read in on a test bench, by its SI dimension (a rig's
-# ``display_units`` overrides these per signal).
-_PREFERRED = ("bar", "mA", "l/min")
+# ``display_units`` overrides these per signal); time stays in s, ratios in %.
+_PREFERRED = ("mm", "mm/s", "bar", "mA", "l/min")
 
 # Words for the axis labels; any other signal is labelled by its name alone.
 _QUANTITY = {
@@ -45,14 +53,28 @@ def controller_colour(k: int) -> str:
 
 
 def display_unit(result: SimResult, name: str, si_unit: str) -> str:
-    """The unit ``name`` is shown in: the rig's choice, else bar/mA/l/min, else SI."""
-    if name in result.display_units:
-        return result.display_units[name]
-    dims = parse_unit(si_unit).dims
+    """The unit signal ``name`` is shown in: the rig's choice, else :func:`preferred_unit`."""
+    return result.display_units.get(name) or preferred_unit(si_unit)
+
+
+def preferred_unit(si_unit: str) -> str:
+    """The bench unit of a quantity in ``si_unit``: mm, mm/s, bar, mA or l/min by its
+    dimension, else ``si_unit`` itself (s, V, rad, %, or a unit this module cannot read)."""
+    try:
+        dims = parse_unit(si_unit).dims
+    except ValueError:
+        return si_unit
     for unit in _PREFERRED:
         if parse_unit(unit).dims == dims:
             return unit
     return si_unit
+
+
+def display_scale(si_unit: str) -> tuple[str, float]:
+    """``(display unit, factor)``: a value in ``si_unit`` times ``factor`` is in the
+    display unit (:func:`preferred_unit`)."""
+    unit = preferred_unit(si_unit)
+    return unit, 1.0 if unit == si_unit else 1.0 / to_si(1.0, unit, si_unit)
 
 
 def signal_unit(result: SimResult, name: str) -> str:
@@ -70,6 +92,122 @@ def to_display(result: SimResult, name: str, values: np.ndarray) -> tuple[np.nda
     unit = display_unit(result, name, si_unit)
     factor = to_si(1.0, unit, si_unit)
     return np.asarray(values, dtype=float) / factor, unit
+
+
+@dataclass(frozen=True)
+class MetricUnits:
+    """How a rig's metrics are shown: each metric's SI unit (:func:`metric_unit`, what
+    JSON holds) and its display unit, the judged output (``{y}`` of the units schema) in
+    the rig's display unit ``output``, e.g. ``sse_abs`` in mm and ``ise`` in mm²·s.
+
+    Built by :func:`metric_units` (from a rig or a run); the default is a position in m
+    shown in mm.
+    """
+
+    output_si: str = "m"
+    output: str = "mm"
+
+    def si(self, metric: str) -> str:
+        """The SI unit of ``metric`` (``summary.json`` and every JSON)."""
+        return metric_unit(metric, self.output_si)
+
+    def unit(self, metric: str) -> str:
+        """The display unit of ``metric`` ("" for a pure number such as the gain margin)."""
+        unit = metric_unit(metric, self.output)
+        return "" if unit == "1" else unit
+
+    def factor(self, metric: str) -> float:
+        """Display value per SI value of ``metric``."""
+        unit = self.unit(metric)
+        return 1.0 / to_si(1.0, unit, self.si(metric)) if unit else 1.0
+
+    def value(self, metric: str, si_value: float | None) -> float:
+        """``si_value`` of ``metric`` in its display unit (NaN for a missing value)."""
+        if si_value is None:
+            return math.nan
+        return float(si_value) * self.factor(metric)
+
+    def label(self, metric: str) -> str:
+        """``metric [unit]``, the row or column head of ``metric`` everywhere."""
+        unit = self.unit(metric)
+        return f"{metric} [{unit}]" if unit else metric
+
+    def text(self, metric: str, si_value: float | None, missing: str = "n/a") -> str:
+        """``si_value`` of ``metric`` with its display unit, e.g. ``0.41 mm``."""
+        value = self.value(metric, si_value)
+        if not math.isfinite(value):
+            return missing
+        unit = self.unit(metric)
+        return format_value(value) + (f" {unit}" if unit else "")
+
+    def si_units(self, metrics: Iterable[str] = METRIC_UNITS) -> dict[str, str]:
+        """``{metric: SI unit}`` of ``metrics`` (default: the whole units schema, resolved
+        for this output): the ``units`` a JSON file carries beside its SI numbers."""
+        return {m: self.si(m) for m in metrics}
+
+
+def metric_units(source: SimResult | object) -> MetricUnits:
+    """The :class:`MetricUnits` of a run (:class:`SimResult`) or a rig
+    (:class:`~fuzzyservo.rig.Rig`): its judged output's SI unit and display unit."""
+    if isinstance(source, SimResult):
+        si = source.output_unit
+        return MetricUnits(si, display_unit(source, source.output_name, si))
+    name = source.output  # a Rig (rig.py sits below this module's layer)
+    si = source.plant.signal_units[name]
+    return MetricUnits(si, source.display_units.get(name) or preferred_unit(si))
+
+
+def metrics_table(
+    names: Sequence[str],
+    rows: Sequence[Mapping[str, float]],
+    units: MetricUnits,
+    metrics: Sequence[str] | None = None,
+) -> str:
+    """A plain-text table: one row per metric (``metrics``, default all, labelled with
+    its display unit), one column per run (``rows``: SI values by metric)."""
+    header = ["metric", *names]
+    shown = METRIC_NAMES if metrics is None else metrics
+    lines = [
+        [units.label(m), *(format_value(units.value(m, r.get(m))) for r in rows)] for m in shown
+    ]
+    widths = [max(len(row[i]) for row in [header, *lines]) for i in range(len(header))]
+    out = ["  ".join(h.ljust(w) for h, w in zip(header, widths, strict=True))]
+    out.append("  ".join("-" * w for w in widths))
+    out += ["  ".join(c.ljust(w) for c, w in zip(row, widths, strict=True)) for row in lines]
+    return "\n".join(out)
+
+
+def undefined_note(shown: Sequence[str], rows: Sequence[Mapping[str, float | None]]) -> str:
+    """Why a table's ``n/a`` metrics are undefined ("" when every shown value is defined):
+    printed under every metrics table (``compare``, ``tune``, the tuning report)."""
+    blank = [
+        m
+        for m in shown
+        if any(v is None or not math.isfinite(v) for v in (row.get(m, math.nan) for row in rows))
+    ]
+    if not blank:
+        return ""
+    return (
+        f"n/a ({', '.join(blank)}): undefined on this run; step metrics need a step in "
+        "the reference (a constant reference has none: such a scenario, e.g. a brake, tests "
+        "a disturbance: read iae/ise), settling needs a response that settles, and a run "
+        "that did not end ok has only its status"
+    )
+
+
+def trial_counts_text(asked: int, complete: int, pruned: int, failed: int) -> str:
+    """A study's trials as every output prints them: ``300 asked: 21 complete, 279
+    pruned, 0 failed`` (terms: :data:`TRIAL_COUNTS_NOTE`)."""
+    return f"{asked} asked: {complete} complete, {pruned} pruned, {failed} failed"
+
+
+#: what the words of :func:`trial_counts_text` mean, printed where the counts are
+TRIAL_COUNTS_NOTE = (
+    "asked: trials the sampler proposed; complete: scored on every scenario (and sampled "
+    "plant), a diverged run included (it scores the penalty); pruned: stopped once its worst "
+    "sample was worse than the best feasible trial; complete and pruned trials count towards "
+    "the study's trials; failed: ended by an error or a killed worker, not counted"
+)
 
 
 def axis_label(name: str, unit: str) -> str:
@@ -110,10 +248,18 @@ def saturated_spans(result: SimResult) -> list[tuple[float, float]]:
 __all__ = [
     "CONTROLLER_COLOURS",
     "PRESSURE_COLOURS",
+    "TRIAL_COUNTS_NOTE",
+    "MetricUnits",
     "axis_label",
     "controller_colour",
+    "display_scale",
     "display_unit",
+    "metric_units",
+    "metrics_table",
+    "preferred_unit",
     "saturated_spans",
     "signal_unit",
     "to_display",
+    "trial_counts_text",
+    "undefined_note",
 ]

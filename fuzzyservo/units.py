@@ -5,9 +5,10 @@ Rig files write every number in the unit its source used (``l/(min*sqrt(bar))``,
 dimension is the one the parameter needs, so ``bar`` given for a length is an error,
 not a silent factor of 1e5.
 
-Grammar: products and quotients of unit names, parentheses, integer or fractional
-powers written ``^`` or ``**`` (``m^3``), a digit suffix for powers (``cm3``,
-``m2``), and ``sqrt(...)``. Dimensionless is ``1`` or ``-``.
+Grammar: products (``*`` or ``·``) and quotients of unit names, parentheses, integer or
+fractional powers written ``^`` or ``**`` (``m^3``), a digit suffix (``cm3``, ``m2``) or a
+superscript (``m²``, as the metric tables print them), and ``sqrt(...)``. Dimensionless
+is ``1`` or ``-``.
 """
 
 from __future__ import annotations
@@ -167,6 +168,7 @@ def parse_unit(text: str) -> Unit:
     if expr in _NAMED:
         return _NAMED[expr]
     expr = expr.replace("^", "**").replace("·", "*").replace("%", "pct")
+    expr = expr.replace("²", "**2").replace("³", "**3")
     expr = _TOKEN_WITH_POWER.sub(lambda m: f"{m.group(1)}**{m.group(2)}", expr)
     try:
         tree = ast.parse(expr, mode="eval")

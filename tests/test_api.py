@@ -17,6 +17,7 @@ PUBLIC = (
     "Rig", "compose_rig", "load_rig", "P", "PI", "FuzzyController", "load_controller",
     "Study", "Parameter", "FuzzyDesign", "Objective", "load_study", "simulate", "compare", "tune",
     "calibrate", "read_measured", "result_metrics", "Scenario", "LinearSensor", "Actuator",
+    "METRIC_UNITS",
 )  # fmt: skip
 
 

@@ -51,11 +51,3 @@ def test_a_postgres_storage_without_its_driver_names_the_extra(monkeypatch) -> N
     monkeypatch.setitem(sys.modules, "psycopg2", None)
     with pytest.raises(MissingExtraError, match=r"fuzzyservo\[postgres\]"):
         _storage("postgresql://nobody@127.0.0.1:1/none")
-
-
-def test_error_integral_units_bracket_a_compound_unit() -> None:
-    from fuzzyservo.metrics import unit_notes
-
-    assert unit_notes("m")["ise"] == " [m²·s]"
-    assert unit_notes("rad/s")["ise"] == " [(rad/s)²·s]"
-    assert unit_notes("rad/s")["iae"] == " [rad/s·s]"

@@ -304,6 +304,7 @@ def test_cold_cache_means_no_compiled_closed_loop(tmp_path, monkeypatch):
 def test_report_compares_best_baseline_and_template_nominal_and_monte_carlo(tmp_path):
     """A robust study's report: the tuned controller beside P K=10 and the template (FLC2)
     on the nominal plant and on fresh samples, each with its gain check."""
+    from fuzzyservo.display import metric_units
     from fuzzyservo.io.study_report import _comparison_lines, comparison_controllers
     from fuzzyservo.tuning.robust import CHECK_SEED, compare_controllers
 
@@ -318,8 +319,9 @@ def test_report_compares_best_baseline_and_template_nominal_and_monte_carlo(tmp_
     assert rows["flc_dinca_robust"]["nominal"]["gain_margin_holds"] is True
     assert rows["flc_dinca_robust"]["failures"] == 0 and rows["p_k10"]["failures"] == 2
     assert rows["flc_dinca_robust"]["nominal"]["objective"] < rows["p_k10"]["nominal"]["objective"]
-    text = "\n".join(_comparison_lines(c, lambda key: f"{key}.png"))
+    text = "\n".join(_comparison_lines(c, lambda key: f"{key}.png", metric_units(spec.rig)))
     assert "### Nominal plant" in text and "2 plants the study never saw" in text
+    assert "| steady-state error [cm] |" in text  # the rig's display unit, as in the plots
     assert "| failures | 0 / 2 | 2 / 2 |" in text and "**oscillates**" in text
 
 

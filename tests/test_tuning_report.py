@@ -23,7 +23,8 @@ from fuzzyservo.tuning.runner import build_evaluator, run_study
 
 SUMMARY_KEYS = {
     "study", "trials", "objective", "best", "baseline", "pareto", "importances", "storage",
-    "wall_s", "sim_time_s", "sampler_time_s",
+    "wall_s", "sim_time_s", "time_split_s", "units", "trials_asked", "trials_pruned",
+    "trials_failed",
 }  # fmt: skip
 BEST_KEYS = {"params", "objective", "metrics", "scenarios", "status", "feasible"}
 BASELINE_KEYS = {"controller", "objective", "metrics", "scenarios"}
@@ -93,7 +94,9 @@ def test_summary_has_the_documented_keys(fuzzy_study):
     assert summary["baseline"]["controller"] == "p_k10"
     assert summary["pareto"] == []
     assert summary["storage"] == outcome.storage_url
-    assert summary["sampler_time_s"] >= 0
+    assert summary["time_split_s"]["sampler"] >= 0 and "sampler_time_s" not in summary
+    assert summary["units"]["sse_abs"] == "m"  # SI, the unit named beside the numbers
+    assert summary["trials_asked"] >= summary["trials"] + summary["trials_pruned"]
 
 
 def test_best_controller_file_reproduces_the_objective(fuzzy_study):

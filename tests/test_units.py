@@ -43,3 +43,9 @@ def test_unknown_unit_is_named():
 def test_garbage_unit():
     with pytest.raises(ValueError, match="cannot read unit"):
         parse_unit("m/(s")
+
+
+def test_the_units_the_tables_print_parse():
+    """The metric tables write ``mm²·s`` and ``(rad/s)²·s``: both read back as units."""
+    assert to_si(1.0, "mm²·s", "m^2*s") == pytest.approx(1e-6)
+    assert parse_unit("(rad/s)²·s") == parse_unit("rad^2/s")

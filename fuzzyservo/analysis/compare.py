@@ -2,23 +2,20 @@
 
 from __future__ import annotations
 
-import math
 from collections.abc import Iterator, Mapping, Sequence
 from dataclasses import dataclass
 from functools import cached_property
 from typing import Any
 
 from fuzzyservo.controllers.base import Controller
+from fuzzyservo.display import metric_units, metrics_table, undefined_note
 from fuzzyservo.errors import ConfigError
 from fuzzyservo.metrics import (
     METRIC_NAMES,
     Metrics,
     applicable_metrics,
-    format_value,
     heave_metrics,
-    metrics_table,
     result_metrics,
-    unit_notes,
 )
 from fuzzyservo.results import Result
 from fuzzyservo.rig import Rig, Scenario
@@ -65,25 +62,21 @@ class ComparisonResult(Result, Mapping[str, SimResult]):
 
     def text(self) -> str:
         runs = list(self.values())
+        units = metric_units(runs[0])
         lines = [f"rig {self.rig} · scenario {self.scenario} · {self.description}".rstrip(" ·")]
         shown = applicable_metrics(runs[0])
         rows = [self.metrics[n].aggregate for n in self]
-        lines.append(metrics_table(list(self), rows, unit_notes(runs[0].output_unit), shown))
+        lines.append(metrics_table(list(self), rows, units, shown))
         if len(shown) < len(METRIC_NAMES):
             left_out = ", ".join(m for m in METRIC_NAMES if m not in shown)
             lines.append(f"not shown: {left_out} (step metrics; this scenario's reference is "
                          "tracked, not stepped)")  # fmt: skip
-        blank = [m for m in shown if any(not math.isfinite(row.get(m, math.nan)) for row in rows)]
-        if blank:
-            lines.append(
-                f"n/a ({', '.join(blank)}): undefined on this run; step metrics need a step in "
-                "the reference (a constant reference has none: this scenario tests a "
-                "disturbance, read iae/ise), settling needs a response that settles, and a "
-                "run that did not end ok has only its status"
-            )
+        if note := undefined_note(shown, rows):
+            lines.append(note)
         if any(self.heave.values()):
-            pct = (f"{n}: {format_value(h.get('compensation_pct'))}" for n, h in self.heave.items())
-            lines.append("compensation_pct [%]  " + "  ".join(pct))
+            pct = (f"{n}: {units.text('compensation_pct', h.get('compensation_pct'))}"
+                   for n, h in self.heave.items())  # fmt: skip
+            lines.append("compensation_pct  " + "  ".join(pct))
         return "\n".join(lines)
 
     def to_dict(self) -> dict[str, Any]:
@@ -92,7 +85,8 @@ class ComparisonResult(Result, Mapping[str, SimResult]):
              **self.metrics[n].to_dict(), **self.heave[n]}
             for n, r in self.items()
         ]  # fmt: skip
-        return {"rig": self.rig, "scenario": self.scenario, "runs": runs}
+        units = metric_units(next(iter(self.values()))).si_units()
+        return {"rig": self.rig, "scenario": self.scenario, "units": units, "runs": runs}
 
 
 def compare(

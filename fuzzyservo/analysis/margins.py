@@ -58,11 +58,13 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from fuzzyservo.controllers.base import Controller
+from fuzzyservo.display import MetricUnits
 from fuzzyservo.results import Result
 from fuzzyservo.rig import Rig, Scenario
 from fuzzyservo.simulation import simulate
 from fuzzyservo.simulation.result import SimResult
 
+_SHOWN = MetricUnits()  # margins do not depend on the output's unit
 DEFAULT_RATIO = 0.97
 DEFAULT_FLOOR_FRACTION = 0.005
 MIN_CROSSINGS = 6
@@ -111,8 +113,8 @@ class Margins(Result):
             f"{g.seconds + d.seconds:.1f} s)\n"
             f"  gain margin  {g.value:.4g}  (stable at {g.bracket[0]:.4g}, oscillating at "
             f"{g.bracket[1]:.4g}, {g.frequency_hz:.3g} Hz)\n"
-            f"  delay margin {d.value * 1e3:.4g} ms extra on the rig's "
-            f"{self.base_delay_s * 1e3:.4g} ms ({d.frequency_hz:.3g} Hz at onset)"
+            f"  delay margin {_SHOWN.text('delay_margin_s', d.value)} extra on the rig's "
+            f"{_SHOWN.text('delay_margin_s', self.base_delay_s)} ({d.frequency_hz:.3g} Hz at onset)"
         )
 
     def to_dict(self) -> dict[str, object]:

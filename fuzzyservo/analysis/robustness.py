@@ -22,6 +22,7 @@ import numpy as np
 
 from fuzzyservo.analysis.margins import stable_at
 from fuzzyservo.controllers.base import Controller
+from fuzzyservo.display import MetricUnits
 from fuzzyservo.metrics import METRIC_NAMES, result_metrics
 from fuzzyservo.metrics import format_value as fmt
 from fuzzyservo.rig import Rig
@@ -304,13 +305,16 @@ def monte_carlo(
     return out
 
 
-#: the metrics a Monte Carlo summary shows, with their units
-SUMMARY_METRICS: dict[str, str] = {
-    "settling_time_s": "s",
-    "sse_abs": "m",
-    "overshoot_pct": "%",
-    "saturation_time_s": "s",
-}
+#: the metrics a Monte Carlo summary shows (units: the schema, metrics.METRIC_UNITS)
+SUMMARY_METRICS: tuple[str, ...] = (
+    "settling_time_s",
+    "sse_abs",
+    "overshoot_pct",
+    "saturation_time_s",
+)
+# their short column heads
+_SHORT = {"settling_time_s": "settling", "sse_abs": "sse", "overshoot_pct": "overshoot",
+          "saturation_time_s": "saturated"}  # fmt: skip
 
 
 def summary(mcs: Sequence[MonteCarlo], gain: float | None) -> list[dict[str, object]]:
@@ -334,24 +338,22 @@ def summary(mcs: Sequence[MonteCarlo], gain: float | None) -> list[dict[str, obj
     return rows
 
 
-def summary_text(rows: Sequence[dict]) -> str:
-    """The Monte Carlo table of :func:`summary` rows: failures and median / 90 % / worst
-    of each metric."""
+def summary_text(rows: Sequence[dict], units: MetricUnits) -> str:
+    """The Monte Carlo table of :func:`summary` rows (SI values): failures and median /
+    90 % / worst of each metric, in its display unit (``units``)."""
     head = f"{'controller':<22} {'failures':>9} {'gain ok':>8}"
-    cols = [("settling_time_s", "settling s", 1.0), ("sse_abs", "sse mm", 1e3),
-            ("overshoot_pct", "overshoot %", 1.0), ("saturation_time_s", "saturated s", 1.0)]  # fmt: skip
-    for _, label, _ in cols:
-        head += f"  {label + ' p50/p90/max':>26}"
+    for m in SUMMARY_METRICS:
+        head += f"  {_SHORT[m] + ' ' + units.unit(m) + ' p50/p90/max':>26}"
     lines = [head]
     for r in rows:
         gain = (
             f"{r.get('gain_margin_holds', '-')}/{r['samples']}" if "gain_margin_holds" in r else "-"
         )
         line = f"{r['controller']:<22} {r['failures']:>5}/{r['samples']:<3} {gain:>8}"
-        for key, _, k in cols:
-            v = r[key]
-            text = f"{fmt(v['p50'] * k)}/{fmt(v['p90'] * k)}/{fmt(v['worst'] * k)}"
-            line += "  " + text.rjust(26)
+        for m in SUMMARY_METRICS:
+            line += "  " + "/".join(
+                fmt(units.value(m, r[m][q])) for q in ("p50", "p90", "worst")
+            ).rjust(26)
         lines.append(line)
     lines.append(
         "failures: samples whose run did not end ok (diverged, end stop, cavitation) or whose "
@@ -361,28 +363,22 @@ def summary_text(rows: Sequence[dict]) -> str:
     return "\n".join(lines)
 
 
-def comparison_text(comparison: dict) -> str:
-    """A robust study's comparison (the ``comparison`` of its ``summary.json``): the
-    nominal plant, then the Monte Carlo table."""
+def comparison_text(comparison: dict, units: MetricUnits) -> str:
+    """A robust study's comparison (the ``comparison`` of its ``summary.json``, SI): the
+    nominal plant, then the Monte Carlo table, in display units (``units``)."""
     c = comparison
-    lines = [f"nominal plant: {'controller':<22} {'objective':>9} {'settling s':>10} "
-             f"{'sse mm':>8} {'overshoot %':>11} {'gain ' + format(c['gain_margin_checked'], 'g'):>7}"]  # fmt: skip
+    nominal = SUMMARY_METRICS[:3]
+    lines = [f"nominal plant: {'controller':<22} {'objective':>9} "
+             + " ".join(f"{_SHORT[m] + ' ' + units.unit(m):>12}" for m in nominal)
+             + f" {'gain ' + format(c['gain_margin_checked'], 'g'):>7}"]  # fmt: skip
     for r in c["controllers"]:
         n = r["nominal"]
         ok = {True: "holds", False: "FAILS", None: "-"}[n["gain_margin_holds"]]
         lines.append(
-            f"{'':15}{r['controller']:<22} {fmt(_nan(n['objective'])):>9} "
-            f"{fmt(_nan(n['settling_time_s'])):>10} {fmt(_nan(n['sse_abs']) * 1e3):>8} "
-            f"{fmt(_nan(n['overshoot_pct'])):>11} {ok:>7}"
+            f"{'':15}{r['controller']:<22} {fmt(n['objective']):>9} "
+            + " ".join(f"{fmt(units.value(m, n[m])):>12}" for m in nominal)
+            + f" {ok:>7}"
         )
     lines.append(f"Monte Carlo on {c['samples']} fresh samples (seed {c['seed']}):")
-    keys = ("settling_time_s", "sse_abs", "overshoot_pct", "saturation_time_s")
-    rows = [  # JSON null (undefined: never settles) back to NaN for the table
-        {**r, **{k: {q: _nan(v) for q, v in r[k].items()} for k in keys}} for r in c["controllers"]
-    ]
-    lines.append(summary_text(rows))
+    lines.append(summary_text(c["controllers"], units))
     return "\n".join(lines)
-
-
-def _nan(value: float | None) -> float:
-    return math.nan if value is None else value

@@ -21,18 +21,13 @@ from fuzzyservo.calibration.residuals import (
 from fuzzyservo.calibration.search import Outcome, Round, fit_table
 from fuzzyservo.calibration.signatures import mean_share, signatures
 from fuzzyservo.components.effects import LIBRARY, owner
+from fuzzyservo.display import display_scale
 from fuzzyservo.rig import Rig
 
 if TYPE_CHECKING:
     from fuzzyservo.measured import Measured
 
 ZOOM_S = 5.0  # the detail overlay shows this much of the held-out part [s]
-# SI unit -> (display unit, factor) for plots and tables
-_DISPLAY = {"m": ("mm", 1e3), "Pa": ("bar", 1e-5), "A": ("mA", 1e3), "m/s": ("mm/s", 1e3)}
-
-
-def display_scale(unit: str) -> tuple[str, float]:
-    return _DISPLAY.get(unit, (unit, 1.0))
 
 
 def input_signal(replay: Replay) -> tuple[str, np.ndarray]:

@@ -35,6 +35,7 @@ from fuzzyservo.display import (
     PRESSURE_COLOURS,
     axis_label,
     controller_colour,
+    metric_units,
     saturated_spans,
     to_display,
 )
@@ -232,12 +233,10 @@ class Designer:
             fig.legend.click_policy = "hide"
 
     def _draw_metrics(self, runs) -> None:
-        unit = runs[0].result.output_unit
-        notes = {"sse_abs": f" [{unit}]", "iae": f" [{unit}·s]", "ise": f" [{unit}²·s]",
-                 "itae": f" [{unit}·s²]", "peak_command": " [V]"}  # fmt: skip
+        units = metric_units(runs[0].result)
         head = "".join(f"<th>{_esc(r.name)}</th>" for r in runs)
         rows = "".join(
-            f"<tr title='{_esc(METRIC_DOCS[row[0]])}'><td>{row[0]}{notes.get(row[0], '')}</td>"
+            f"<tr title='{_esc(METRIC_DOCS[row[0]])}'><td>{_esc(units.label(row[0]))}</td>"
             + "".join(f"<td>{v}</td>" for v in row[1:])
             + "</tr>"
             for row in metrics_rows(runs)
@@ -675,9 +674,7 @@ class Designer:
                  "status": t.status, **{p: _short(v) for p, v in t.params.items()}}
                 for t in view.trials]  # fmt: skip
         self.trials_table.value = pd.DataFrame(rows)
-        note = (
-            f"{view.spec.name}: {view.complete} complete trials; the best {len(view.trials)} listed"
-        )
+        note = f"{view.spec.name}: trials {view.counts}; the best {len(view.trials)} listed"
         self.trials_note.object = f"<div id='fs-trials-note'>{_esc(note)}</div>"
         self._say(f"{note} (storage {view.url})")
 

@@ -21,6 +21,7 @@ import numpy as np
 from fuzzyservo.controllers.fuzzy import FuzzyController
 from fuzzyservo.controllers.fuzzy.system import NO_TERM, term_index
 from fuzzyservo.designer.files import Folders
+from fuzzyservo.display import metric_units, trial_counts_text
 from fuzzyservo.errors import ConfigError
 from fuzzyservo.io.controllers import read_controller_data
 from fuzzyservo.metrics import METRIC_NAMES, result_metrics
@@ -63,6 +64,7 @@ class StudyView:
     url: str
     trials: list[Trial]
     complete: int
+    counts: str = ""  # asked / complete / pruned / failed, as every output words them
 
 
 @dataclass
@@ -378,7 +380,7 @@ class Session:
         from optuna.trial import TrialState
         from sqlalchemy.exc import SQLAlchemyError
 
-        from fuzzyservo.tuning.runner import driver_url
+        from fuzzyservo.tuning.runner import driver_url, trial_counts
 
         optuna.logging.set_verbosity(optuna.logging.WARNING)
         try:
@@ -400,7 +402,7 @@ class Session:
             Trial(t.number, list(t.values), dict(t.params), t.user_attrs.get("status", "?"))
             for t in ranked[:top]
         ]
-        return StudyView(spec, url, best, len(trials))
+        return StudyView(spec, url, best, len(trials), trial_counts_text(**trial_counts(loaded)))
 
     def trial_data(self, view: StudyView, trial: Trial) -> dict[str, Any]:
         """The controller mapping of a trial: the study's template with the trial's numbers."""
@@ -462,5 +464,6 @@ def fmt(value: float | None) -> str:
 
 
 def metrics_rows(runs: list[Run]) -> list[list[str]]:
-    """One row per metric (name, then one formatted value per run)."""
-    return [[m, *(fmt(r.metrics.get(m)) for r in runs)] for m in METRIC_NAMES]
+    """One row per metric (name, then one value per run in its display unit, formatted)."""
+    units = metric_units(runs[0].result)
+    return [[m, *(fmt(units.value(m, r.metrics.get(m))) for r in runs)] for m in METRIC_NAMES]

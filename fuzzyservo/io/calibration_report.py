@@ -16,7 +16,6 @@ from fuzzyservo.calibration.joint import split_field
 from fuzzyservo.calibration.replay import Replay
 from fuzzyservo.calibration.report import (
     ZOOM_S,
-    display_scale,
     input_signal,
     report_markdown,
     residual_analysis,
@@ -30,6 +29,7 @@ from fuzzyservo.calibration.residuals import (
 )
 from fuzzyservo.calibration.search import Outcome, fit_table
 from fuzzyservo.components.effects import LIBRARY
+from fuzzyservo.display import display_scale
 
 
 def write_outputs(

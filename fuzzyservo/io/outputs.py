@@ -80,7 +80,8 @@ def save_robustness(result: RobustnessResult, out: str | Path) -> list[Path]:
 
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
-    fig = plots.distribution_figure(result.distributions(), SUMMARY_METRICS)
+    units = {m: result.units.unit(m) for m in SUMMARY_METRICS}
+    fig = plots.distribution_figure(result.distributions(), units)
     paths = [plots.save(fig, out / f"{result.rig}_robustness.png")]
     for controller, (label, runs) in result.worst_runs().items():
         for scenario, r in runs.items():

@@ -22,9 +22,17 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
-from fuzzyservo.analysis.robustness import SUMMARY_METRICS
+from fuzzyservo.analysis.robustness import SUMMARY_METRICS, comparison_text
+from fuzzyservo.display import (
+    TRIAL_COUNTS_NOTE,
+    MetricUnits,
+    metric_units,
+    metrics_table,
+    trial_counts_text,
+    undefined_note,
+)
 from fuzzyservo.io.jsonfile import write_json
-from fuzzyservo.metrics import METRIC_DOCS, METRIC_NAMES
+from fuzzyservo.metrics import METRIC_DOCS, METRIC_NAMES, format_value
 from fuzzyservo.tuning.evaluation import Evaluation
 from fuzzyservo.tuning.objective import measured_margins
 from fuzzyservo.tuning.robust import Comparison, compare_controllers
@@ -72,7 +80,7 @@ def write_outputs(
     data = controller_data(evaluator.controller(outcome.best_params, name=f"{spec.name}_best"))
     data["description"] = (
         f"Best {'trial' if trial is None else f'trial #{trial}'} of tuning study {spec.name} "
-        f"({spec.path or 'no study file'}, {outcome.trials_complete} complete trials) on "
+        f"({spec.path or 'no study file'}; trials {_counts(outcome)}) on "
         f"scenarios {', '.join(spec.scenarios)}; objective {spec.objective.describe()} = "
         f"{_values_text(outcome.best.values)} (baseline {_values_text(outcome.baseline.values)}). "
         f"Template: {spec.template.name}."
@@ -90,9 +98,10 @@ def write_outputs(
 
     paths.update(_figures(outcome, out_dir, best_controller, fuzzy))
     comparison = None
+    units = metric_units(spec.rig)
     if spec.uncertainty is not None and check_samples != 0:
         comparison = _compare(evaluator, best_controller, check_samples, progress)
-        paths["check"] = _check_figure(comparison, out_dir)
+        paths["check"] = _check_figure(comparison, out_dir, units)
     summary = summary_data(outcome, evaluator.baseline.name, trial)
     measured = _measured_margins(evaluator, best_controller)
     if measured:
@@ -107,9 +116,30 @@ def write_outputs(
         }
     paths["summary"] = write_json(out_dir / SUMMARY_FILE, summary)
     paths["report"] = out_dir / REPORT_FILE
-    text = _report(outcome, evaluator, trial, check, paths, out_dir, comparison, measured)
+    text = _report(outcome, evaluator, trial, check, paths, out_dir, comparison, measured, units)
     paths["report"].write_text(text, encoding="utf-8")
     return paths
+
+
+def tuning_text(outcome: Outcome, summary: dict[str, Any]) -> str:
+    """What ``fuzzyservo tune`` prints when done: the trial counts, the metrics of the
+    baseline and the best in display units (``n/a`` explained), the objective and, for a
+    robust study, the comparison of its ``summary`` (as written)."""
+    units = metric_units(outcome.spec.rig)
+    best, base = outcome.best, outcome.baseline
+    rows = [base.metrics, best.metrics]
+    lines = [f"trials: {_counts(outcome)}", metrics_table(["baseline", "best"], rows, units)]
+    if note := undefined_note(METRIC_NAMES, rows):
+        lines.append(note)
+    values = [", ".join(format_value(v) for v in e.values) for e in (best, base)]
+    lines.append(f"objective: best {values[0]} against baseline {values[1]} "
+                 f"({outcome.spec.objective.describe()}{_si_note(outcome.spec, units)})")  # fmt: skip
+    for who, e in (("best", best), ("baseline", base)):
+        if e.status != "ok":  # its objective is the penalty or undefined: say why
+            lines.append(f"{who}: status {_status(e)}")
+    if "comparison" in summary:
+        lines.append(comparison_text(summary["comparison"], units))
+    return "\n".join(lines)
 
 
 def _measured_margins(evaluator, best_controller) -> dict[str, dict[str, float | None]]:
@@ -144,22 +174,24 @@ def _compare(evaluator, best_controller, samples: int | None, progress) -> Compa
     )
 
 
-def _check_figure(comparison: Comparison, out_dir: Path) -> Path:
+def _check_figure(comparison: Comparison, out_dir: Path, units: MetricUnits) -> Path:
     from fuzzyservo import plots
 
     values = {
-        m: {mc.controller: mc.values(m) for mc in comparison.monte_carlo} for m in SUMMARY_METRICS
+        m: {mc.controller: mc.values(m) * units.factor(m) for mc in comparison.monte_carlo}
+        for m in SUMMARY_METRICS
     }
-    return plots.save(plots.distribution_figure(values, SUMMARY_METRICS), out_dir / "check.png")
+    fig = plots.distribution_figure(values, {m: units.unit(m) for m in SUMMARY_METRICS})
+    return plots.save(fig, out_dir / "check.png")
 
 
-def _comparison_lines(comparison: Comparison, link) -> list[str]:
+def _comparison_lines(comparison: Comparison, link, units: MetricUnits) -> list[str]:
     """The report's comparison: nominal plant, then the Monte Carlo table."""
     names = comparison.names
     rows = comparison.rows()
-    shown = (("settling_time_s", "settling time 2 %", "s", 1.0), ("sse_abs", "steady-state error",
-             "mm", 1e3), ("overshoot_pct", "overshoot", "%", 1.0),
-             ("saturation_time_s", "converter saturated", "s", 1.0))  # fmt: skip
+    labels = {"settling_time_s": "settling time 2 %", "sse_abs": "steady-state error",
+              "overshoot_pct": "overshoot", "saturation_time_s": "converter saturated"}  # fmt: skip
+    shown = [(m, label, units.unit(m), units.factor(m)) for m, label in labels.items()]
     head = "| | " + " | ".join(f"`{n}`" for n in names) + " |"
     rule = "|---|" + "---:|" * len(names)
     lines = ["## Against the baseline and the template", "", "### Nominal plant", "", head, rule]
@@ -228,6 +260,9 @@ def summary_data(outcome: Outcome, baseline_name: str, trial: int | None) -> dic
     best, base = outcome.best, outcome.baseline
     return {
         "study": spec.name,
+        # every metric below is SI, in the unit this maps it to (the units schema,
+        # fuzzyservo.metrics.METRIC_UNITS, for this rig's output)
+        "units": metric_units(spec.rig).si_units(),
         "trials": outcome.trials_complete,
         "objective": spec.objective.describe(),
         "best": {
@@ -270,22 +305,35 @@ def summary_data(outcome: Outcome, baseline_name: str, trial: int | None) -> dic
         "storage": outcome.storage_url,
         "wall_s": outcome.wall_s,
         "sim_time_s": outcome.sim_time_s,
-        # what the trials spent outside the simulations: sampling, storage, building controllers
-        "sampler_time_s": max(0.0, outcome.worker_time_s - outcome.sim_time_s),
         "time_split_s": time_split(outcome),
         "simulations": outcome.simulations,
+        "trials_asked": outcome.trials_asked,
         "trials_pruned": outcome.trials_pruned,
+        "trials_failed": outcome.trials_failed,
         # robust studies: sampled plants the trials never ran (pruned or failed before them)
         "samples_skipped": outcome.samples_skipped,
     }
 
 
+def _si_note(spec, units: MetricUnits) -> str:
+    """The objective weighs metrics in SI: say so for those the tables show in another
+    unit (``sse_abs`` in m, shown in mm)."""
+    si = [f"{m} in {units.si(m)}" for m in spec.objective.metrics if units.unit(m) != units.si(m)]
+    return f"; over the metrics in SI: {', '.join(si)}" if si else ""
+
+
+def _counts(outcome: Outcome) -> str:
+    """Asked, complete, pruned and failed trials (a study collected before the asked
+    and failed ones were counted: complete and pruned are all it asked)."""
+    asked = outcome.trials_asked or outcome.trials_complete + outcome.trials_pruned
+    return trial_counts_text(asked, outcome.trials_complete, outcome.trials_pruned,
+                             outcome.trials_failed)  # fmt: skip
+
+
 def _trials_text(outcome: Outcome) -> str:
-    """Complete and pruned trials, and for a robust study its simulations and the
-    sampled plants its trials skipped."""
-    text = f"{outcome.trials_complete} complete"
-    if outcome.trials_pruned:
-        text += f", {outcome.trials_pruned} pruned"
+    """Asked, complete, pruned and failed trials, and for a robust study its simulations
+    and the sampled plants its trials skipped."""
+    text = _counts(outcome)
     if outcome.samples_skipped:
         text += f" ({outcome.samples_skipped} sampled plants skipped: decided before them)"
     if outcome.simulations:
@@ -293,10 +341,11 @@ def _trials_text(outcome: Outcome) -> str:
     return text
 
 
-def _split_text(outcome: Outcome, rest_s: float) -> str:
+def _split_text(outcome: Outcome) -> str:
     """The trials' time by what it went to (a study stored before the split was
     recorded: simulation and the rest)."""
     if not outcome.sampler_time_s:
+        rest_s = max(0.0, outcome.worker_time_s - outcome.sim_time_s)
         return (f"simulation {_duration(outcome.sim_time_s)}, sampler, storage and controller "
                 f"building {_duration(rest_s)}")  # fmt: skip
     return ", ".join(f"{k} {_duration(v)}" for k, v in time_split(outcome).items())
@@ -336,6 +385,11 @@ def _selection_lines(outcome: Outcome) -> list[str]:
                      f"{pm(row['fresh_value'], row['fresh_standard_error'])} | "
                      f"{'yes' if row['fresh_feasible'] else 'no'} |")  # fmt: skip
     return [*lines, ""]
+
+
+def _status(ev: Evaluation) -> str:
+    """A scored controller's status and why (an objective that is the penalty or n/a)."""
+    return ev.status + (f" ({ev.message})" if ev.message else "")
 
 
 def _objective_value(ev: Evaluation) -> float | list[float]:
@@ -425,6 +479,7 @@ def _report(
     out_dir: Path,
     comparison: Comparison | None = None,
     measured: dict[str, dict[str, float | None]] | None = None,
+    units: MetricUnits | None = None,
 ) -> str:
     spec = outcome.spec
     best, base = outcome.best, outcome.baseline
@@ -439,7 +494,7 @@ def _report(
     if spec.description:
         lines += [spec.description.strip(), ""]
     sampler = spec.sampler + (f" (seed {spec.seed})" if spec.seed is not None else "")
-    sampler_s = max(0.0, outcome.worker_time_s - outcome.sim_time_s)
+    units = units or metric_units(spec.rig)
     lines += [
         "| | |",
         "|---|---|",
@@ -448,7 +503,7 @@ def _report(
         f"| scenarios | {', '.join(spec.scenarios)} ({spec.aggregate} over scenarios) |",
         f"| template | {spec.template.name} |",
         f"| baseline | {evaluator.baseline.name} |",
-        f"| objective | {spec.objective.describe()} (minimised) |",
+        f"| objective | {spec.objective.describe()} (minimised{_si_note(spec, units)}) |",
         f"| constraints | {', '.join(f'`{c}`' for c in spec.constraints) or 'none'} |",
         *(
             [
@@ -461,8 +516,10 @@ def _report(
         f"| sampler | {sampler} |",
         f"| trials | {_trials_text(outcome)} |",
         f"| wall time (this run) | {_duration(outcome.wall_s)} |",
-        f"| time in trials | {_split_text(outcome, sampler_s)} (summed over the stored trials) |",
+        f"| time in trials | {_split_text(outcome)} (summed over the stored trials) |",
         f"| storage | `{outcome.storage_url}` |",
+        "",
+        f"Trials: {TRIAL_COUNTS_NOTE}.",
         "",
         "## Result",
         "",
@@ -471,9 +528,9 @@ def _report(
     which = "the reported best" if trial is None else f"trial #{trial}"
     lines += [
         f"Best: {which}, objective {_values_text(best.values)} against the baseline's "
-        f"{_values_text(base.values)}; status {best.status}"
-        + (f" ({best.message})" if best.message else "")
-        + f", {'feasible' if best.feasible else 'infeasible'}.",
+        f"{_values_text(base.values)}; status {_status(best)}, "
+        f"{'feasible' if best.feasible else 'infeasible'}."
+        + (f" The baseline's status: {_status(base)}." if base.status != "ok" else ""),
         "",
     ]
     for c, v in zip(spec.constraints, best.violations, strict=True):
@@ -482,14 +539,15 @@ def _report(
             m = measured[c.metric]
             where = "on every sampled plant" if spec.uncertainty is not None else "at the bound"
             lines.append(
-                f"- `{c}`: best {_num(m['best'])} measured on the nominal plant ({met} "
-                f"{where}), baseline {_num(m['baseline'])} (`fuzzyservo margins`: the loop "
-                "gain or added delay at which the loop starts to oscillate)"
+                f"- `{c}`: best {units.text(c.metric, m['best'])} measured on the nominal "
+                f"plant ({met} {where}), baseline {units.text(c.metric, m['baseline'])} "
+                "(`fuzzyservo margins`: the loop gain or added delay at which the loop starts "
+                "to oscillate)"
             )
             continue
         lines.append(
-            f"- `{c}`: best {_num(best.metrics.get(c.metric))} ({met}), "
-            f"baseline {_num(base.metrics.get(c.metric))}"
+            f"- `{c}`: best {units.text(c.metric, best.metrics.get(c.metric))} ({met}), "
+            f"baseline {units.text(c.metric, base.metrics.get(c.metric))}"
         )
     if spec.constraints:
         lines.append("")
@@ -509,7 +567,7 @@ def _report(
     lines += ["", "Also written: " + ", ".join(files) + ".", ""]
 
     if comparison is not None:
-        lines += _comparison_lines(comparison, link)
+        lines += _comparison_lines(comparison, link, units)
 
     lines += ["## Best parameters", "", "| parameter | template | best | searched range |"]
     lines.append("|---|---:|---:|---|")
@@ -523,13 +581,14 @@ def _report(
 
     lines += ["## Metrics", ""]
     lines += [f"### Aggregated ({spec.aggregate} over scenarios)", ""]
-    lines += _metrics_table(base.metrics, best.metrics, evaluator.baseline.name)
+    lines += _metrics_table(base.metrics, best.metrics, evaluator.baseline.name, units)
     for scenario in spec.scenarios:
         lines += [f"### Scenario `{scenario}`", ""]
         lines += _metrics_table(
             base.scenario_metrics.get(scenario, {}),
             best.scenario_metrics.get(scenario, {}),
             evaluator.baseline.name,
+            units,
         )
         lines += image(f"response_{_file_part(scenario)}", f"response on {scenario}")
 
@@ -586,12 +645,18 @@ def _report(
     return "\n".join(lines) + "\n"
 
 
-def _metrics_table(base: dict[str, float], best: dict[str, float], base_name: str) -> list[str]:
+def _metrics_table(
+    base: dict[str, float], best: dict[str, float], base_name: str, units: MetricUnits
+) -> list[str]:
+    """Baseline and best side by side in display units; the ``n/a`` ones explained under it."""
     lines = [f"| metric | baseline ({base_name}) | best | change |", "|---|---:|---:|---:|"]
     for m in METRIC_NAMES:
         b, n = base.get(m, math.nan), best.get(m, math.nan)
-        lines.append(f"| `{m}` | {_num(b)} | {_num(n)} | {_change(b, n)} |")
-    return [*lines, ""]
+        unit = units.unit(m)
+        lines.append(f"| `{m}`{f' [{unit}]' if unit else ''} | {_num(units.value(m, b))} | "
+                     f"{_num(units.value(m, n))} | {_change(b, n)} |")  # fmt: skip
+    note = undefined_note(METRIC_NAMES, [base, best])
+    return [*lines, "", *([note, ""] if note else [])]
 
 
 def _change(base: float, best: float) -> str:

@@ -5,8 +5,9 @@ time, overshoot, steady-state error, saturation time, IAE/ISE/ITAE, peak command
 MATLAB ``stepinfo`` conventions; :func:`result_metrics` applies it to a
 :class:`~fuzzyservo.simulation.result.SimResult`. :data:`METRIC_NAMES` lists the
 aggregate metrics in report order, :data:`METRIC_DOCS` gives each one's formula and unit.
+:data:`METRIC_UNITS` is the units schema (each metric's SI unit, as JSON holds it).
 :func:`compensation_pct` scores a heave-compensation run (:func:`heave_metrics` on a result);
-:func:`metrics_table` lays runs side by side as text.
+:mod:`fuzzyservo.display` shows them in display units.
 """
 
 from fuzzyservo.metrics._heave import compensation_pct, heave_metrics
@@ -16,12 +17,20 @@ from fuzzyservo.metrics._step import (
     result_metrics,
     step_metrics,
 )
-from fuzzyservo.metrics._table import format_value, metrics_table, unit_notes
-from fuzzyservo.metrics._types import METRIC_DOCS, METRIC_NAMES, Metrics, StepMetrics
+from fuzzyservo.metrics._table import format_value
+from fuzzyservo.metrics._types import (
+    METRIC_DOCS,
+    METRIC_NAMES,
+    METRIC_UNITS,
+    Metrics,
+    StepMetrics,
+    metric_unit,
+)
 
 __all__ = [
     "METRIC_DOCS",
     "METRIC_NAMES",
+    "METRIC_UNITS",
     "Metrics",
     "StepMetrics",
     "applicable_metrics",
@@ -29,8 +38,7 @@ __all__ = [
     "compensation_pct",
     "format_value",
     "heave_metrics",
-    "metrics_table",
+    "metric_unit",
     "result_metrics",
     "step_metrics",
-    "unit_notes",
 ]

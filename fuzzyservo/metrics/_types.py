@@ -34,7 +34,7 @@ METRIC_DOCS: dict[str, str] = {
     "overshoot_pct": (
         "100 max(0, peak beyond y_final in the step direction) / |y_final - y_init| [%]; worst step"
     ),
-    "sse_abs": "|r1 - y_final|, y_final = mean of the step's last 5 % [output SI unit]; worst step",
+    "sse_abs": "|r1 - y_final|, y_final = mean of the step's last 5 % [output unit]; worst step",
     "sse_pct": "100 |r1 - y_final| / |r1 - r0| [%]; worst step",
     "saturation_time_s": "number of samples with the actuator at a limit x sample time [s]; sum",
     "iae": "sum |r - y| dt, rectangle rule [output unit x s]; sum over samples",
@@ -46,6 +46,55 @@ METRIC_DOCS: dict[str, str] = {
         "over every scored sample"
     ),
 }
+
+
+#: The units schema: the SI unit of every number the metrics (and the margin checks the
+#: tuning constraints bound) are reported in, in ``summary.json`` and every other JSON.
+#: ``{y}`` stands for the judged output's SI unit (``m``, ``rad``, ``rad/s``: the rig's
+#: ``output`` signal); the command ``u`` is the controller output in V. The screen shows
+#: each in its display unit (:class:`fuzzyservo.display.MetricUnits`).
+METRIC_UNITS: dict[str, str] = {
+    "rise_time_s": "s",
+    "settling_time_s": "s",
+    "overshoot_pct": "%",
+    "sse_abs": "{y}",
+    "sse_pct": "%",
+    "saturation_time_s": "s",
+    "iae": "{y}·s",
+    "ise": "{y}²·s",
+    "itae": "{y}·s²",
+    "peak_command": "V",
+    "command_tv": "V/s",
+    # heave compensation (compensation_pct)
+    "compensation_pct": "%",
+    # one step's record (StepMetrics)
+    "t_step_s": "s",
+    "r0": "{y}",
+    "r1": "{y}",
+    "y_init": "{y}",
+    "y_final": "{y}",
+    # the margins a constraint may bound (analysis/margins.py)
+    "gain_margin": "1",
+    "delay_margin_s": "s",
+}
+
+
+def metric_unit(metric: str, output_unit: str) -> str:
+    """``metric``'s SI unit (:data:`METRIC_UNITS`) for a judged output in ``output_unit``;
+    a compound output unit is bracketed before it is raised to a power (``(rad/s)²·s``).
+
+    Raises ``ValueError`` for a metric the schema does not list.
+    """
+    if metric not in METRIC_UNITS:
+        raise ValueError(
+            f"metric {metric!r} has no unit in METRIC_UNITS; add it there (known: "
+            f"{', '.join(METRIC_UNITS)})"
+        )
+    template = METRIC_UNITS[metric]
+    compound = any(c in output_unit for c in "/·* ")
+    if compound and "{y}²" in template:
+        template = template.replace("{y}²", "({y})²")
+    return template.replace("{y}", output_unit)
 
 
 def _json_number(value: float) -> float | None:

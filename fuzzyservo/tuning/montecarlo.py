@@ -22,6 +22,7 @@ from fuzzyservo.analysis.robustness import (
     summary,
     summary_text,
 )
+from fuzzyservo.display import MetricUnits, metric_units
 from fuzzyservo.errors import ConfigError
 from fuzzyservo.results import Result
 
@@ -46,6 +47,7 @@ class RobustnessResult(Result):
     runs: tuple[MonteCarlo, ...]
     controllers: tuple[Controller, ...] = field(repr=False)
     rigs: tuple[Rig, ...] = field(repr=False)
+    units: MetricUnits = field(default_factory=MetricUnits)  # how the metrics are shown
 
     @property
     def failed(self) -> bool:
@@ -58,7 +60,7 @@ class RobustnessResult(Result):
 
     def text(self) -> str:
         u = self.uncertainty
-        lines = [summary_text(self.rows())]
+        lines = [summary_text(self.rows(), self.units)]
         for mc in self.runs:
             for run in mc.failures[:3]:
                 lines.append(f"{mc.controller}: {u.draws[run.index].describe(u.parameters)}: "
@@ -67,11 +69,13 @@ class RobustnessResult(Result):
 
     def to_dict(self) -> dict[str, Any]:
         return {"rig": self.rig, "uncertainty": self.uncertainty.describe(),
-                "controllers": self.rows()}  # fmt: skip
+                "units": self.units.si_units(SUMMARY_METRICS), "controllers": self.rows()}  # fmt: skip
 
     def distributions(self) -> dict[str, dict[str, np.ndarray]]:
-        """Each summary metric's values by controller (for a distribution figure)."""
-        return {m: {mc.controller: mc.values(m) for mc in self.runs} for m in SUMMARY_METRICS}
+        """Each summary metric's values by controller, in its display unit (for a
+        distribution figure labelled with ``units.unit``)."""
+        return {m: {mc.controller: mc.values(m) * self.units.factor(m) for mc in self.runs}
+                for m in SUMMARY_METRICS}  # fmt: skip
 
     def worst_runs(self) -> dict[str, tuple[str, dict[str, SimResult]]]:
         """Per controller, its first failure (else the sample it settles slowest on),
@@ -140,7 +144,8 @@ class RobustnessPlan:
             if progress is not None:
                 progress(self.steps)
         return RobustnessResult(self.rig.name, self.uncertainty, self.scenarios, gain_margin,
-                                tuple(runs), self.controllers, self.rigs)  # fmt: skip
+                                tuple(runs), self.controllers, self.rigs,
+                                metric_units(self.rig))  # fmt: skip
 
 
 #: samples per task when the Monte Carlo is shared out (monte_carlo's own chunk)

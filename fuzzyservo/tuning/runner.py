@@ -38,6 +38,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, NoReturn
 
+from fuzzyservo.display import trial_counts_text
 from fuzzyservo.errors import require
 from fuzzyservo.rig import Rig
 from fuzzyservo.tuning.evaluation import Evaluation
@@ -83,6 +84,8 @@ class Outcome:
     best_number: int | None = None
     samples_skipped: int = 0  # sampled plants the robust trials never ran (decided before)
     sampler_time_s: float = 0.0  # the sampler's time (asking the trials)
+    trials_asked: int = 0  # every trial the sampler proposed (any state)
+    trials_failed: int = 0  # FAIL: an error or a killed worker (not counted)
     build_time_s: float = 0.0  # in the trials: building controllers
     storage_time_s: float = 0.0  # batch mode: the parent writing the batches
 
@@ -270,6 +273,15 @@ def _objective(spec: Study, evaluator: Evaluator):
     return objective
 
 
+def trial_counts(study) -> dict[str, int]:
+    """The study's trials: ``asked`` (every state), ``complete``, ``pruned``, ``failed``."""
+    from optuna.trial import TrialState
+
+    states = [t.state for t in study.get_trials(deepcopy=False)]
+    return {"asked": len(states), "complete": states.count(TrialState.COMPLETE),
+            "pruned": states.count(TrialState.PRUNED), "failed": states.count(TrialState.FAIL)}  # fmt: skip
+
+
 def count_complete(study) -> int:
     """Finished trials: COMPLETE, and PRUNED (a robust trial stopped as hopeless)."""
     return len(study.get_trials(deepcopy=False, states=_finished()))
@@ -385,8 +397,9 @@ def run_study(
         done_before = count_complete(study)
         if done_before and progress:
             left = max(total - done_before, 0)
-            print(f"resuming study {spec.name}: {done_before} of {total} trials done, "
-                  f"{left} to run ({url})", file=sys.stderr, flush=True)  # fmt: skip
+            counts = trial_counts_text(**trial_counts(study))
+            print(f"resuming study {spec.name}: {done_before} of {total} trials done "
+                  f"({counts}), {left} to run ({url})", file=sys.stderr, flush=True)  # fmt: skip
         t0 = time.perf_counter()
         _warm_kernels(spec)  # before the bar: its rate (and ETA) should not count compiling
         bar = _bar(total, done_before, spec.name, progress)
@@ -770,6 +783,7 @@ def collect(spec: Study, url: str, *, wall_s: float = 0.0, executor=None) -> Out
     finished = study.get_trials(deepcopy=False, states=_finished())  # with pruned ones
     sim = sum(t.user_attrs.get("sim_time_s", 0.0) for t in finished)
     worker_time = sum(_trial_time(t) for t in finished)
+    counts = trial_counts(study)
     return Outcome(
         spec=spec,
         storage_url=url,
@@ -789,6 +803,8 @@ def collect(spec: Study, url: str, *, wall_s: float = 0.0, executor=None) -> Out
         best_number=best_trial.number,
         samples_skipped=sum(_work(t, "samples_skipped") for t in finished),
         sampler_time_s=sum(_work(t, "sample_s") for t in finished),
+        trials_asked=counts["asked"],
+        trials_failed=counts["failed"],
         build_time_s=sum(_work(t, "build_s") for t in finished),
         storage_time_s=stored_time,
     )

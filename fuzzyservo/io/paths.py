@@ -14,7 +14,6 @@ from pathlib import Path
 
 from fuzzyservo.errors import ConfigError
 
-
 _PACKAGE = Path(__file__).resolve().parent.parent
 
 

@@ -71,7 +71,12 @@ class Block:
 
     @property
     def where(self) -> str:
-        return f"{self.page.relative_to(ROOT).as_posix()}:{self.line}"
+        return f"{_name(self.page)}:{self.line}"
+
+
+def _name(page: Path) -> str:
+    """``page`` as the tests name it: relative to the checkout (else its file name)."""
+    return page.relative_to(ROOT).as_posix() if page.is_relative_to(ROOT) else page.name
 
 
 def blocks(page: Path) -> list[Block]:
@@ -196,7 +201,7 @@ def test_every_fuzzyservo_command_of_the_docs_runs(tmp_path: Path, block: Block,
             timeout=TIMEOUT_S,
             check=False,
         )
-        where = f"{block.page.relative_to(ROOT).as_posix()}:{number}"
+        where = f"{_name(block.page)}:{number}"
         assert done.returncode == 0, (
             f"{where}: `{command}` exited {done.returncode}\n{done.stderr[-3000:]}"
         )
@@ -224,6 +229,19 @@ def test_the_collector_reads_blocks_markers_and_continuations(tmp_path: Path) ->
     assert third.lang == "python"
 
 
+def test_a_block_runs_in_a_fresh_clone_and_a_failure_names_its_line(tmp_path: Path) -> None:
+    page = tmp_path / "page.md"
+    page.write_text(
+        "```bash\nfuzzyservo evaluate examples/pd_valve.fis examples/pd_valve_inputs.csv "
+        "--out u.csv\nfuzzyservo evaluate examples/pd_valve.fis u.csv\n```\n",
+        encoding="utf-8",
+    )
+    (block,) = blocks(page)
+    with pytest.raises(AssertionError, match=r"page\.md:3: `fuzzyservo evaluate .* exited 2"):
+        test_every_fuzzyservo_command_of_the_docs_runs(tmp_path, block, commands(block))
+    assert (tmp_path / "clone" / "u.csv").is_file()  # the first line ran, in the clone
+
+
 # --------------------------------------------------------------------------- Python
 def _python_pages() -> list:
     pages = []
@@ -232,25 +250,44 @@ def _python_pages() -> list:
             marks = []
             if OLD_README and page.name == "README.md" and page.parent == ROOT:
                 marks.append(pytest.mark.skip(reason="TEMPORARY: the pre-issue-31 README"))
-            pages.append(pytest.param(page, id=page.relative_to(ROOT).as_posix(), marks=marks))
+            pages.append(pytest.param(page, id=_name(page), marks=marks))
     return pages
 
 
-@pytest.mark.parametrize("page", _python_pages())
-def test_every_python_block_of_the_docs_runs(tmp_path: Path, monkeypatch, page: Path) -> None:
-    sybil = pytest.importorskip("sybil")
+def run_python_blocks(page: Path) -> int:
+    """Evaluate the Python blocks of ``page`` in order in one namespace (Sybil), those
+    after a not-run marker aside; how many ran. Raises AssertionError naming the line."""
+    from sybil import Sybil
     from sybil.parsers.markdown import PythonCodeBlockParser
 
-    monkeypatch.chdir(sandbox(tmp_path))
-    monkeypatch.setenv("MPLBACKEND", "Agg")
     skipped = {b.line for b in blocks(page) if b.not_run}
-    document = sybil.Sybil(parsers=[PythonCodeBlockParser()]).parse(page)
-    for example in document.examples():
+    ran = 0
+    for example in Sybil(parsers=[PythonCodeBlockParser()]).parse(page).examples():
         if example.line in skipped:
             continue
         try:
             example.evaluate()
         except Exception as exc:
-            raise AssertionError(
-                f"{page.relative_to(ROOT).as_posix()}:{example.line}: {exc!r}"
-            ) from exc
+            raise AssertionError(f"{_name(page)}:{example.line}: {exc!r}") from exc
+        ran += 1
+    return ran
+
+
+@pytest.mark.parametrize("page", _python_pages())
+def test_every_python_block_of_the_docs_runs(tmp_path: Path, monkeypatch, page: Path) -> None:
+    pytest.importorskip("sybil")
+    monkeypatch.chdir(sandbox(tmp_path))
+    monkeypatch.setenv("MPLBACKEND", "Agg")
+    assert run_python_blocks(page) > 0
+
+
+def test_python_blocks_share_a_namespace_and_honour_the_marker(tmp_path: Path) -> None:
+    pytest.importorskip("sybil")
+    page = tmp_path / "page.md"
+    page.write_text(
+        "```python\nx = 2\n```\n\n<!-- not run: a sketch -->\n```python\nraise SystemExit\n```\n\n"
+        "```python\nassert x == 2\n```\n\n```python\nassert x == 3\n```\n",
+        encoding="utf-8",
+    )
+    with pytest.raises(AssertionError, match=r"page\.md:14: AssertionError"):
+        run_python_blocks(page)

@@ -32,7 +32,7 @@ EXIT_FAILED_RUN = 1
 
 # --------------------------------------------------------------------------- files
 def resolve(name: str, folder: str, what: str) -> Path:
-    """A path as given, or a bare name looked up as ``<folder>/<name>.yaml`` (here, then in the checkout)."""
+    """A path as given, or a bare name looked up as ``<folder>/<name>.yaml`` (here, then in the shipped ``rigs/`` and ``studies/``)."""
     from fuzzyservo.io.paths import find_file
 
     return find_file(name, folder, what)

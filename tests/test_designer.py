@@ -54,6 +54,14 @@ def test_folders_refuse_paths_outside_the_project_and_output(folders, tmp_path):
         folders.controller_path("rigs/dinca_cylinder.json")
 
 
+def test_a_working_folder_that_holds_the_shipped_files_is_listed_once(tmp_path):
+    # run from a checkout, the working folder is where rigs/ and studies/ are shipped
+    folders = Folders.make(DATA, tmp_path / "out", DATA)
+    assert folders.sources == (DATA.resolve(),)
+    files = folders.controller_files()
+    assert len(files) == len(set(files)) and "studies/controllers/p_k10.yaml" in files
+
+
 def test_a_slider_move_changes_the_loop_and_its_metrics(session):
     before = session.run()
     assert before.result.status == "ok"

@@ -248,7 +248,7 @@ def test_missing_valve_data_and_too_few_rows(tmp_path, capsys, rig):
 
 
 def test_bad_network_file_in_rig(tmp_path):
-    network = "../../../fuzzyservo/data/rigs/hydroprax_nn_valve.json"
+    network = "../../../rigs/hydroprax_nn_valve.json"
     text = (RIGS / "hydroprax_pdcv.yaml").read_text().replace(network, "hydroprax_nn_valve.json")
     (tmp_path / "hydroprax_nn_valve.json").write_text('{"format": "something else"}')
     (tmp_path / "rig.yaml").write_text(text)

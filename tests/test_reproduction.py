@@ -142,9 +142,9 @@ def test_changes_reach_the_rig():
     ],
 )  # fmt: skip
 def test_a_bad_observation_file_is_one_clear_error(tmp_path, edit, message):
-    from fuzzyservo.io.paths import data_root
+    from fuzzyservo.io.paths import package_data
 
-    text = (data_root() / "reproduction.yaml").read_text(encoding="utf-8")
+    text = (package_data() / "reproduction.yaml").read_text(encoding="utf-8")
     bad = tmp_path / "reproduction.yaml"
     bad.write_text(edit(text), encoding="utf-8")
     with pytest.raises(ConfigError, match=message) as info:

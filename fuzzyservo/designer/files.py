@@ -33,8 +33,9 @@ class Folders:
 
     @property
     def sources(self) -> tuple[Path, ...]:
-        """The folders holding ``rigs/`` and ``studies/``, the user's first."""
-        return (self.project,) if self.work is None else (self.work, self.project)
+        """The folders holding ``rigs/`` and ``studies/``, the user's first (once: in a
+        checkout the working folder is often the one holding the shipped files)."""
+        return (self.project,) if self.work in (None, self.project) else (self.work, self.project)
 
     @property
     def roots(self) -> tuple[Path, ...]:

@@ -1,8 +1,10 @@
 """Finding the project's files: a path as given, or a bare name under ``rigs/``, ``studies/`` …
 
 Bare names are looked up in the working folder first (a user's own ``rigs/``), then in
-the rigs, controllers and studies shipped inside the package (``fuzzyservo/data``),
-so an installed package finds them from any folder.
+the shipped rigs, controllers and studies: the checkout's top-level ``rigs/`` and
+``studies/``, which a wheel or a non-editable install carries as package data
+(``fuzzyservo/data/rigs``, ``fuzzyservo/data/studies``: the ``package-dir`` mapping in
+pyproject.toml), so an installed package finds them from any folder.
 """
 
 from __future__ import annotations
@@ -12,10 +14,21 @@ from pathlib import Path
 
 from fuzzyservo.errors import ConfigError
 
+_PACKAGE = Path(__file__).resolve().parent.parent
+
+
+def package_data() -> Path:
+    """``fuzzyservo/data``: the files only the package reads (the seed reproduction spec)
+    and, once installed, the shipped ``rigs/`` and ``studies/``."""
+    return _PACKAGE / "data"
+
 
 def data_root() -> Path:
-    """The shipped ``rigs/`` and ``studies/`` (package data, installed with the package)."""
-    return Path(__file__).resolve().parent.parent / "data"
+    """The folder holding the shipped ``rigs/`` and ``studies/``: ``fuzzyservo/data`` in an
+    installed package, else the checkout's top level (a source tree, an editable install,
+    ``PYTHONPATH=<checkout>``), where they are kept as the one copy."""
+    installed = package_data()
+    return installed if (installed / "rigs").is_dir() else _PACKAGE.parent
 
 
 def search_dirs() -> list[Path]:

@@ -48,7 +48,7 @@ from fuzzyservo.errors import ConfigError
 from fuzzyservo.io._yaml import Node, read_yaml
 from fuzzyservo.io.controllers import load_controller
 from fuzzyservo.io.jsonfile import write_json
-from fuzzyservo.io.paths import data_root
+from fuzzyservo.io.paths import data_root, package_data
 from fuzzyservo.io.rigs import load_rig, rig_from_data
 from fuzzyservo.rig import Rig
 
@@ -64,7 +64,7 @@ def load_reproduction_spec(path: str | Path | None = None) -> ReproductionSpec:
 
 def _load_spec(path: str | Path | None) -> tuple[ReproductionSpec, dict[str, Rig]]:
     """The spec and its rigs by name (shipped rigs, and the variants of ``rigs:``)."""
-    path = Path(path) if path is not None else data_root() / SPEC_FILE
+    path = Path(path) if path is not None else package_data() / SPEC_FILE
     root = Node(read_yaml(path), str(path))
     root.only(("observations", "rigs", "assumptions", "explanations"))
     variants = root.children("rigs")

@@ -1,6 +1,6 @@
 """The seeds' plants as they were written by hand, kept to hold the compositions to them.
 
-The shipped seed rigs are compositions of components (``fuzzyservo/data/rigs``); the
+The shipped seed rigs are compositions of components (the top-level ``rigs/``); the
 modules here are the hand-written kernels they replaced, each one seed's equations
 written out with hand-kept ``P_*``/``E_*`` indices, and ``rigs/`` the rig files that
 drove them. :func:`reference_rig` loads one (``tests/test_reference_plants.py`` compares

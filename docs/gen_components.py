@@ -148,7 +148,7 @@ def components_markdown() -> str:
     return "\n".join(out)
 
 
-def on_page_markdown(markdown: str, page, config, files) -> str:  # noqa: ARG001 (mkdocs hook)
+def on_page_markdown(markdown: str, page, config, files) -> str:
     """MkDocs hook: replace the marker with the generated reference."""
     if MARKER in markdown:
         return markdown.replace(MARKER, components_markdown())

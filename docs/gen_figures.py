@@ -55,7 +55,9 @@ FIGURES: dict[str, tuple[list[str], str]] = {
 
 
 def _fuzzyservo(args: list[str], out: Path) -> None:
-    env = dict(os.environ, PYTHONPATH=os.pathsep.join([str(ROOT), os.environ.get("PYTHONPATH", "")]))
+    env = dict(
+        os.environ, PYTHONPATH=os.pathsep.join([str(ROOT), os.environ.get("PYTHONPATH", "")])
+    )
     cmd = [sys.executable, "-m", "fuzzyservo", *args, "--out", str(out)]
     print("+ fuzzyservo " + " ".join(args), flush=True)
     subprocess.run(cmd, check=True, cwd=out, env=env, stdout=subprocess.DEVNULL)
@@ -104,10 +106,14 @@ def designer(width: int) -> None:
         raise SystemExit(f"gen_figures: no Chromium at {CHROMIUM} (apt-get install chromium)")
     with tempfile.TemporaryDirectory(prefix="fuzzyservo_designer_") as tmp:
         port = _free_port()
-        env = dict(os.environ, PYTHONPATH=os.pathsep.join([str(ROOT), os.environ.get("PYTHONPATH", "")]))
+        env = dict(
+            os.environ, PYTHONPATH=os.pathsep.join([str(ROOT), os.environ.get("PYTHONPATH", "")])
+        )
         cmd = [sys.executable, "-m", "fuzzyservo", "designer", "--port", str(port), "--out", tmp]
         print("+ fuzzyservo designer", flush=True)
-        proc = subprocess.Popen(cmd, cwd=tmp, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+        proc = subprocess.Popen(
+            cmd, cwd=tmp, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL
+        )
         try:
             with sync_playwright() as p:
                 browser = p.chromium.launch(executable_path=str(CHROMIUM), args=["--no-sandbox"])
@@ -134,7 +140,9 @@ def designer(width: int) -> None:
 
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("names", nargs="*", help=f"figures to make (default: all): {', '.join(FIGURES)}")
+    ap.add_argument(
+        "names", nargs="*", help=f"figures to make (default: all): {', '.join(FIGURES)}"
+    )
     ap.add_argument("--width", type=int, default=900, help="largest width in pixels (default 900)")
     ap.add_argument("--designer", action="store_true", help="also the designer's screenshot")
     args = ap.parse_args(argv)

@@ -14,7 +14,7 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
-import gen_components  # noqa: E402  (beside this file)
+import gen_components
 
 API_MARKER = "<!-- generated: api -->"
 
@@ -30,7 +30,7 @@ def api_markdown() -> str:
     return "\n".join(out)
 
 
-def on_page_markdown(markdown: str, page, config, files) -> str:  # noqa: ARG001 (mkdocs hook)
+def on_page_markdown(markdown: str, page, config, files) -> str:
     markdown = gen_components.on_page_markdown(markdown, page, config, files)
     if API_MARKER in markdown:
         markdown = markdown.replace(API_MARKER, api_markdown())

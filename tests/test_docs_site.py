@@ -78,3 +78,12 @@ def test_readme_is_short_and_keeps_the_two_commands():
         "python3 -m venv .venv && . .venv/bin/activate && pip install -e . && fuzzyservo tune"
     )
     assert re.match(r"^python3 -m venv .*\[test\].*pytest", lines[4]), ".ci/run reads this line"
+
+
+def test_every_figure_is_made_by_the_script_and_shown():
+    """docs/img/ holds what docs/gen_figures.py writes (nothing pasted by hand), each shown."""
+    made = set(_load("gen_figures").FIGURES) | {"designer"}
+    shown = "".join(p.read_text() for p in [ROOT / "README.md", *DOCS.glob("**/*.md")])
+    for png in sorted((DOCS / "img").glob("*.png")):
+        assert png.stem in made, f"{png.name} is not made by docs/gen_figures.py"
+        assert f"img/{png.name})" in shown, f"{png.name} is shown on no page"

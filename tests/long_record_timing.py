@@ -1,4 +1,4 @@
-"""The README's 50 000-sample calibration timing (issue 12, item 7).
+"""The 50 000-sample calibration timing of docs/calibration.md (issue 12, item 7).
 
 Run from the repository root (nice it; a few minutes):
 

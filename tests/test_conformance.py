@@ -8,7 +8,7 @@ continuous answer by up to about 1e-4 of the range, SOURCE.md). A Sugeno output'
 declared range does not bound it (invkine1.fis reaches 300 times its range); there the
 tolerance is 1e-3 of the span the reference values cover when that is wider. What does
 not load is listed with the reason. ``python tests/test_conformance.py`` prints the
-README's table.
+table in docs/interop.md (Conformance).
 """
 
 from __future__ import annotations
@@ -127,7 +127,7 @@ def test_matlab_demos_in_evalfis_mode(rows):
 
 
 def table(rows: dict[str, dict]) -> str:
-    """The README's counts table and the per-file figures."""
+    """The counts table of docs/interop.md and the per-file figures."""
     groups = {
         "MATLAB demos (`*/matlab/`)": lambda rel: "/matlab/" in rel,
         "Octave demos (`*/octave/`)": lambda rel: "/octave/" in rel,

@@ -62,7 +62,7 @@ def test_faster_record_replays_under_its_force_loop():
 @_needs(FESTO)
 def test_festo_unknowns_fitted():
     """Fitting the rig's unknowns (no effects) explains the held-out position to better
-    than 90 % (about 96 %, README "Outside rigs")."""
+    than 90 % (about 96 %, docs/calibration.md "Outside rigs")."""
     rig = rig_named("festo_hanging_load")
     data = read_rig_data(FESTO, rig.measured)
     replay = make_replay(rig, data, controller_named("p_festo_hanging_load"))

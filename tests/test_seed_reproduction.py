@@ -1,6 +1,6 @@
 """The seeds' reported behaviour, reproduced (or the difference pinned and explained).
 
-Figures of this model next to the seeds' are in README.md ("Seed reproduction").
+Figures of this model next to the seeds' are in docs/seeds.md and docs/reproduction.md.
 """
 
 from __future__ import annotations

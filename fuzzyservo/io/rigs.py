@@ -287,7 +287,7 @@ def _effects(
 
     if not isinstance(node.data, dict):
         node.fail(
-            "must be a mapping of effect names to their parameters (README, The effect library)"
+            "must be a mapping of effect names to their parameters (docs/calibration.md, The effect library)"
         )
     for name in node.data:
         if name not in LIBRARY:

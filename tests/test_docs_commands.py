@@ -52,12 +52,6 @@ NOT_RUN = re.compile(r"<!--\s*not run:\s*(\S.*?)\s*-->")
 SLOW_MARK = re.compile(r"<!--\s*slow\s*-->")
 LINE_NOT_RUN = re.compile(r"#\s*not run:\s*\S")
 TIMEOUT_S = 900
-# The README before issue 31's rewrite is a 1,500-line manual whose commands need files
-# it does not ship and run full-size studies; its rewrite (<= 250 lines, every command
-# runnable) turns this on by itself. TEMPORARY: delete with the old README.
-OLD_README = (ROOT / "README.md").is_file() and len(
-    (ROOT / "README.md").read_text(encoding="utf-8").splitlines()
-) > 250
 
 
 @dataclass(frozen=True)
@@ -157,8 +151,6 @@ def _cases() -> list:
                 marks.append(pytest.mark.slow)
             if block.not_run:
                 marks.append(pytest.mark.skip(reason=f"not run: {block.not_run}"))
-            elif OLD_README and page.name == "README.md" and page.parent == ROOT:
-                marks.append(pytest.mark.skip(reason="TEMPORARY: the pre-issue-31 README"))
             cases.append(pytest.param(block, lines, id=block.where, marks=marks))
     return cases
 
@@ -247,10 +239,7 @@ def _python_pages() -> list:
     pages = []
     for page in PAGES:
         if any(b.lang in ("python", "py") for b in blocks(page)):
-            marks = []
-            if OLD_README and page.name == "README.md" and page.parent == ROOT:
-                marks.append(pytest.mark.skip(reason="TEMPORARY: the pre-issue-31 README"))
-            pages.append(pytest.param(page, id=_name(page), marks=marks))
+            pages.append(pytest.param(page, id=_name(page)))
     return pages
 
 

@@ -444,12 +444,15 @@ def run_batches(spec: Study, stored, total: int, executor, bar=None) -> None:
     asks ``spec.batch_size`` trials, has ``executor`` score them
     (:class:`~fuzzyservo.tuning.trial.TrialRunner`, pruning bound: the best feasible value
     told before the batch), tells them in trial-number order and then writes the batch to
-    the storage ``stored``. Whatever the executor, the sampler sees the same history at
-    every ask, so the trials are the same. A run killed before its batch is written loses
-    that batch only and a resume asks it again, identically; one killed while writing it
-    finds the written part on resume and scores only the rest."""
+    the storage ``stored`` in one transaction (:mod:`~fuzzyservo.tuning.batch_write`).
+    Whatever the executor, the sampler sees the same history at every ask, so the trials
+    are the same. A run killed before its batch is written loses that batch only and a
+    resume asks it again, identically; one killed while writing it (through
+    ``Study.add_trials``, on a storage written trial by trial) finds the written part on
+    resume and scores only the rest."""
     import optuna
 
+    from fuzzyservo.tuning.batch_write import BatchWriter
     from fuzzyservo.tuning.integrity import fingerprint
     from fuzzyservo.tuning.trial import Task, TrialRunner
 
@@ -463,6 +466,7 @@ def run_batches(spec: Study, stored, total: int, executor, bar=None) -> None:
     for point in start_points(spec)[start:]:  # the warm start not run yet
         memory.enqueue_trial(point)
     written = _n_trials(stored)
+    writer = BatchWriter(stored)
     runner = TrialRunner(spec, json.dumps(fingerprint(spec), sort_keys=True))
     t0 = time.perf_counter()
     storage_s = stored.user_attrs.get(STORAGE_ATTR, 0.0)  # the parent's writes, resumed too
@@ -498,9 +502,8 @@ def run_batches(spec: Study, stored, total: int, executor, bar=None) -> None:
             )
         new = [t for t in memory.get_trials(deepcopy=False)[n : n + size] if t.number not in kept]
         writing = time.perf_counter()
-        stored.add_trials(new)
+        writer.write(new, (STORAGE_ATTR, storage_s))  # one transaction: all or none
         storage_s += time.perf_counter() - writing
-        stored.set_user_attr(STORAGE_ATTR, storage_s)
         written += len(new)
         pending = None
         n += size
@@ -514,6 +517,8 @@ def run_batches(spec: Study, stored, total: int, executor, bar=None) -> None:
             break
         if spec.timeout_s is not None and time.perf_counter() - t0 > spec.timeout_s:
             break
+    if written:
+        stored.set_user_attr(STORAGE_ATTR, storage_s)  # the last batch's write too
 
 
 def _partial_batch(told: list) -> tuple[int, tuple[int, dict] | None]:

@@ -193,6 +193,8 @@ def open_study(spec: Study, url: str, worker: int = 0, *, shared: bool = False):
     optuna.logging.set_verbosity(optuna.logging.WARNING)
     # the storage heartbeat is what fails trials of a killed process; it is marked experimental
     warnings.filterwarnings("ignore", category=optuna.exceptions.ExperimentalWarning)
+    # CMA-ES samples without the constraints (docs/samplers.md: it finds feasible bests anyway)
+    warnings.filterwarnings("ignore", "Constraints have been set, but CmaEsSampler", UserWarning)
     directions = ["minimize"] * spec.objective.n_values
     for attempt in range(5):
         try:

@@ -60,6 +60,21 @@ class BatchWriter:
         """Whether batches go in one transaction (else through ``Study.add_trials``)."""
         return self._engine is not None
 
+    def n_trials(self) -> int:
+        """The study's trials in the storage, by one count (Optuna's cached storage would
+        read every trial written since it last looked)."""
+        if self._engine is None:
+            return self.study._storage.get_n_trials(self.study._study_id)
+        with self._engine.connect() as db:
+            return self._count(db)
+
+    def _count(self, db) -> int:
+        import sqlalchemy as sa
+
+        trials = self._tables["trials"]
+        query = sa.select(sa.func.count()).select_from(trials)
+        return db.execute(query.where(trials.c.study_id == self.study._study_id)).scalar_one()
+
     def write(self, trials: list, figure: tuple[str, Any] | None = None) -> None:
         """Store ``trials`` (finished, in number order) after the study's last trial."""
         if self._engine is None:
@@ -67,14 +82,10 @@ class BatchWriter:
             if figure is not None:
                 self.study.set_user_attr(*figure)
             return
-        import sqlalchemy as sa
-
         t = self._tables
         study_id = self.study._study_id
         with self._engine.begin() as db:
-            trials_table = t["trials"]
-            count = sa.select(sa.func.count()).select_from(trials_table)
-            number = db.execute(count.where(trials_table.c.study_id == study_id)).scalar_one()
+            number = self._count(db)
             for k, trial in enumerate(trials):
                 self._insert(db, trial, study_id, number + k)
             if figure is not None:

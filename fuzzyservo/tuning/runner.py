@@ -405,7 +405,9 @@ def run_study(
         finally:
             bar.close()
         wall = time.perf_counter() - t0
-        return collect(spec, url, wall_s=wall, executor=executor)
+        # a batch run wrote every trial through this study: read it back without reopening
+        return collect(spec, url, wall_s=wall, executor=executor,
+                       study=study if executor is not None else None)  # fmt: skip
     finally:
         if executor is not None:
             executor.close()
@@ -467,8 +469,8 @@ def run_batches(spec: Study, stored, total: int, executor, bar=None) -> None:
     memory.add_trials(told[:start])
     for point in start_points(spec)[start:]:  # the warm start not run yet
         memory.enqueue_trial(point)
-    written = _n_trials(stored)
     writer = BatchWriter(stored)
+    written = writer.n_trials()
     runner = TrialRunner(spec, json.dumps(fingerprint(spec), sort_keys=True))
     t0 = time.perf_counter()
     storage_s = stored.user_attrs.get(STORAGE_ATTR, 0.0)  # the parent's writes, resumed too
@@ -495,7 +497,7 @@ def run_batches(spec: Study, stored, total: int, executor, bar=None) -> None:
             result = results[trial.number]
             result.user_attrs.setdefault("work", {})["sample_s"] = sample_s
             _tell(memory, trial, spec, result, [n, size])
-        if _n_trials(stored) != written:
+        if writer.n_trials() != written:
             from fuzzyservo.errors import ConfigError
 
             raise ConfigError(
@@ -564,11 +566,6 @@ def _tell(study, trial, spec: Study, result: TrialResult, batch: list[int]) -> N
         study.tell(trial, state=TrialState.PRUNED)
     else:
         study.tell(trial, list(result.values))
-
-
-def _n_trials(study) -> int:
-    """The study's trials in its storage, by one count (not a read of every trial)."""
-    return study._storage.get_n_trials(study._study_id)
 
 
 def _run_inline(spec: Study, url: str, total: int, bar, shared: bool) -> None:
@@ -711,14 +708,16 @@ def _trial_time(trial) -> float:
     return 0.0
 
 
-def collect(spec: Study, url: str, *, wall_s: float = 0.0, executor=None) -> Outcome:
+def collect(spec: Study, url: str, *, wall_s: float = 0.0, executor=None,
+            study=None) -> Outcome:  # fmt: skip
     """Read the study back: best (feasible) trial or Pareto front, history, importances.
     A robust study's best is chosen among its top trials on fresh samples
-    (:func:`select_on_fresh_samples`, scored by ``executor``, default this process)."""
+    (:func:`select_on_fresh_samples`, scored by ``executor``, default this process).
+    ``study``: the study at ``url`` already open (default: open it)."""
     import optuna
     from optuna.trial import TrialState
 
-    study = open_study(spec, url)
+    study = study if study is not None else open_study(spec, url)
     stored_time = float(study.user_attrs.get(STORAGE_ATTR, 0.0))
     trials = study.get_trials(deepcopy=False, states=(TrialState.COMPLETE,))
     if not trials:

@@ -15,9 +15,9 @@ The module that drives optuna (with :mod:`~fuzzyservo.tuning.integrity` and
   shared storage, which several ``tune`` commands, on several machines, may share
   (PostgreSQL). Not reproducible: the trials depend on which worker finished first.
 
-Trials are stored as they are told (a batch at a time in the first mode), so a study
-stopped at any moment (Ctrl-C, a killed process) resumes with the same command and
-loses no told trial. The count towards ``trials`` is the number of COMPLETE trials (and
+Trials are stored as they are told (in the first mode a batch at a time, in one
+transaction), so a study stopped at any moment (Ctrl-C, a killed process) resumes with
+the same command and loses no told trial. The count towards ``trials`` is the number of COMPLETE trials (and
 PRUNED ones: robust trials stopped once their worst sample so far is worse than the
 best feasible trial, which is exact: the worst can only grow); a simulation that
 diverges or hits an end stop is a COMPLETE trial with the study's penalty as its value

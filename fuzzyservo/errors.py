@@ -38,6 +38,10 @@ class DataError(FuzzyservoError, ValueError):
     """A measured-data file that cannot be used (unknown unit, bad time column, NaN ...)."""
 
 
+class WorkerError(FuzzyservoError, RuntimeError):
+    """Parallel work that cannot go on: local worker processes that keep dying."""
+
+
 class MissingExtraError(FuzzyservoError, ImportError):
     """A feature whose optional dependencies (an install extra) are not installed."""
 

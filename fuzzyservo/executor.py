@@ -30,7 +30,7 @@ import time
 from collections.abc import Callable, Sequence
 from typing import Any, Protocol
 
-from fuzzyservo.errors import ConfigError, require
+from fuzzyservo.errors import ConfigError, WorkerError, require
 
 
 class Executor(Protocol):
@@ -69,15 +69,26 @@ class Inline:
 
 class LocalProcesses:
     """``workers`` processes on this machine (``spawn``: a fresh interpreter each, which
-    imports fuzzyservo like the parent), ended with the parent (:func:`die_with_parent`)."""
+    imports fuzzyservo like the parent), ended with the parent (:func:`die_with_parent`).
+
+    A worker that dies mid-map (``kill -9``, the out-of-memory killer) breaks the pool:
+    the pool is started again and the items without a result are run again, up to
+    :data:`RESTARTS` times in one map (an item's result depends on the item alone, so
+    nothing changes); then :class:`~fuzzyservo.errors.WorkerError` says so in one line."""
+
+    #: new pools one map may start after its workers died
+    RESTARTS = 2
 
     def __init__(self, workers: int):
+        self.workers = workers
+        self._pool = self._start()
+
+    def _start(self):
         import multiprocessing as mp
         from concurrent.futures import ProcessPoolExecutor
 
-        self.workers = workers
-        self._pool = ProcessPoolExecutor(
-            max_workers=workers,
+        return ProcessPoolExecutor(
+            max_workers=self.workers,
             mp_context=mp.get_context("spawn"),
             initializer=_pool_worker,
             initargs=(os.getpid(),),
@@ -85,21 +96,49 @@ class LocalProcesses:
 
     def map(self, fn: Callable[[Any], Any], items: Sequence[Any],
             on_done: Callable[[int], object] | None = None) -> list[Any]:  # fmt: skip
+        from concurrent.futures.process import BrokenProcessPool
+
+        results: dict[int, Any] = {}
+        for restarts in range(self.RESTARTS + 1):
+            try:
+                self._run(fn, items, results, on_done)
+                break
+            except BrokenProcessPool:
+                codes = self._end_pool()
+                died = ", ".join(_exit_text(c) for c in codes) or "ended"
+                if restarts == self.RESTARTS:
+                    raise WorkerError(
+                        f"local worker processes died {restarts + 1} times in one batch "
+                        f"(last: {died}); the results told so far are kept: run the command "
+                        "again to resume, with fewer --workers if memory ran out"
+                    ) from None
+                left = len(items) - len(results)
+                print(f"fuzzyservo: a worker process died ({died}); {left} task(s) run again "
+                      "on new workers", file=sys.stderr, flush=True)  # fmt: skip
+                self._pool = self._start()
+        return [results[k] for k in range(len(items))]
+
+    def _run(self, fn: Callable[[Any], Any], items: Sequence[Any], results: dict[int, Any],
+             on_done: Callable[[int], object] | None) -> None:  # fmt: skip
+        """Run the items without a result into ``results``; a task's exception (or a
+        broken pool) stops here, keeping the results of the tasks that finished."""
         from concurrent.futures import as_completed
 
-        futures = {self._pool.submit(fn, item): k for k, item in enumerate(items)}
+        futures = {self._pool.submit(fn, item): k for k, item in enumerate(items)
+                   if k not in results}  # fmt: skip
         try:
             for future in as_completed(futures):
-                future.result()  # a task's exception stops the map here
+                results[futures[future]] = future.result()
                 if on_done is not None:
                     on_done(futures[future])
         finally:
-            for future in futures:
+            for future, k in futures.items():
                 future.cancel()
-        return [future.result() for future in futures]
+                if future.done() and not future.cancelled() and future.exception() is None:
+                    results.setdefault(k, future.result())
 
-    def close(self) -> None:
-        # a Ctrl-C mid-batch: drop the queued tasks, do not wait for the running ones
+    def _end_pool(self) -> list[int | None]:
+        """Shut the pool down without waiting, end and reap its processes; their exit codes."""
         procs = list((getattr(self._pool, "_processes", None) or {}).values())
         self._pool.shutdown(wait=False, cancel_futures=True)
         for proc in procs:
@@ -107,6 +146,11 @@ class LocalProcesses:
                 proc.terminate()
         for proc in procs:
             proc.join(timeout=10)  # reaped: no zombie, their CPU time counted as ours
+        return [proc.exitcode for proc in procs if proc.exitcode]
+
+    def close(self) -> None:
+        # a Ctrl-C mid-batch: drop the queued tasks, do not wait for the running ones
+        self._end_pool()
 
     def describe(self) -> str:
         return f"{self.workers} local worker processes"
@@ -214,6 +258,16 @@ def _pool_worker(parent_pid: int) -> None:
     the batch and ends the pool), so the worker ignores it."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     die_with_parent(parent_pid)
+
+
+def _exit_text(code: int | None) -> str:
+    """A worker's exit code in words: ``killed by signal 9 (SIGKILL)``, ``exit code 1``."""
+    if code is not None and code < 0:
+        try:
+            return f"killed by signal {-code} ({signal.Signals(-code).name})"
+        except ValueError:
+            return f"killed by signal {-code}"
+    return f"exit code {code}"
 
 
 def _exit_now(signum: int, frame: Any) -> None:

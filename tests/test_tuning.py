@@ -185,3 +185,20 @@ def test_resumed_study_keeps_its_trials_and_adds_the_rest(tmp_path):
     after = {h["number"]: h["values"] for h in second.history}
     assert all(after[n] == v for n, v in before.items())
     assert not math.isnan(second.best.values[0])
+
+
+def test_the_default_sampler_follows_the_sampler_table(tmp_path):
+    """docs/samplers.md: CMA-ES had the best median on the nominal studies, TPE on the
+    robust one; a Pareto study gets NSGA-II. The shipped studies leave it to the default."""
+    from fuzzyservo.tuning.spec import default_sampler
+
+    assert default_sampler(pareto=False, robust=False) == "cmaes"
+    assert default_sampler(pareto=False, robust=True) == "tpe"
+    assert default_sampler(pareto=True, robust=True) == "nsga2"
+    shipped = {n: load_study(STUDIES / f"{n}.yaml").sampler
+               for n in ("dinca_flc", "ehs160_flc", "dinca_robust", "dinca_pareto")}  # fmt: skip
+    assert shipped == {"dinca_flc": "cmaes", "ehs160_flc": "cmaes", "dinca_robust": "tpe",
+                       "dinca_pareto": "nsga2"}  # fmt: skip
+    assert load_study(_bad_study(tmp_path, sampler=None)).sampler == "cmaes"
+    assert load_study(_bad_study(tmp_path, sampler="auto")).sampler == "cmaes"
+    assert load_study(_bad_study(tmp_path, sampler="tpe")).sampler == "tpe"

@@ -1,7 +1,8 @@
 """Batch-synchronous studies (issue 26 items 1 and 2): the same seeded study gives the same
 trials, hence the same best, with one worker, two local worker processes and a real Dask
 cluster (a ``dask scheduler`` and two ``dask worker`` processes started here), after a
-Dask worker is killed mid-batch, and after the parent is killed (kill -9) and resumed.
+Dask worker is killed mid-batch, and after the parent is killed (kill -9) and resumed;
+and ``calibrate --cluster`` gives the numbers it gives in one process.
 
 The studies are cut down (one short scenario, few trials, few samples): what is checked is
 where and in which order trials run, not the objective.
@@ -224,3 +225,34 @@ def test_robustness_gives_the_same_numbers_on_workers_and_a_cluster(tmp_path, cl
     here = numbers()
     assert numbers(workers=2) == here
     assert numbers(cluster=cluster.address) == here
+
+
+def _untimed(found):
+    """A summary without its wall times and output paths."""
+    if isinstance(found, dict):
+        return {k: _untimed(v) for k, v in found.items() if k not in ("seconds", "calibrated_rig")}
+    if isinstance(found, list):
+        return [_untimed(v) for v in found]
+    return found
+
+
+@pytest.mark.slow
+def test_calibrate_gives_the_same_result_on_a_cluster(tmp_path, cluster):
+    """``calibrate --cluster`` screens the candidates on the Dask workers: the same
+    effects, values and fits as in this process."""
+    from test_calibration import DINCA_EFFECTS, dinca_csv, old_loop
+
+    data = dinca_csv(tmp_path / "d.csv", {"coulomb_friction": DINCA_EFFECTS["coulomb_friction"]})
+    rig = str(old_loop(tmp_path))
+
+    def summary(tag: str, *how: str) -> dict:
+        out = tmp_path / tag
+        code = main(["calibrate", rig, str(data), "--controller", "p_k10", "--effects",
+                     "coulomb_friction,internal_leakage", "--max-effects", "1",
+                     "--out", str(out / "o"), "--json", str(out / "s.json"), *how])  # fmt: skip
+        assert code == 0
+        return _untimed(json.loads((out / "s.json").read_text()))
+
+    here = summary("here")
+    assert [e["name"] for e in here["effects_added"]] == ["coulomb_friction"]
+    assert summary("dask", "--cluster", cluster.address) == here

@@ -21,7 +21,7 @@ objective:
   # pareto: [settling_time_s, saturation_time_s, sse_abs]
 aggregate: worst                   # over scenarios: worst | mean
 constraints: ["overshoot_pct <= 5"]
-sampler: tpe                       # tpe | cmaes | nsga2 | gp | qmc | random
+sampler: auto                      # auto (docs/samplers.md) | tpe | cmaes | nsga2 | gp | qmc | random
 seed: 1
 trials: 300
 timeout_s: 600
@@ -58,6 +58,7 @@ from fuzzyservo.io.rigs import load_rig
 from fuzzyservo.metrics import METRIC_NAMES
 from fuzzyservo.tuning.spec import (
     AGGREGATES,
+    AUTO,
     BATCH_SIZE,
     MARGIN_METRICS,
     SAMPLERS,
@@ -140,9 +141,9 @@ def load_study(path: str | Path) -> Study:
                 key=f"constraints[{n}]",
             )
         constraints.append(c)
-    sampler = root.str("sampler", default="tpe")
-    if sampler not in SAMPLERS:
-        root.fail(f"unknown sampler {sampler!r}; choose one of {list(SAMPLERS)}", key="sampler")
+    sampler = root.str("sampler", default=AUTO)
+    if sampler not in (AUTO, *SAMPLERS):
+        root.fail(f"unknown sampler {sampler!r}; choose one of {[AUTO, *SAMPLERS]}", key="sampler")
     aggregate = root.str("aggregate", default="worst")
     if aggregate not in AGGREGATES:
         root.fail(

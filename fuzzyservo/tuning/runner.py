@@ -15,9 +15,9 @@ The module that drives optuna (with :mod:`~fuzzyservo.tuning.integrity` and
   shared storage, which several ``tune`` commands, on several machines, may share
   (PostgreSQL). Not reproducible: the trials depend on which worker finished first.
 
-Trials are stored as they are told (a batch at a time in the first mode), so a study
-stopped at any moment (Ctrl-C, a killed process) resumes with the same command and
-loses no told trial. The count towards ``trials`` is the number of COMPLETE trials (and
+Trials are stored as they are told (in the first mode a batch at a time, in one
+transaction), so a study stopped at any moment (Ctrl-C, a killed process) resumes with
+the same command and loses no told trial. The count towards ``trials`` is the number of COMPLETE trials (and
 PRUNED ones: robust trials stopped once their worst sample so far is worse than the
 best feasible trial, which is exact: the worst can only grow); a simulation that
 diverges or hits an end stop is a COMPLETE trial with the study's penalty as its value
@@ -196,6 +196,8 @@ def open_study(spec: Study, url: str, worker: int = 0, *, shared: bool = False):
     optuna.logging.set_verbosity(optuna.logging.WARNING)
     # the storage heartbeat is what fails trials of a killed process; it is marked experimental
     warnings.filterwarnings("ignore", category=optuna.exceptions.ExperimentalWarning)
+    # CMA-ES samples without the constraints (docs/samplers.md: it finds feasible bests anyway)
+    warnings.filterwarnings("ignore", "Constraints have been set, but CmaEsSampler", UserWarning)
     directions = ["minimize"] * spec.objective.n_values
     for attempt in range(5):
         try:
@@ -416,7 +418,9 @@ def run_study(
         finally:
             bar.close()
         wall = time.perf_counter() - t0
-        return collect(spec, url, wall_s=wall, executor=executor)
+        # a batch run wrote every trial through this study: read it back without reopening
+        return collect(spec, url, wall_s=wall, executor=executor,
+                       study=study if executor is not None else None)  # fmt: skip
     finally:
         if executor is not None:
             executor.close()
@@ -457,12 +461,15 @@ def run_batches(spec: Study, stored, total: int, executor, bar=None) -> None:
     asks ``spec.batch_size`` trials, has ``executor`` score them
     (:class:`~fuzzyservo.tuning.trial.TrialRunner`, pruning bound: the best feasible value
     told before the batch), tells them in trial-number order and then writes the batch to
-    the storage ``stored``. Whatever the executor, the sampler sees the same history at
-    every ask, so the trials are the same. A run killed before its batch is written loses
-    that batch only and a resume asks it again, identically; one killed while writing it
-    finds the written part on resume and scores only the rest."""
+    the storage ``stored`` in one transaction (:mod:`~fuzzyservo.tuning.batch_write`).
+    Whatever the executor, the sampler sees the same history at every ask, so the trials
+    are the same. A run killed before its batch is written loses that batch only and a
+    resume asks it again, identically; one killed while writing it (through
+    ``Study.add_trials``, on a storage written trial by trial) finds the written part on
+    resume and scores only the rest."""
     import optuna
 
+    from fuzzyservo.tuning.batch_write import BatchWriter
     from fuzzyservo.tuning.integrity import fingerprint
     from fuzzyservo.tuning.trial import Task, TrialRunner
 
@@ -475,7 +482,8 @@ def run_batches(spec: Study, stored, total: int, executor, bar=None) -> None:
     memory.add_trials(told[:start])
     for point in start_points(spec)[start:]:  # the warm start not run yet
         memory.enqueue_trial(point)
-    written = _n_trials(stored)
+    writer = BatchWriter(stored)
+    written = writer.n_trials()
     runner = TrialRunner(spec, json.dumps(fingerprint(spec), sort_keys=True))
     t0 = time.perf_counter()
     storage_s = stored.user_attrs.get(STORAGE_ATTR, 0.0)  # the parent's writes, resumed too
@@ -502,7 +510,7 @@ def run_batches(spec: Study, stored, total: int, executor, bar=None) -> None:
             result = results[trial.number]
             result.user_attrs.setdefault("work", {})["sample_s"] = sample_s
             _tell(memory, trial, spec, result, [n, size])
-        if _n_trials(stored) != written:
+        if writer.n_trials() != written:
             from fuzzyservo.errors import ConfigError
 
             raise ConfigError(
@@ -511,9 +519,8 @@ def run_batches(spec: Study, stored, total: int, executor, bar=None) -> None:
             )
         new = [t for t in memory.get_trials(deepcopy=False)[n : n + size] if t.number not in kept]
         writing = time.perf_counter()
-        stored.add_trials(new)
+        writer.write(new, (STORAGE_ATTR, storage_s))  # one transaction: all or none
         storage_s += time.perf_counter() - writing
-        stored.set_user_attr(STORAGE_ATTR, storage_s)
         written += len(new)
         pending = None
         n += size
@@ -527,6 +534,8 @@ def run_batches(spec: Study, stored, total: int, executor, bar=None) -> None:
             break
         if spec.timeout_s is not None and time.perf_counter() - t0 > spec.timeout_s:
             break
+    if written:
+        stored.set_user_attr(STORAGE_ATTR, storage_s)  # the last batch's write too
 
 
 def _partial_batch(told: list) -> tuple[int, tuple[int, dict] | None]:
@@ -570,11 +579,6 @@ def _tell(study, trial, spec: Study, result: TrialResult, batch: list[int]) -> N
         study.tell(trial, state=TrialState.PRUNED)
     else:
         study.tell(trial, list(result.values))
-
-
-def _n_trials(study) -> int:
-    """The study's trials in its storage, by one count (not a read of every trial)."""
-    return study._storage.get_n_trials(study._study_id)
 
 
 def _run_inline(spec: Study, url: str, total: int, bar, shared: bool) -> None:
@@ -717,14 +721,16 @@ def _trial_time(trial) -> float:
     return 0.0
 
 
-def collect(spec: Study, url: str, *, wall_s: float = 0.0, executor=None) -> Outcome:
+def collect(spec: Study, url: str, *, wall_s: float = 0.0, executor=None,
+            study=None) -> Outcome:  # fmt: skip
     """Read the study back: best (feasible) trial or Pareto front, history, importances.
     A robust study's best is chosen among its top trials on fresh samples
-    (:func:`select_on_fresh_samples`, scored by ``executor``, default this process)."""
+    (:func:`select_on_fresh_samples`, scored by ``executor``, default this process).
+    ``study``: the study at ``url`` already open (default: open it)."""
     import optuna
     from optuna.trial import TrialState
 
-    study = open_study(spec, url)
+    study = study if study is not None else open_study(spec, url)
     stored_time = float(study.user_attrs.get(STORAGE_ATTR, 0.0))
     trials = study.get_trials(deepcopy=False, states=(TrialState.COMPLETE,))
     if not trials:

@@ -7,6 +7,8 @@ categorical parameters, nested attributes, two objectives)."""
 from __future__ import annotations
 
 import math
+import os
+import uuid
 
 import optuna
 import pytest
@@ -48,20 +50,34 @@ def _read(url: str, name: str) -> list[dict]:
     return rows
 
 
+def _url(backend: str, tmp_path) -> str:
+    if backend == "sqlite":
+        return f"sqlite:///{tmp_path / 'w.db'}"
+    url = os.environ.get("FUZZYSERVO_TEST_POSTGRES_URL")
+    if not url:
+        pytest.skip("no PostgreSQL server: set FUZZYSERVO_TEST_POSTGRES_URL (.ci/run does)")
+    pytest.importorskip("psycopg2", reason="the [postgres] extra is not installed")
+    return url
+
+
+@pytest.mark.parametrize("backend", ["sqlite", "postgresql"])
 @pytest.mark.parametrize("objectives", [1, 2])
-def test_one_transaction_reads_back_like_optunas_add_trials(tmp_path, objectives):
-    url = f"sqlite:///{tmp_path / 'w.db'}"
+def test_one_transaction_reads_back_like_optunas_add_trials(tmp_path, objectives, backend):
+    url = _url(backend, tmp_path)
+    ours_name, theirs_name = (f"{who}-{uuid.uuid4().hex}" for who in ("ours", "theirs"))
     directions = ["minimize"] * objectives
-    ours = optuna.create_study(study_name="ours", storage=_storage(url), directions=directions)
-    theirs = optuna.create_study(study_name="theirs", storage=_storage(url), directions=directions)
+    ours = optuna.create_study(study_name=ours_name, storage=_storage(url), directions=directions)
+    theirs = optuna.create_study(
+        study_name=theirs_name, storage=_storage(url), directions=directions
+    )
     trials = _trials(objectives)
     writer = BatchWriter(ours)
     assert writer.direct, "the storage's schema is not one batch_write.SCHEMAS names"
     writer.write(trials[:2], ("storage_s", 0.25))
     writer.write(trials[2:], ("storage_s", 0.5))
     theirs.add_trials(trials)
-    assert _read(url, "ours") == _read(url, "theirs")
-    assert optuna.load_study(study_name="ours", storage=url).user_attrs == {"storage_s": 0.5}
+    assert _read(url, ours_name) == _read(url, theirs_name)
+    assert optuna.load_study(study_name=ours_name, storage=url).user_attrs == {"storage_s": 0.5}
 
 
 def test_other_storages_go_through_add_trials():

@@ -31,7 +31,12 @@ from fuzzyservo.params import fields_by_key
 from fuzzyservo.results import Result
 from fuzzyservo.rig import Rig
 from fuzzyservo.simulation import SimResult, simulate
-from fuzzyservo.simulation.validity import ATMOSPHERE_PA, air_note, lowest_pressure
+from fuzzyservo.simulation.validity import (
+    ATMOSPHERE_PA,
+    air_note,
+    entrained_air,
+    lowest_pressure,
+)
 
 STATUS_REPRODUCED = "reproduced"
 STATUS_DIFFERS = "differs"
@@ -531,7 +536,7 @@ def _validity_rows(runner: _Runner, chosen: Sequence[Observation]) -> list[dict[
             "tolerance": None, "bounds": None, "tolerance_text": "—",
             "status": STATUS_VALIDITY,
             "reason": f"{name} at t = {at:.2f} s under {run.controller} (run status "
-                      f"{result.status}); {air_note(p, oil)}",
+                      f"{result.status}); {air_note(p, oil, entrained_air(rig.params))}",
             "note": "", "runs": [run.label],
         })  # fmt: skip
     return rows

@@ -14,7 +14,7 @@ an effect off. Two stages:
   small openings);
 * **plant effects**, evaluated inside the plant kernels that list them in their
   ``EFFECTS`` (seed-002 cylinder and seed-000 motor): friction, line resistance,
-  internal leakage, effective bulk modulus, supply droop.
+  internal leakage, effective bulk modulus, entrained air, supply droop.
 
 Formulations (SI units; "force" is N for a cylinder and N·m for a motor, "velocity"
 m/s or rad/s, "input" the plant input unit, A or V). Sources: docs/modelling.md tables
@@ -33,6 +33,7 @@ valve_bias          i_eff = i + b (null bias beyond the declared one)          b
 valve_lag           τ·di_s/dt = i − i_s (first-order spool dynamics)           τ [s]
 transport_delay     i_eff(t) = i(t − d)                                        d [s]
 bulk_modulus        E_eff replaces the oil's E (air, hoses)                    E_eff [Pa]
+entrained_air       E_mix(p) with free air, floor at the vapour pressure       α; n, p_v fixed
 supply_droop        q_supply = min(q_demand, Qp): pump flow limit with relief   Qp [m³/s]
 external_leakage    q = Ke·p out of each chamber to the drain (seals, case)    Ke [m³/(s·Pa)]
 ==================  =========================================================  ==============
@@ -47,6 +48,7 @@ from dataclasses import dataclass
 from typing import Any, NamedTuple
 
 from fuzzyservo._jit import njit
+from fuzzyservo.components.air import ATMOSPHERE_PA, mixture_modulus
 from fuzzyservo.components.orifice import signed_sqrt_flow
 from fuzzyservo.params import index_of, quantity
 from fuzzyservo.units import parse_unit
@@ -254,6 +256,26 @@ LIBRARY: dict[str, Effect] = {
             "docs/modelling.md typical ranges (oil 1.4-1.8 GPa; hoses or air 0.2-0.7 GPa)",
         ),
         Effect(
+            "entrained_air",
+            "plant",
+            (
+                EffectParam(
+                    "air_fraction", "air_fraction", "1", lambda s: (0.0, 0.02),
+                    doc="free air per oil volume at 1 atm (0: no air)"),
+                EffectParam(
+                    "polytropic_index", "air_polytropic_index", "1", lambda s: (1.0, 1.4),
+                    doc="polytropic index n of the air", fitted=False, default=lambda s: 1.0),
+                EffectParam(
+                    "vapour_pressure", "air_vapour_pressure_pa", "Pa",
+                    lambda s: (100.0, 1.0e4), doc="vapour pressure, absolute (the floor)",
+                    fitted=False, default=lambda s: 1.0e3),
+            ),
+            "E_mix(p) = (1 + r)/(1/E + r/(n·p)), r = α·(p_atm/p)^(1/n), in every chamber, "
+            "line and supply volume (p absolute); no pressure falls below the vapour pressure",
+            "docs/modelling.md \"Entrained air and cavitation\" (Merritt 1967 §2.5; "
+            "Gholizadeh, Burton & Schoenau 2014)",
+        ),
+        Effect(
             "supply_droop",
             "plant",
             (
@@ -323,6 +345,31 @@ def bulk_modulus(p: Any, declared: float) -> float:
     """E_eff [Pa] when the ``bulk_modulus`` effect is on, else the declared oil modulus."""
     e = p[E.effective_bulk_modulus_pa]
     return e if e > 0.0 else declared
+
+
+@njit(cache=True)
+def chamber_modulus(p_gauge: float, inflow: float, beta: float, p: Any) -> float:
+    """The bulk modulus [Pa] a volume at gauge pressure ``p_gauge`` [Pa] integrates with.
+
+    ``beta`` itself unless the ``entrained_air`` effect is on; then the mixture's
+    E_mix(p) (:func:`~fuzzyservo.components.air.mixture_modulus`, at the absolute
+    pressure, floored at the vapour pressure p_v) and, while the net ``inflow`` [m³/s]
+    is negative, the floor: between 2·p_v and p_v the modulus falls linearly to zero,
+    so the volume's pressure settles onto p_v (the oil vaporises at constant pressure)
+    and rises again as soon as oil flows in.
+    """
+    alpha = p[E.air_fraction]
+    if alpha <= 0.0:
+        return beta
+    index = max(p[E.air_polytropic_index], 1.0)
+    p_v = p[E.air_vapour_pressure_pa]
+    if p_v <= 0.0:
+        p_v = 1.0e3
+    p_abs = p_gauge + ATMOSPHERE_PA
+    e = mixture_modulus(max(p_abs, p_v), beta, alpha, index)
+    if inflow < 0.0 and p_abs < 2.0 * p_v:
+        e *= max(p_abs / p_v - 1.0, 0.0)
+    return e
 
 
 @njit(cache=True, inline="always")

@@ -33,9 +33,9 @@ valve_bias          i_eff = i + b (null bias beyond the declared one)          b
 valve_lag           τ·di_s/dt = i − i_s (first-order spool dynamics)           τ [s]
 transport_delay     i_eff(t) = i(t − d)                                        d [s]
 bulk_modulus        E_eff replaces the oil's E (air, hoses)                    E_eff [Pa]
-entrained_air       E_mix(p) with free air, floor at the vapour pressure       α; n, p_v fixed
 supply_droop        q_supply = min(q_demand, Qp): pump flow limit with relief   Qp [m³/s]
 external_leakage    q = Ke·p out of each chamber to the drain (seals, case)    Ke [m³/(s·Pa)]
+entrained_air       E_mix(p) with free air, floor at the vapour pressure       α; n, p_v fixed
 ==================  =========================================================  ==============
 """
 
@@ -110,13 +110,15 @@ class EffectParam:
 
 @dataclass(frozen=True)
 class Effect:
-    """A library entry: name, stage (``input`` or ``plant``), parameters, and what it models."""
+    """A library entry: name, stage (``input`` or ``plant``), parameters, and what it
+    models; ``screened``: a calibration tries it unless told which effects to try."""
 
     name: str
     stage: str
     params: tuple[EffectParam, ...]
     formulation: str
     source: str
+    screened: bool = True
 
     @property
     def fitted(self) -> tuple[EffectParam, ...]:
@@ -256,26 +258,6 @@ LIBRARY: dict[str, Effect] = {
             "docs/modelling.md typical ranges (oil 1.4-1.8 GPa; hoses or air 0.2-0.7 GPa)",
         ),
         Effect(
-            "entrained_air",
-            "plant",
-            (
-                EffectParam(
-                    "air_fraction", "air_fraction", "1", lambda s: (0.0, 0.02),
-                    doc="free air per oil volume at 1 atm (0: no air)"),
-                EffectParam(
-                    "polytropic_index", "air_polytropic_index", "1", lambda s: (1.0, 1.4),
-                    doc="polytropic index n of the air", fitted=False, default=lambda s: 1.0),
-                EffectParam(
-                    "vapour_pressure", "air_vapour_pressure_pa", "Pa",
-                    lambda s: (100.0, 1.0e4), doc="vapour pressure, absolute (the floor)",
-                    fitted=False, default=lambda s: 1.0e3),
-            ),
-            "E_mix(p) = (1 + r)/(1/E + r/(n·p)), r = α·(p_atm/p)^(1/n), in every chamber, "
-            "line and supply volume (p absolute); no pressure falls below the vapour pressure",
-            "docs/modelling.md \"Entrained air and cavitation\" (Merritt 1967 §2.5; "
-            "Gholizadeh, Burton & Schoenau 2014)",
-        ),
-        Effect(
             "supply_droop",
             "plant",
             (
@@ -299,6 +281,28 @@ LIBRARY: dict[str, Effect] = {
             "[m³/s]; composed cylinders and motors",
             "docs/modelling.md typical ranges (leakage 1e-14..1e-11 m³/(s·Pa)); seed 000 eq. 17 "
             "(a motor's external leakage), seed 001 eq. 1-9",
+        ),
+        Effect(
+            "entrained_air",
+            "plant",
+            (
+                EffectParam(
+                    "air_fraction", "air_fraction", "1", lambda s: (0.0, 0.02),
+                    doc="free air per oil volume at 1 atm (0: no air)"),
+                EffectParam(
+                    "polytropic_index", "air_polytropic_index", "1", lambda s: (1.0, 1.4),
+                    doc="polytropic index n of the air", fitted=False, default=lambda s: 1.0),
+                EffectParam(
+                    "vapour_pressure", "air_vapour_pressure_pa", "Pa",
+                    lambda s: (100.0, 1.0e4), doc="vapour pressure, absolute (the floor)",
+                    fitted=False, default=lambda s: 1.0e3),
+            ),
+            "E_mix(p) = (1 + r)/(1/E + r/(n·p)), r = α·(p_atm/p)^(1/n), in every chamber, "
+            "line and supply volume (p absolute); no pressure falls below the vapour pressure",
+            "docs/modelling.md \"Entrained air and cavitation\" (Merritt 1967 §2.5; "
+            "Gholizadeh, Bitner, Burton & Schoenau, ASME JDSMC 136(5), 2014)",
+            # only data that reaches low pressures tells α from the bulk_modulus effect
+            screened=False,
         ),
     )
 }  # fmt: skip

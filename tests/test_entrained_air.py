@@ -116,3 +116,15 @@ def test_pressure_violation_with_air_reports_the_floor():
     assert entrained_air(rig.with_effect("entrained_air", air_fraction=0.003).params) == (
         EntrainedAir(air_fraction=0.003, polytropic_index=1.0, vapour_pressure_pa=1e3)
     )
+
+
+def test_reproduce_declares_the_air_of_the_orifice_variant_as_an_assumption():
+    from fuzzyservo.io.reproduction import load_reproduction_spec
+
+    spec = load_reproduction_spec()
+    air = next(a for a in spec.assumptions if a.target == "effects.entrained_air.air_fraction")
+    assert air.rig == "hydroprax_orifice" and air.value == pytest.approx(0.005)
+    assert "0.1-1 %" in air.reason and min(air.values) < air.value < max(air.values)
+    # the seed rigs themselves stay without it: their numbers are the seeds'
+    for name in ("hydroprax_pdcv", "dinca_cylinder", "ehs160_motor", "ahc_motor"):
+        assert "entrained_air" not in rig_named(name).effects

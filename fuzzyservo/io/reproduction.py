@@ -121,11 +121,7 @@ def reproduce(
         (a.rig, "actuator.lower") for a in loaded.assumptions if a.target == "actuator.upper"
     }
     others = {
-        name: [
-            e
-            for e in rig_assumptions(name, _data(variants, name))
-            if (name, e["key"]) not in covered
-        ]
+        name: [e for e in _own_assumptions(name, variants) if (name, e["key"]) not in covered]
         for name in sorted(rigs)
         if name in variants or (data_root() / "rigs" / f"{name}.yaml").is_file()
     }
@@ -269,6 +265,17 @@ def _assumption(node: Node, variants: dict[str, tuple[dict[str, Any], str]]) -> 
         values=tuple(v * scale for v in node.numbers("values")),
         rows=tuple(str(r) for r in node.require("rows")), value=value, reason=entry["note"],
     )  # fmt: skip
+
+
+def _own_assumptions(
+    name: str, variants: dict[str, tuple[dict[str, Any], str]]
+) -> list[dict[str, Any]]:
+    """A rig's assumptions; a variant's only those its shipped rig does not already list."""
+    if name not in variants:
+        return rig_assumptions(name)
+    data, file = variants[name]
+    listed = {e["key"] for e in rig_assumptions(Path(file).stem)}
+    return [e for e in rig_assumptions(name, data) if e["key"] not in listed]
 
 
 def _data(variants: dict[str, tuple[dict[str, Any], str]], name: str) -> dict[str, Any] | None:

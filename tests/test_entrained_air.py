@@ -128,3 +128,9 @@ def test_reproduce_declares_the_air_of_the_orifice_variant_as_an_assumption():
     # the seed rigs themselves stay without it: their numbers are the seeds'
     for name in ("hydroprax_pdcv", "dinca_cylinder", "ehs160_motor", "ahc_motor"):
         assert "entrained_air" not in rig_named(name).effects
+
+
+def test_an_impossible_air_fraction_is_refused_by_name():
+    rig = rig_named("hydroprax_pdcv")
+    with pytest.raises(ValueError, match=r"entrained_air\.air_fraction: must be <= 0\.5"):
+        rig.with_effect("entrained_air", air_fraction=1.5)

@@ -96,6 +96,7 @@ class EffectParam:
     fitted: bool = True
     default: Callable[[Scales], float] | None = None
     log: bool = False  # search the parameter on a logarithmic grid
+    maximum: float | None = None  # physical upper limit, checked when a rig is built
 
     def __post_init__(self) -> None:
         if self.unit not in UNIT_TOKENS:
@@ -287,15 +288,16 @@ LIBRARY: dict[str, Effect] = {
             "plant",
             (
                 EffectParam(
-                    "air_fraction", "air_fraction", "1", lambda s: (0.0, 0.02),
-                    doc="free air per oil volume at 1 atm (0: no air)"),
+                    "air_fraction", "air_fraction", "1", lambda s: (0.0, 0.02), maximum=0.5,
+                    doc="free air per oil volume at 1 atm (0: no air; 0.001-0.01 typical)"),
                 EffectParam(
                     "polytropic_index", "air_polytropic_index", "1", lambda s: (1.0, 1.4),
-                    doc="polytropic index n of the air", fitted=False, default=lambda s: 1.0),
+                    doc="polytropic index n of the air (1-1.4)", fitted=False,
+                    default=lambda s: 1.0, maximum=1.4),
                 EffectParam(
                     "vapour_pressure", "air_vapour_pressure_pa", "Pa",
                     lambda s: (100.0, 1.0e4), doc="vapour pressure, absolute (the floor)",
-                    fitted=False, default=lambda s: 1.0e3),
+                    fitted=False, default=lambda s: 1.0e3, maximum=0.5e5),
             ),
             "E_mix(p) = (1 + r)/(1/E + r/(n·p)), r = α·(p_atm/p)^(1/n), in every chamber, "
             "line and supply volume (p absolute); no pressure falls below the vapour pressure",
@@ -321,7 +323,7 @@ def _declared_fields() -> dict[str, tuple[str, EffectParam]]:
 def _make_effect_params() -> type:
     fields = [
         (name, float, quantity(f"{effect}.{prm.key}", prm.unit, default=0.0, doc=prm.doc,
-                               effect=True, nonnegative=not prm.signed))
+                               effect=True, nonnegative=not prm.signed, maximum=prm.maximum))
         for name, (effect, prm) in _declared_fields().items()
     ]  # fmt: skip
     cls = dataclasses.make_dataclass("EffectParams", fields, frozen=True, kw_only=True)

@@ -487,7 +487,7 @@ CALIBRATE = [
          "(default: open loop from the recorded i or u)"),
     _arg("--out", help="output folder (default out/calibrate_<rig>_<data>)"),
     _arg("--json", help="also write the summary JSON here"),
-    _arg("--effects", help="comma-separated candidate effects (default: the whole library)"),
+    _arg("--effects", help="comma-separated candidate effects (default: the whole library but entrained_air)"),
     _arg("--max-effects", type=int, default=2, help="effects to add at most (default 2)"),
     _arg("--workers", type=int, default=os.cpu_count() or 1,
          help="processes that fit a round's candidates in parallel (default: one per core)"),

@@ -34,7 +34,9 @@ ISSUE_NAMES = (
 def test_library_has_exactly_the_issue_names_with_units_bounds_and_sources() -> None:
     # the ten names of the calibration issue, then the effects added since (issue 10)
     assert tuple(fx.LIBRARY)[: len(ISSUE_NAMES)] == ISSUE_NAMES
-    assert tuple(fx.LIBRARY)[len(ISSUE_NAMES) :] == ("external_leakage",)
+    assert tuple(fx.LIBRARY)[len(ISSUE_NAMES) :] == ("external_leakage", "entrained_air")
+    # a calibration screens all but entrained air (only low pressures tell it apart)
+    assert [e.name for e in fx.LIBRARY.values() if not e.screened] == ["entrained_air"]
     scales = rig_named("dinca_cylinder").scales()
     for effect in fx.LIBRARY.values():
         assert effect.formulation and effect.source

@@ -184,5 +184,11 @@ def test_docs_reproduction_md_is_the_commands_markdown():
     assert len(rows) >= 20 and all(_consistent(r) for r in rows)
     for seed in SEEDS:
         assert sum(r["seed"] == seed for r in rows) >= 3
-    assert sum(r["status"] == STATUS_VALIDITY for r in result.rows) >= 4
+    validity = [r for r in result.rows if r["status"] == STATUS_VALIDITY]
+    # issue 29: validity rows for >= 4 rig scenarios, none below zero absolute
+    assert len(validity) >= 4 and all(r["model_value"] > 0 for r in validity), validity
     assert len(result.assumptions) >= 3
+    air = next(a for a in result.assumptions if a["target"] == "effects.entrained_air.air_fraction")
+    assert air["rig"] == "hydroprax_orifice" and all(
+        s["lowest_pressure_bar"] > 0 for s in air["sensitivity"]
+    )

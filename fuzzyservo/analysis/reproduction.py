@@ -31,7 +31,12 @@ from fuzzyservo.params import fields_by_key
 from fuzzyservo.results import Result
 from fuzzyservo.rig import Rig
 from fuzzyservo.simulation import SimResult, simulate
-from fuzzyservo.simulation.validity import ATMOSPHERE_PA, air_note, lowest_pressure
+from fuzzyservo.simulation.validity import (
+    ATMOSPHERE_PA,
+    air_note,
+    entrained_air,
+    lowest_pressure,
+)
 
 STATUS_REPRODUCED = "reproduced"
 STATUS_DIFFERS = "differs"
@@ -433,19 +438,23 @@ class ReproductionResult(Result):
         if self.assumptions:
             out += ["", "## Assumptions and their sensitivity", ""]
             out.append(
-                "Rig values no seed gives (`source: assumption` in the rig file), each varied "
-                "over a plausible range; the rows it moves, re-measured at each value."
+                "Rig values no seed gives (`source: assumption` in the rig file or a variant "
+                "of `reproduction.yaml`), each varied over a plausible range; the rows it "
+                "moves, re-measured at each value, and the lowest absolute chamber pressure "
+                "of their runs."
             )
         for a in (a for a in self.assumptions if a["sensitivity"]):
             out += ["", f"### {a['rig']}: `{a['target']}` = {_num(a['value'])} {a['unit']}", ""]
             out += [_cell(a["reason"]), ""]
             ids = list(a["sensitivity"][0]["rows"])
-            out.append(f"| {a['unit']} | " + " | ".join(ids) + " |")
-            out.append("|---" * (len(ids) + 1) + "|")
+            out.append(f"| {a['unit']} | " + " | ".join(ids) + " | lowest p [bar abs] |")
+            out.append("|---" * (len(ids) + 2) + "|")
             for s in a["sensitivity"]:
                 mark = " (rig)" if s["value"] == a["value"] else ""
                 cells = " | ".join(_num(s["rows"][i]) for i in ids)
-                out.append(f"| {_num(s['value'])}{mark} | {cells} |")
+                out.append(
+                    f"| {_num(s['value'])}{mark} | {cells} | {_num(s['lowest_pressure_bar'])} |"
+                )
         others = [a for a in self.assumptions if not a["sensitivity"]]
         if others:
             out += ["", "### The other assumptions of these rigs (no sensitivity run)", ""]
@@ -507,6 +516,19 @@ def _row(obs: Observation, model: float) -> dict[str, Any]:
     }
 
 
+def _lowest(rig: Rig, result: SimResult) -> tuple[str, float, float]:
+    """A run's lowest chamber pressure (name, gauge Pa, time), the boundary pressures a
+    run holds constant (tank, ideal supply) left out."""
+    moving = [n for n in rig.plant.pressures if np.ptp(result.signals[n]) > 0]
+    return lowest_pressure(result.t, result.signals, moving)
+
+
+def _lowest_bar(runner: _Runner, runs: Iterable[Run], changes: tuple[Change, ...]) -> float:
+    """The lowest absolute chamber pressure [bar] over ``runs`` with ``changes``."""
+    found = [_lowest(runner.rig(r, changes), runner.result(r, changes))[1] for r in runs]
+    return (min(found, default=math.inf) + ATMOSPHERE_PA) / 1e5
+
+
 def _validity_rows(runner: _Runner, chosen: Sequence[Observation]) -> list[dict[str, Any]]:
     """Each rig scenario's lowest absolute chamber pressure [bar] over its runs (the
     boundary pressures a run holds constant, tank and ideal supply, left out), with what
@@ -515,8 +537,7 @@ def _validity_rows(runner: _Runner, chosen: Sequence[Observation]) -> list[dict[
     for obs in chosen:
         for run in obs.runs:
             rig, result = runner.rig(run, ()), runner.result(run, ())
-            moving = [n for n in rig.plant.pressures if np.ptp(result.signals[n]) > 0]
-            name, p, at = lowest_pressure(result.t, result.signals, moving)
+            name, p, at = _lowest(rig, result)
             key = (obs.seed, f"{run.rig} · {run.scenario}")
             if name and (key not in lowest or p < lowest[key][0]):
                 lowest[key] = (p, name, at, run, result)
@@ -531,7 +552,7 @@ def _validity_rows(runner: _Runner, chosen: Sequence[Observation]) -> list[dict[
             "tolerance": None, "bounds": None, "tolerance_text": "—",
             "status": STATUS_VALIDITY,
             "reason": f"{name} at t = {at:.2f} s under {run.controller} (run status "
-                      f"{result.status}); {air_note(p, oil)}",
+                      f"{result.status}); {air_note(p, oil, entrained_air(rig.params))}",
             "note": "", "runs": [run.label],
         })  # fmt: skip
     return rows
@@ -565,9 +586,11 @@ def run_reproduction(
         touched = [spec.observation(i) for i in a.rows if i in ids]
         if not touched:
             continue
+        runs = [r for o in touched for r in o.runs]
         sens = [
             {"value": v / a.scale,
-             "rows": {o.id: measure(o, runner, (Change(a.target, v),)) for o in touched}}
+             "rows": {o.id: measure(o, runner, (Change(a.target, v),)) for o in touched},
+             "lowest_pressure_bar": _lowest_bar(runner, runs, (Change(a.target, v),))}
             for v in a.values
         ]  # fmt: skip
         assumptions.append({

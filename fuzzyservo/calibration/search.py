@@ -435,9 +435,9 @@ def fit_table(replay: Replay, model: dict[str, np.ndarray]) -> dict[str, float]:
 
 def candidate_effects(rig: Rig, effects: Sequence[str] | None = None) -> list[str]:
     """The effects a calibration of ``rig`` may add: those of ``effects`` (default: the
-    whole :data:`~fuzzyservo.components.effects.LIBRARY`, in its order) that the rig's
-    plant models and the rig does not declare already."""
-    allowed = LIBRARY if effects is None else effects
+    :data:`~fuzzyservo.components.effects.LIBRARY`'s screened effects, in its order) that
+    the rig's plant models and the rig does not declare already."""
+    allowed = [e for e in LIBRARY if LIBRARY[e].screened] if effects is None else effects
     return [e for e in allowed if e in rig.plant.effects and e not in rig.effects]
 
 

@@ -24,7 +24,20 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+from fuzzyservo._jit import njit
+
 ATMOSPHERE_PA = 101_325.0
+
+
+@njit(cache=True)
+def mixture_modulus(
+    p_abs: float, oil_modulus_pa: float, air_fraction: float, index: float
+) -> float:
+    """E_mix(p) = (1 + r)/(1/E_oil + r/(n·p)), r = α·(p_atm/p)^(1/n) [Pa], at ``p_abs``
+    [Pa absolute, > 0]: the one formula the chambers' ``entrained_air`` effect and
+    :class:`EntrainedAir` share."""
+    r = air_fraction * (ATMOSPHERE_PA / p_abs) ** (1.0 / index)
+    return (1.0 + r) / (1.0 / oil_modulus_pa + r / (index * p_abs))
 
 
 @dataclass(frozen=True)
@@ -58,5 +71,4 @@ class EntrainedAir:
     def bulk_modulus(self, p_abs: float, oil_modulus_pa: float) -> float:
         """E_mix(p) = (1 + r)/(1/E_oil + r/(n·p)) [Pa] at ``p_abs`` [Pa absolute]."""
         p = max(p_abs, self.vapour_pressure_pa)
-        r = self.free_air_ratio(p)
-        return (1.0 + r) / (1.0 / oil_modulus_pa + r / (self.polytropic_index * p))
+        return float(mixture_modulus(p, oil_modulus_pa, self.air_fraction, self.polytropic_index))

@@ -14,7 +14,7 @@ an effect off. Two stages:
   small openings);
 * **plant effects**, evaluated inside the plant kernels that list them in their
   ``EFFECTS`` (seed-002 cylinder and seed-000 motor): friction, line resistance,
-  internal leakage, effective bulk modulus, supply droop.
+  internal leakage, effective bulk modulus, entrained air, supply droop.
 
 Formulations (SI units; "force" is N for a cylinder and N·m for a motor, "velocity"
 m/s or rad/s, "input" the plant input unit, A or V). Sources: docs/modelling.md tables
@@ -35,6 +35,7 @@ transport_delay     i_eff(t) = i(t − d)                                       
 bulk_modulus        E_eff replaces the oil's E (air, hoses)                    E_eff [Pa]
 supply_droop        q_supply = min(q_demand, Qp): pump flow limit with relief   Qp [m³/s]
 external_leakage    q = Ke·p out of each chamber to the drain (seals, case)    Ke [m³/(s·Pa)]
+entrained_air       E_mix(p) with free air, floor at the vapour pressure       α; n, p_v fixed
 ==================  =========================================================  ==============
 """
 
@@ -47,6 +48,7 @@ from dataclasses import dataclass
 from typing import Any, NamedTuple
 
 from fuzzyservo._jit import njit
+from fuzzyservo.components.air import ATMOSPHERE_PA, mixture_modulus
 from fuzzyservo.components.orifice import signed_sqrt_flow
 from fuzzyservo.params import index_of, quantity
 from fuzzyservo.units import parse_unit
@@ -94,6 +96,7 @@ class EffectParam:
     fitted: bool = True
     default: Callable[[Scales], float] | None = None
     log: bool = False  # search the parameter on a logarithmic grid
+    maximum: float | None = None  # physical upper limit, checked when a rig is built
 
     def __post_init__(self) -> None:
         if self.unit not in UNIT_TOKENS:
@@ -108,13 +111,15 @@ class EffectParam:
 
 @dataclass(frozen=True)
 class Effect:
-    """A library entry: name, stage (``input`` or ``plant``), parameters, and what it models."""
+    """A library entry: name, stage (``input`` or ``plant``), parameters, and what it
+    models; ``screened``: a calibration tries it unless told which effects to try."""
 
     name: str
     stage: str
     params: tuple[EffectParam, ...]
     formulation: str
     source: str
+    screened: bool = True
 
     @property
     def fitted(self) -> tuple[EffectParam, ...]:
@@ -278,6 +283,29 @@ LIBRARY: dict[str, Effect] = {
             "docs/modelling.md typical ranges (leakage 1e-14..1e-11 m³/(s·Pa)); seed 000 eq. 17 "
             "(a motor's external leakage), seed 001 eq. 1-9",
         ),
+        Effect(
+            "entrained_air",
+            "plant",
+            (
+                EffectParam(
+                    "air_fraction", "air_fraction", "1", lambda s: (0.0, 0.02), maximum=0.5,
+                    doc="free air per oil volume at 1 atm (0: no air; 0.001-0.01 typical)"),
+                EffectParam(
+                    "polytropic_index", "air_polytropic_index", "1", lambda s: (1.0, 1.4),
+                    doc="polytropic index n of the air (1-1.4)", fitted=False,
+                    default=lambda s: 1.0, maximum=1.4),
+                EffectParam(
+                    "vapour_pressure", "air_vapour_pressure_pa", "Pa",
+                    lambda s: (100.0, 1.0e4), doc="vapour pressure, absolute (the floor)",
+                    fitted=False, default=lambda s: 1.0e3, maximum=0.5e5),
+            ),
+            "E_mix(p) = (1 + r)/(1/E + r/(n·p)), r = α·(p_atm/p)^(1/n), in every chamber, "
+            "line and supply volume (p absolute); no pressure falls below the vapour pressure",
+            "docs/modelling.md \"Entrained air and cavitation\" (Merritt 1967 §2.5; "
+            "Gholizadeh, Bitner, Burton & Schoenau, ASME JDSMC 136(5), 2014)",
+            # only data that reaches low pressures tells α from the bulk_modulus effect
+            screened=False,
+        ),
     )
 }  # fmt: skip
 
@@ -295,7 +323,7 @@ def _declared_fields() -> dict[str, tuple[str, EffectParam]]:
 def _make_effect_params() -> type:
     fields = [
         (name, float, quantity(f"{effect}.{prm.key}", prm.unit, default=0.0, doc=prm.doc,
-                               effect=True, nonnegative=not prm.signed))
+                               effect=True, nonnegative=not prm.signed, maximum=prm.maximum))
         for name, (effect, prm) in _declared_fields().items()
     ]  # fmt: skip
     cls = dataclasses.make_dataclass("EffectParams", fields, frozen=True, kw_only=True)
@@ -323,6 +351,31 @@ def bulk_modulus(p: Any, declared: float) -> float:
     """E_eff [Pa] when the ``bulk_modulus`` effect is on, else the declared oil modulus."""
     e = p[E.effective_bulk_modulus_pa]
     return e if e > 0.0 else declared
+
+
+@njit(cache=True)
+def chamber_modulus(p_gauge: float, inflow: float, beta: float, p: Any) -> float:
+    """The bulk modulus [Pa] a volume at gauge pressure ``p_gauge`` [Pa] integrates with.
+
+    ``beta`` itself unless the ``entrained_air`` effect is on; then the mixture's
+    E_mix(p) (:func:`~fuzzyservo.components.air.mixture_modulus`, at the absolute
+    pressure, floored at the vapour pressure p_v) and, while the net ``inflow`` [m³/s]
+    is negative, the floor: between 2·p_v and p_v the modulus falls linearly to zero,
+    so the volume's pressure settles onto p_v (the oil vaporises at constant pressure)
+    and rises again as soon as oil flows in.
+    """
+    alpha = p[E.air_fraction]
+    if alpha <= 0.0:
+        return beta
+    index = max(p[E.air_polytropic_index], 1.0)
+    p_v = p[E.air_vapour_pressure_pa]
+    if p_v <= 0.0:
+        p_v = 1.0e3
+    p_abs = p_gauge + ATMOSPHERE_PA
+    e = mixture_modulus(max(p_abs, p_v), beta, alpha, index)
+    if inflow < 0.0 and p_abs < 2.0 * p_v:
+        e *= max(p_abs / p_v - 1.0, 0.0)
+    return e
 
 
 @njit(cache=True, inline="always")

@@ -11,6 +11,7 @@ import math
 
 from fuzzyservo.components.effects import (
     bulk_modulus,
+    chamber_modulus,
     friction_force,
     pump_limited,
 )
@@ -19,6 +20,7 @@ from fuzzyservo.components.valves import metering_edges, nn_forward, polynomial_
 
 __all__ = [
     "bulk_modulus",
+    "chamber_modulus",
     "friction_force",
     "math",
     "metering_edges",

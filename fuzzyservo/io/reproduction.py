@@ -17,8 +17,9 @@ Layout of the observation file::
         options: {from_s: 5, to_s: 7}
         reason: the physical cause, when the row differs (and the run that shows it)
         note: what the row depends on (an assumption it matches only at)
-    rigs:                          # variants of a shipped rig: components replaced
+    rigs:                          # variants of a shipped rig: components replaced, effects added
       hydroprax_network: {rig: hydroprax_pdcv, components: {valve: {type: ..., parameters: ...}}}
+      hydroprax_orifice: {rig: ..., components: ..., effects: {entrained_air: {air_fraction: ...}}}
     assumptions:                   # rig values the rig file marks `source: assumption`
       - {id: ..., rig: dinca_cylinder, target: controller.io_delay, unit: ms,
          values: [0, 10, 20, 30], rows: [s002_onset_gain, ...]}
@@ -62,39 +63,46 @@ def load_reproduction_spec(path: str | Path | None = None) -> ReproductionSpec:
     return _load_spec(path)[0]
 
 
-def _load_spec(path: str | Path | None) -> tuple[ReproductionSpec, dict[str, Rig]]:
-    """The spec and its rigs by name (shipped rigs, and the variants of ``rigs:``)."""
+def _load_spec(
+    path: str | Path | None,
+) -> tuple[ReproductionSpec, dict[str, Rig], dict[str, tuple[dict[str, Any], str]]]:
+    """The spec, its rigs by name (shipped rigs, and the variants of ``rigs:``) and the
+    variants' rig data with the file each comes from."""
     path = Path(path) if path is not None else package_data() / SPEC_FILE
     root = Node(read_yaml(path), str(path))
     root.only(("observations", "rigs", "assumptions", "explanations"))
-    variants = root.children("rigs")
+    variants = {name: _variant_data(node) for name, node in root.children("rigs").items()}
     observations = tuple(_observation(n) for n in _items(root, "observations"))
-    assumptions = tuple(_assumption(n) for n in _items(root, "assumptions"))
+    assumptions = tuple(_assumption(n, variants) for n in _items(root, "assumptions"))
     explanations = tuple(_explanation(n) for n in _items(root, "explanations"))
     try:
         spec = ReproductionSpec(observations, assumptions, explanations)
     except ValueError as exc:
         raise ConfigError(f"{exc}; fix the file", file=str(path)) from None
-    rigs = {name: _variant(variants[name]) if name in variants else _shipped_rig(name)
+    rigs = {name: rig_from_data(*variants[name]) if name in variants else _shipped_rig(name)
             for name in spec.rigs()}  # fmt: skip
-    return spec, rigs
+    return spec, rigs, variants
 
 
 def _shipped_rig(name: str) -> Rig:
     return load_rig(data_root() / "rigs" / f"{name}.yaml")
 
 
-def _variant(node: Node) -> Rig:
-    """A shipped rig with some of its components replaced (seed 003's other valves)."""
-    node.only(("rig", "components"))
+def _variant_data(node: Node) -> tuple[dict[str, Any], str]:
+    """A shipped rig's data with some of its components replaced (seed 003's other
+    valves) and effects declared (``effects:``, as in a rig file), and the rig file."""
+    node.only(("rig", "components", "effects"))
     path = data_root() / "rigs" / f"{node.str('rig')}.yaml"
     data = read_yaml(path)
-    for inst, comp in node.child("components").data.items():
+    for inst, comp in node.child("components", default={}).data.items():
         if inst not in data["plant"]["components"]:
             node.fail(f"{path.name} has no component {inst!r}", key="components")
         data["plant"]["components"][inst] = comp
+    effects = node.child("effects", default={}).data
+    if effects:
+        data["effects"] = {**(data.get("effects") or {}), **effects}
     data["name"] = node.key.rsplit(".", 1)[-1]
-    return rig_from_data(data, str(path))
+    return data, str(path)
 
 
 def reproduce(
@@ -103,7 +111,7 @@ def reproduce(
     """Run every observation of ``seeds`` ("000" … "003"; default all) on the shipped
     rigs, with the assumptions' sensitivity and the explanation runs (``sensitivity=False``:
     the rows only). ``spec``: another observation file."""
-    loaded, rigs = _load_spec(spec)
+    loaded, rigs, variants = _load_spec(spec)
     controllers = {
         name: load_controller(data_root() / "studies" / "controllers" / f"{name}.yaml")
         for name in loaded.controllers()
@@ -113,9 +121,9 @@ def reproduce(
         (a.rig, "actuator.lower") for a in loaded.assumptions if a.target == "actuator.upper"
     }
     others = {
-        name: [e for e in rig_assumptions(name) if (name, e["key"]) not in covered]
+        name: [e for e in _own_assumptions(name, variants) if (name, e["key"]) not in covered]
         for name in sorted(rigs)
-        if (data_root() / "rigs" / f"{name}.yaml").is_file()
+        if name in variants or (data_root() / "rigs" / f"{name}.yaml").is_file()
     }
     try:
         return run_reproduction(loaded, rigs, controllers, seeds, sensitivity=sensitivity,
@@ -142,9 +150,9 @@ def write_reproduction(
     return written
 
 
-def rig_assumptions(rig_name: str) -> list[dict[str, Any]]:
-    """Every value a shipped rig file marks ``source: assumption``: key, value, unit, note."""
-    path = data_root() / "rigs" / f"{rig_name}.yaml"
+def rig_assumptions(rig_name: str, data: dict[str, Any] | None = None) -> list[dict[str, Any]]:
+    """Every value a shipped rig file marks ``source: assumption``: key, value, unit, note
+    (``data``: a variant's rig data, read instead of the file)."""
     found: list[dict[str, Any]] = []
 
     def walk(data: Any, key: str) -> None:
@@ -155,7 +163,7 @@ def rig_assumptions(rig_name: str) -> list[dict[str, Any]]:
             for k, v in data.items():
                 walk(v, f"{key}.{k}" if key else str(k))
 
-    walk(read_yaml(path), "")
+    walk(data if data is not None else read_yaml(data_root() / "rigs" / f"{rig_name}.yaml"), "")
     return found
 
 
@@ -238,11 +246,11 @@ def _change(node: Node) -> Change:
         node.fail(str(exc), key="target")
 
 
-def _assumption(node: Node) -> Assumption:
+def _assumption(node: Node, variants: dict[str, tuple[dict[str, Any], str]]) -> Assumption:
     node.only(("id", "rig", "target", "unit", "values", "rows"))
     rig, target, unit = node.str("rig"), node.str("target"), node.str("unit")
     scale = _scale(node, unit)
-    declared = {a["key"]: a for a in rig_assumptions(rig)}
+    declared = {a["key"]: a for a in rig_assumptions(rig, _data(variants, rig))}
     file_key = _file_key(target)
     if file_key not in declared:
         node.fail(
@@ -257,6 +265,22 @@ def _assumption(node: Node) -> Assumption:
         values=tuple(v * scale for v in node.numbers("values")),
         rows=tuple(str(r) for r in node.require("rows")), value=value, reason=entry["note"],
     )  # fmt: skip
+
+
+def _own_assumptions(
+    name: str, variants: dict[str, tuple[dict[str, Any], str]]
+) -> list[dict[str, Any]]:
+    """A rig's assumptions; a variant's only those its shipped rig does not already list."""
+    if name not in variants:
+        return rig_assumptions(name)
+    data, file = variants[name]
+    listed = {e["key"] for e in rig_assumptions(Path(file).stem)}
+    return [e for e in rig_assumptions(name, data) if e["key"] not in listed]
+
+
+def _data(variants: dict[str, tuple[dict[str, Any], str]], name: str) -> dict[str, Any] | None:
+    """A variant's rig data, or None for a shipped rig (read from its file)."""
+    return variants[name][0] if name in variants else None
 
 
 def _file_key(target: str) -> str:

@@ -15,7 +15,11 @@ from fuzzyservo.controllers.classical import OpenLoop
 from fuzzyservo.rig import Rig, Scenario
 from fuzzyservo.simulation import _loop
 from fuzzyservo.simulation.result import SimResult
-from fuzzyservo.simulation.validity import STATUS_CAVITATION, pressure_violation
+from fuzzyservo.simulation.validity import (
+    STATUS_CAVITATION,
+    entrained_air,
+    pressure_violation,
+)
 
 # Local-error tolerance, in units of each plant's state_scale (seed 002: 0.5 µm and
 # 0.5 kPa per step). Measured against the rtol 1e-9 reference on the seed-002 rig with
@@ -311,7 +315,7 @@ def assemble(
     message = _message(status, where, prep)
     if status in ("ok", "end_stop"):
         # a run that finished is still unphysical if a chamber went below vapour pressure
-        below = pressure_violation(prep.t, signals, plant.pressures)
+        below = pressure_violation(prep.t, signals, plant.pressures, entrained_air(rig.params))
         if below:
             status, message = STATUS_CAVITATION, "; ".join(m for m in (below, message) if m)
     return SimResult(

@@ -1,16 +1,22 @@
 """Physical validity of a finished run: no chamber pressure below the oil's vapour pressure.
 
-No plant models cavitation (gas release, vapour cavities): its pressure law p = E·(ρ/ρ0 − 1)
-happily goes below vacuum. Every plant states pressures against the atmosphere (gauge;
-the tank or return line at 0 bar), so absolute zero is −1.013 bar. Mineral oil's vapour
-pressure is well below 1 kPa absolute at working temperatures, so the floor is taken as
-absolute zero: below it the model describes a liquid under tension, which real oil never
+Without the ``entrained_air`` effect a plant's pressure law p = E·(ρ/ρ0 − 1) happily goes
+below vacuum. Every plant states pressures against the atmosphere (gauge; the tank or
+return line at 0 bar), so absolute zero is −1.013 bar. Mineral oil's vapour pressure is
+well below 1 kPa absolute at working temperatures, so the floor is taken as absolute
+zero: below it the model describes a liquid under tension, which real oil never
 sustains. Such a run completes but reports ``cavitation``, never ``ok``.
+
+With the ``entrained_air`` effect the chambers stiffen with E_mix(p) and stop at the
+vapour pressure p_v (components/effects.py, ``chamber_modulus``): a chamber that reaches
+the floor (below 2·p_v absolute, where it acts) has cavitated as modelled; the run
+reports ``cavitation`` too, with a message saying that the floor held it.
 """
 
 from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
+from typing import Any
 
 import numpy as np
 
@@ -39,15 +45,44 @@ def lowest_pressure(
     return name, float(worst), at
 
 
+def entrained_air(params: Any) -> EntrainedAir | None:
+    """The free air of a plant's parameter set when its ``entrained_air`` effect is on
+    (fixed parameters left at 0 take the effect's defaults, as the kernel does), else None."""
+    alpha = float(getattr(params, "air_fraction", 0.0))
+    if alpha <= 0.0:
+        return None
+    return EntrainedAir(
+        air_fraction=alpha,
+        polytropic_index=max(float(params.air_polytropic_index), 1.0),
+        vapour_pressure_pa=float(params.air_vapour_pressure_pa) or 1.0e3,
+    )
+
+
 def pressure_violation(
-    t: np.ndarray, signals: Mapping[str, np.ndarray], pressures: Sequence[str]
+    t: np.ndarray,
+    signals: Mapping[str, np.ndarray],
+    pressures: Sequence[str],
+    air: EntrainedAir | None = None,
 ) -> str:
     """Why the run is unphysical, or "" when every pressure stays above the vapour pressure.
 
     ``pressures`` names the gauge chamber pressures [Pa] among ``signals``; the message
-    names the lowest one, its value and the time it is reached.
+    names the lowest one, its value and the time it is reached. ``air``: the plant's
+    entrained air (:func:`entrained_air`); then reaching its floor (2·p_v absolute) is
+    reported, as cavitation the model holds at the vapour pressure.
     """
     name, worst, at = lowest_pressure(t, signals, pressures)
+    if air is not None:
+        floor = 2.0 * air.vapour_pressure_pa - ATMOSPHERE_PA
+        if worst >= floor:
+            return ""
+        first = np.flatnonzero(np.asarray(signals[name]) < floor)[0]
+        return (
+            f"{name} reached the oil's vapour pressure ({air.vapour_pressure_pa / 1e5:.2g} bar "
+            f"absolute) at t = {float(t[first]):.3f} s, down to "
+            f"{(worst + ATMOSPHERE_PA) / 1e5:.3g} bar absolute at t = {at:.3f} s: the oil "
+            "cavitates there; the entrained_air effect holds the chamber at that floor"
+        )
     if worst >= VAPOUR_PRESSURE_PA:
         return ""
     first = np.flatnonzero(np.asarray(signals[name]) < VAPOUR_PRESSURE_PA)[0]
@@ -60,8 +95,10 @@ def pressure_violation(
 
 def air_note(p_gauge_pa: float, oil_modulus_pa: float, air: EntrainedAir | None = None) -> str:
     """What entrained air does at a chamber's lowest pressure: the free-air share and the
-    mixture's bulk modulus against the oil's (components/air.py), which the plants'
-    constant-E chamber law leaves out."""
+    mixture's bulk modulus against the oil's (components/air.py). ``air``: the plant's own
+    (its ``entrained_air`` effect, which the chambers then integrate with); None: the
+    default air, which a constant-E chamber law leaves out."""
+    modelled = air is not None
     air = air or EntrainedAir()
     p_abs = p_gauge_pa + ATMOSPHERE_PA
     if p_abs <= air.vapour_pressure_pa:
@@ -71,7 +108,8 @@ def air_note(p_gauge_pa: float, oil_modulus_pa: float, air: EntrainedAir | None 
         )
     e_mix = air.bulk_modulus(p_abs, oil_modulus_pa)
     return (
-        f"with {100 * air.air_fraction:.2g} % air at 1 atm, {100 * air.free_air_ratio(p_abs):.2g} % "
+        ("chambers integrate E_mix (entrained_air effect): " if modelled else "")
+        + f"with {100 * air.air_fraction:.2g} % air at 1 atm, {100 * air.free_air_ratio(p_abs):.2g} % "
         f"free air there and a mixture modulus of {e_mix / 1e6:.3g} MPa, "
         f"{100 * e_mix / oil_modulus_pa:.2g} % of the oil's {oil_modulus_pa / 1e9:.3g} GPa"
     )

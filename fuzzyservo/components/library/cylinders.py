@@ -4,8 +4,9 @@ States: position ``y`` [m] (0 at ``zero_position`` from the retracted end), velo
 pressures ``p_a`` (piston side, +y extends) and ``p_b`` [Pa]:
 
     V_a = V_0a + A_a·y_e,  V_b = V_0b + A_b·(L − y_e),  y_e = y + y_0   (floored at 5 % of V_0)
-    dp_a/dt = E/V_a·(q_a − A_a·v·c_a − q_leak),  dp_b/dt = E/V_b·(q_b + A_b·v·c_b + q_leak)
+    dp_a/dt = E_a/V_a·(q_a − A_a·v·c_a − q_leak),  dp_b/dt = E_b/V_b·(q_b + A_b·v·c_b + q_leak)
     c = 1 + p/E in the oil's mass form (flows at reference density), else 1
+    E_a = E_b = E, or E_mix(p) with the ``entrained_air`` effect (components/effects.py)
     m·dv/dt = p_a·A_a − p_b·A_b − F_fric(v) − F_loads + F_stop
 
 ``m`` is the piston's mass plus every ``mass`` load; F_loads every load's force and
@@ -75,8 +76,14 @@ _ACTUATOR = """
 _MOTION = """
     DX.y = vel
     DX.v = (p_a * area_a - p_b * area_b - L.f_fric - f_load + f_stop) / mass
-    DX.p_a = (beta * (q_a - area_a * vel - L.q_leak - E.external_leakage_m3_s_pa * p_a) - mass_form * area_a * vel * p_a) / L.va
-    DX.p_b = (beta * (q_b + area_b * vel + L.q_leak - E.external_leakage_m3_s_pa * p_b) + mass_form * area_b * vel * p_b) / L.vb
+    L.na = q_a - area_a * vel - L.q_leak - E.external_leakage_m3_s_pa * p_a
+    L.nb = q_b + area_b * vel + L.q_leak - E.external_leakage_m3_s_pa * p_b
+    L.ma = mass_form * area_a * vel * p_a
+    L.mb = mass_form * area_b * vel * p_b
+    L.ea = chamber_modulus(p_a, L.na - L.ma / beta, beta, p)
+    L.eb = chamber_modulus(p_b, L.nb + L.mb / beta, beta, p)
+    DX.p_a = (L.ea * L.na - L.ma * (L.ea / beta)) / L.va
+    DX.p_b = (L.eb * L.nb + L.mb * (L.eb / beta)) / L.vb
 """
 
 
@@ -134,7 +141,13 @@ def _cylinder(type_name: str, double: bool, doc: str) -> Component:
             "mass": "mass += P.piston_mass",
             "motion": _MOTION,
         },
-        effects=("coulomb_friction", "stribeck_friction", "internal_leakage", "external_leakage"),
+        effects=(
+            "coulomb_friction",
+            "stribeck_friction",
+            "internal_leakage",
+            "external_leakage",
+            "entrained_air",
+        ),
         initial=_initial(double),
         initial_keys={
             "position": ("position", "m"),

@@ -4,6 +4,8 @@ Each line is a volume V (its oil, at the valve end) and a laminar resistance R t
 actuator chamber (Hopsan's volume-restriction chain; docs/modelling.md "line loss"):
 
     q = (p_line − p_chamber)/R,   dp_line/dt = E/V·(q_valve − q)
+
+with E = E_mix(p_line) under the ``entrained_air`` effect (components/effects.py).
 """
 
 from __future__ import annotations
@@ -36,10 +38,13 @@ COMPONENTS = (
             "line_flow": """
                 q_a = (X.p_la - p_a) / P.resistance
                 q_b = (X.p_lb - p_b) / P.resistance
-                DX.p_la = beta / P.volume * (q_va - q_a)
-                DX.p_lb = beta / P.volume * (q_vb - q_b)
+                L.ea = chamber_modulus(X.p_la, q_va - q_a, beta, p)
+                L.eb = chamber_modulus(X.p_lb, q_vb - q_b, beta, p)
+                DX.p_la = L.ea / P.volume * (q_va - q_a)
+                DX.p_lb = L.eb / P.volume * (q_vb - q_b)
             """,
         },
+        effects=("entrained_air",),
         initial=lambda v, ctx: {"p_la": ctx["p_a"], "p_lb": ctx["p_b"]},
     ),
 )

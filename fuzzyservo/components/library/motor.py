@@ -2,7 +2,7 @@
 
 States: angle ``theta`` [rad], speed ``w`` [rad/s], port pressures ``p_a``, ``p_b`` [Pa]:
 
-    dp_a/dt = E/V_a·(q_a − D·w − q_leak),  dp_b/dt = E/V_b·(q_b + D·w + q_leak)
+    dp_a/dt = E_a/V_a·(q_a − D·w − q_leak),  dp_b/dt = E_b/V_b·(q_b + D·w + q_leak)
     J·dw/dt = η_hm·(p_a − p_b)·D − T_fric(w) − T_loads
 
 J is the shaft's inertia plus every ``mass`` load (kg·m² on a motor). η_hm is the
@@ -11,7 +11,7 @@ the ideal torque in both directions of power flow. At rest the port pressures ho
 the loads' static torque symmetric about the middle of supply and tank, where a
 symmetric valve holds an equal-area motor. Effects: friction, ``internal_leakage``
 (cross-port, q_leak = K_l·(p_a − p_b)) and ``external_leakage`` (case drain, K_e·p
-from each port).
+from each port) and ``entrained_air`` (E_a, E_b = E_mix(p) instead of E).
 """
 
 from __future__ import annotations
@@ -85,11 +85,23 @@ COMPONENTS = (
                 DX.theta = vel
                 DX.w = (P.hydromechanical_efficiency * (p_a - p_b) * area_a - L.f_fric - f_load) / mass
                 L.ke = E.external_leakage_m3_s_pa
-                DX.p_a = (beta * (q_a - area_a * vel - L.q_leak - L.ke * p_a) - mass_form * area_a * vel * p_a) / P.volume_a
-                DX.p_b = (beta * (q_b + area_b * vel + L.q_leak - L.ke * p_b) + mass_form * area_b * vel * p_b) / P.volume_b
+                L.na = q_a - area_a * vel - L.q_leak - L.ke * p_a
+                L.nb = q_b + area_b * vel + L.q_leak - L.ke * p_b
+                L.ma = mass_form * area_a * vel * p_a
+                L.mb = mass_form * area_b * vel * p_b
+                L.ea = chamber_modulus(p_a, L.na - L.ma / beta, beta, p)
+                L.eb = chamber_modulus(p_b, L.nb + L.mb / beta, beta, p)
+                DX.p_a = (L.ea * L.na - L.ma * (L.ea / beta)) / P.volume_a
+                DX.p_b = (L.eb * L.nb + L.mb * (L.eb / beta)) / P.volume_b
             """,
         },
-        effects=("coulomb_friction", "stribeck_friction", "internal_leakage", "external_leakage"),
+        effects=(
+            "coulomb_friction",
+            "stribeck_friction",
+            "internal_leakage",
+            "external_leakage",
+            "entrained_air",
+        ),
         initial=_initial,
         initial_keys={
             "angle": ("angle", "rad"),

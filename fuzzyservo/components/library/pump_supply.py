@@ -5,6 +5,7 @@
 
 The relief opens at the cracking pressure and passes the whole pump flow at the
 nominal pressure; when the valve draws more than the pump delivers, p_s sags.
+``entrained_air`` gives the volume E_mix(p) instead of E.
 """
 
 from __future__ import annotations
@@ -73,7 +74,8 @@ COMPONENTS = (
                 L.d = p_s - P.relief_cracking_pressure
                 L.kr = P.pump_flow / (P.supply_pressure - P.relief_cracking_pressure)
                 L.q_relief = 0.5 * L.kr * (L.d + math.sqrt(L.d * L.d + P.relief_knee * P.relief_knee))
-                DX.p_s = beta / P.supply_volume * (P.pump_flow - L.q_relief - q_supply)
+                L.q_net = P.pump_flow - L.q_relief - q_supply
+                DX.p_s = chamber_modulus(p_s, L.q_net, beta, p) / P.supply_volume * L.q_net
             """,
         },
         initial_keys={"pressure_s": ("p_s", "Pa")},
@@ -83,6 +85,7 @@ COMPONENTS = (
         },
         scales=lambda v: {"pressure": v["supply_pressure"] - v["tank_pressure"]},
         check=_check,
+        effects=("entrained_air",),
         refuses={"supply_droop": "limits the flow to its pump_flow already; fit that instead"},
     ),
 )

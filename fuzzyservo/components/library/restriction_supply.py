@@ -3,7 +3,8 @@
     dp_s/dt = E/V_s·(q_in − q_supply),   q_in = R_a·√(p_a − p_s)
     dp_t/dt = E/V_t·(q_tank − q_ret),    q_ret = R_r·√(p_t − p_r)
 
-``supply_droop`` caps q_in at the pump's delivery.
+``supply_droop`` caps q_in at the pump's delivery; ``entrained_air`` gives each volume
+E_mix(p) instead of E.
 """
 
 from __future__ import annotations
@@ -44,11 +45,13 @@ COMPONENTS = (
                     signed_sqrt_flow(P.supply_resistance, P.supply_pressure - p_s, p_lam), p
                 )
                 L.q_ret = signed_sqrt_flow(P.return_resistance, p_t - P.return_pressure, p_lam)
-                DX.p_s = beta / P.supply_volume * (L.q_in - q_supply)
-                DX.p_t = beta / P.return_volume * (q_tank - L.q_ret)
+                L.es = chamber_modulus(p_s, L.q_in - q_supply, beta, p)
+                L.et = chamber_modulus(p_t, q_tank - L.q_ret, beta, p)
+                DX.p_s = L.es / P.supply_volume * (L.q_in - q_supply)
+                DX.p_t = L.et / P.return_volume * (q_tank - L.q_ret)
             """,
         },
-        effects=("supply_droop",),
+        effects=("supply_droop", "entrained_air"),
         initial_keys={"pressure_s": ("p_s", "Pa"), "pressure_t": ("p_t", "Pa")},
         initial=lambda v, ctx: {
             "p_s": ctx.get("p_s", v["supply_pressure"]),

@@ -497,8 +497,10 @@ def calibrate(
             results.sort(key=lambda c: c.score)
             if _screened(replay, screen_samples) is not replay:
                 results = _confirm(replay, current, current_model, results)
+            frozen = _frozen_ends(replay, current, added, current_model)
             null = null_round(replay, current_model, [c.model for c in results],
-                              draws=bootstrap_draws, seed=SEED + len(rounds))  # fmt: skip
+                              draws=bootstrap_draws, seed=SEED + len(rounds),
+                              frozen=frozen)  # fmt: skip
             z_min = null.threshold
             best = results[0] if results else None
             significant = best is not None and _significant(best, z_min)
@@ -634,6 +636,27 @@ def _uncertainty(
     return {f: e for (_, f), e in zip(space.names, found, strict=True)}
 
 
+def _frozen_ends(
+    replay: Replay, rig: Rig, added: Sequence[Candidate], model: dict[str, np.ndarray]
+) -> list[list[dict[str, np.ndarray]]]:
+    """For each fitted parameter of the effects ``added`` so far (a round's candidates
+    leave them as they are): ``rig``'s channels at the ends of its 95 % interval
+    (:func:`_uncertainty`, jointly with the rig's unknowns), for the round's prediction
+    band (null.prediction_band)."""
+    if not added:
+        return []
+    found = _uncertainty(replay, rig, added, model)
+    out = []
+    for candidate in added:
+        for param in LIBRARY[candidate.name].fitted:
+            estimate = found.get(param.field)
+            if estimate is None:
+                continue
+            ends = [v for v in estimate.interval if math.isfinite(v) and v != estimate.value]
+            out.append([replay.run(rig.with_params(**{param.field: v}))[0] for v in ends])
+    return out
+
+
 def _judge(
     replay: Replay, base_model: dict[str, np.ndarray], ranked: Sequence[Candidate], null: Null
 ) -> tuple[Assessment, ...]:
@@ -651,13 +674,14 @@ def _judge(
 def _establishing(
     record: Replay, base: Rig, ranked: Sequence[Candidate], judged: Sequence[Assessment]
 ) -> tuple[tuple[str, Separation, float], ...]:
-    """For each judged candidate not added that the data lean towards (z > 0): the
-    excitation (identifiability.py) that drives it furthest from ``base``, with the
-    distance the recorded experiment gives (noise units)."""
+    """For each judged candidate not established that the data lean towards (z > 0):
+    the excitation (identifiability.py) that drives it furthest from ``base``, with the
+    distance the recorded experiment gives (noise units). A negligible one is
+    established already, and too small to matter: no experiment for it."""
     out = []
     rigs = {c.name: c.rig for c in ranked}
     for a in judged:
-        if a.verdict == "failed" or not a.z > 0.0 or rigs.get(a.name) is None:
+        if a.verdict != "not established" or not a.z > 0.0 or rigs.get(a.name) is None:
             continue
         ranked_ex = separating_experiments(record, {"starting model": base, a.name: rigs[a.name]})
         recorded = next((s.distance for s in ranked_ex if s.name == "recorded"), math.nan)

@@ -41,9 +41,12 @@ explain little, so this is the residual of the fitted nominal model up to that:
 4. **The starting model's own prediction uncertainty** (:func:`prediction_band`). From
    the second round on, the starting model carries effects added earlier whose fitted
    parameters the round's candidates do not move (the rig's unknowns they refit). Those
-   parameters are known only to their 95 % interval, and the outputs of the starting
-   model at the ends of that interval differ from its replay by ``β`` (root sum of
-   squares over the parameters of the larger end's ``‖Δŷ/σ‖``, pooled as ``share``).
+   parameters are known only to their 95 % interval (each with the others held: the
+   ends are models the data allow), and the outputs of the starting model at the ends
+   of that interval differ from its replay by ``β`` (root sum of squares over the
+   parameters of the larger end's ``‖Δŷ/σ‖``, pooled as ``share``). Where the model is
+   linear in them, each adds about ``1.96/√N_eff`` of the residual level (``N_eff`` the
+   record's effective samples), far below MIN_SHARE on a record of some length.
    A candidate whose contribution is below ``β`` does less than re-estimating what the
    model already has within the data's own uncertainty, so it is negligible whatever its
    z: an effect is added only when ``share ≥ max(MIN_SHARE, β / ‖r/σ‖)``. It matters

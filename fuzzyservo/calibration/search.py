@@ -640,20 +640,34 @@ def _frozen_ends(
     replay: Replay, rig: Rig, added: Sequence[Candidate], model: dict[str, np.ndarray]
 ) -> list[list[dict[str, np.ndarray]]]:
     """For each fitted parameter of the effects ``added`` so far (a round's candidates
-    leave them as they are): ``rig``'s channels at the ends of its 95 % interval
-    (:func:`_uncertainty`, jointly with the rig's unknowns), for the round's prediction
-    band (null.prediction_band)."""
+    leave them as they are): ``rig``'s channels at the ends of its 95 % interval with
+    the others held (uncertainty.py on its own Jacobian column), for the round's
+    prediction band (null.prediction_band). Held, not marginal: the marginal interval of
+    correlated parameters is reached only with the others moved along (Stribeck's
+    levels on the Festo record span their whole bounds), and one parameter at its
+    marginal end with the others held is a model the data reject."""
     if not added:
         return []
-    found = _uncertainty(replay, rig, added, model)
+    scales = rig.scales()
+    unknowns = {
+        param.field: _bounds(rig, param, scales)
+        for candidate in added
+        for param in LIBRARY[candidate.name].fitted
+    }
+    space = _space(dataclasses.replace(rig, unknowns=unknowns), None)
+    objective = _Objective(replay, rig, None, space)
+    values = [_start(replay, rig, f) for _, f in space.names]
+    z = np.array([space.unit(j, v) for j, v in enumerate(values)])
+    jac = _jacobian(objective.residuals, z)
+    samples, effective = effective_samples(replay, model)
+    cost_train = replay.cost(model, slice(0, replay.split))
     out = []
-    for candidate in added:
-        for param in LIBRARY[candidate.name].fitted:
-            estimate = found.get(param.field)
-            if estimate is None:
-                continue
-            ends = [v for v in estimate.interval if math.isfinite(v) and v != estimate.value]
-            out.append([replay.run(rig.with_params(**{param.field: v}))[0] for v in ends])
+    for j, (_, name) in enumerate(space.names):
+        (held,) = estimates(jac[:, [j]], z[[j]], [values[j]],
+                            lambda _, u, j=j: space.value(j, u), [space.bounds[j]],
+                            cost_train, samples, effective)  # fmt: skip
+        ends = [v for v in held.interval if math.isfinite(v) and v != held.value]
+        out.append([replay.run(rig.with_params(**{name: v}))[0] for v in ends])
     return out
 
 

@@ -46,7 +46,10 @@ explain little, so this is the residual of the fitted nominal model up to that:
    of that interval differ from its replay by ``β`` (root sum of squares over the
    parameters of the larger end's ``‖Δŷ/σ‖``, pooled as ``share``). Where the model is
    linear in them, each adds about ``1.96/√N_eff`` of the residual level (``N_eff`` the
-   record's effective samples), far below MIN_SHARE on a record of some length.
+   record's effective samples): a few % on a record whose residual is near white, a
+   fifth on the Festo record (N_eff ≈ 70), where Stribeck's three levels frozen in
+   round 2 make a band of 41 % and a line resistance moving the outputs by 37 % is
+   negligible.
    A candidate whose contribution is below ``β`` does less than re-estimating what the
    model already has within the data's own uncertainty, so it is negligible whatever its
    z: an effect is added only when ``share ≥ max(MIN_SHARE, β / ‖r/σ‖)``. It matters

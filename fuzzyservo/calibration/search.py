@@ -649,11 +649,15 @@ def _frozen_ends(
     if not added:
         return []
     scales = rig.scales()
-    unknowns = {
-        param.field: _bounds(rig, param, scales)
-        for candidate in added
-        for param in LIBRARY[candidate.name].fitted
-    }
+    unknowns = {}
+    for candidate in added:
+        for param in LIBRARY[candidate.name].fitted:
+            # the box about the value: one fitted in an earlier round's box (the rig's
+            # scales move with its fitted unknowns) may lie outside today's, and an end
+            # clipped onto the box would move it for no uncertainty of its own
+            lo, hi = _bounds(rig, param, scales)
+            value = float(getattr(rig.params, param.field))
+            unknowns[param.field] = (min(lo, value), max(hi, value))
     space = _space(dataclasses.replace(rig, unknowns=unknowns), None)
     objective = _Objective(replay, rig, None, space)
     values = [_start(replay, rig, f) for _, f in space.names]

@@ -307,7 +307,7 @@ def cmd_calibrate(args: argparse.Namespace) -> int:
 
     out = _out_dir(args.out)
     _out_file(args.json, "--json")
-    _at_least(0, max_effects=args.max_effects)
+    _at_least(0, max_effects=args.max_effects, bootstrap_draws=args.bootstrap_draws)
     _at_least(1, workers=args.workers)
     rig = load_rig(resolve(args.rig, "rigs", "rig"))
     controller = None
@@ -321,7 +321,8 @@ def cmd_calibrate(args: argparse.Namespace) -> int:
     bar = progress_bar(setup.steps(args.max_effects), "candidates")
     try:
         result = setup.run(max_effects=args.max_effects, workers=args.workers, cluster=args.cluster,
-                           progress=lambda name: (bar.set_postfix_str(name), bar.update(1)))  # fmt: skip
+                           progress=lambda name: (bar.set_postfix_str(name), bar.update(1)),
+                           bootstrap_draws=args.bootstrap_draws)  # fmt: skip
     finally:
         bar.close()
     stem = Path(args.data[0]).stem + (f"+{len(args.data) - 1}" if len(args.data) > 1 else "")
@@ -489,6 +490,8 @@ CALIBRATE = [
     _arg("--json", help="also write the summary JSON here"),
     _arg("--effects", help="comma-separated candidate effects (default: the whole library but entrained_air)"),
     _arg("--max-effects", type=int, default=2, help="effects to add at most (default 2)"),
+    _arg("--bootstrap-draws", type=int,
+         help="surrogate records of each round's null (default 200; 0: Bonferroni alone)"),
     _arg("--workers", type=int, default=os.cpu_count() or 1,
          help="processes that fit a round's candidates in parallel (default: one per core)"),
     _arg("--resample", action="store_true", help="resample uneven or repeated time stamps"),

@@ -254,14 +254,8 @@ def _cases() -> list[Case]:
     add(Case("cli bench unknown case", ("bench", "--case", "nope"), needs=("nope",)))
     for opt in ("--runs", "--reference-runs", "--study-trials", "--workers"):
         add(Case(f"cli bench {opt} 0", ("bench", "--case", "fuzzy_eval", opt, "0"), needs=(opt,)))
-    add(
-        Case(
-            "cli calibrate --max-effects -1",
-            (*CAL[:3], "--max-effects", "-1"),
-            {"d.csv": measured()},
-            ("--max-effects",),
-        )
-    )
+    for opt in ("--max-effects", "--bootstrap-draws"):
+        add(Case(f"cli calibrate {opt} -1", (*CAL[:3], opt, "-1"), {"d.csv": measured()}, (opt,)))
     add(
         Case(
             "cli calibrate --effects unknown",

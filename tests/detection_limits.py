@@ -1,4 +1,5 @@
-"""The README's detection-limit table and null false-positive rate on seed 002 (issue 12).
+"""The detection-limit table and null false-positive rate on seed 002 (issue 12;
+docs/calibration.md).
 
 Run from the repository root (about 30 min on one core; use nice):
 

@@ -5,6 +5,7 @@ apply, the shipped network file."""
 
 from __future__ import annotations
 
+import json
 import subprocess
 import sys
 import textwrap
@@ -105,12 +106,16 @@ def test_calibrate_progress_lines(tmp_path, capsys):
             "valve_bias",
             "--max-effects",
             "1",
+            "--bootstrap-draws",
+            "30",
             "--out",
             str(tmp_path / "c"),
         ]
     )
     assert code == 0
     assert "candidates: 1/1 valve_bias" in capsys.readouterr().err
+    summary = json.loads((tmp_path / "c" / "summary.json").read_text())
+    assert summary["rounds"][0]["null"]["draws"] == 30  # --bootstrap-draws reaches the null
 
 
 def test_heave_shows_only_metrics_that_apply(tmp_path, capsys):

@@ -87,7 +87,7 @@ def test_model_mismatch_alone_adds_nothing(tmp_path: Path, mismatch: str) -> Non
     """No effect, one model error of a real bench's size (issue 28: ADC codes, a sensor
     filter, another orifice smoothing, a 5 % flow-gain error): the record's null
     (calibration/null.py) and the practical-significance rule add nothing. One draw
-    here; tests/mismatch_null.py measures the rate over 20 (README)."""
+    here; tests/mismatch_null.py measures the rate over 20 (docs/calibration.md)."""
     rig = load_rig(old_loop(tmp_path))
     data = independent_run(None, NOISE, seed=11, mismatch=mismatch)
     outcome = calibrate(make_replay(rig, data, controller_named("p_k10")), rig, max_effects=1)

@@ -68,17 +68,19 @@ def held_out_lags(replay: Replay) -> int:
     return max(25, round(CORRELATION_TIME_S / dt)) if dt > 0 else 25
 
 
-def long_run_variance(w: np.ndarray, lags: int) -> float:
+def long_run_variance(w: np.ndarray, lags: int) -> float | np.ndarray:
     """``Var(Σ w)`` of a series with serial correlation: ``N·(γ0 + 2·Σ_k (1 − k/(L+1))·γk)``
-    (Newey-West, Bartlett weights, autocovariances about 0), never below 0."""
-    n = w.size
+    (Newey-West, Bartlett weights, autocovariances about 0), never below 0. Of each row
+    of a 2-D ``w`` at once (one per surrogate record, null.py)."""
+    rows = np.atleast_2d(w)
+    n = rows.shape[1]
     if n == 0:
-        return 0.0
-    gamma0 = float(w @ w) / n
-    total = gamma0
+        return 0.0 if w.ndim == 1 else np.zeros(rows.shape[0])
+    total = np.einsum("ij,ij->i", rows, rows) / n
     for k in range(1, min(lags, n - 1) + 1):
-        total += 2.0 * (1.0 - k / (lags + 1)) * float(w[k:] @ w[:-k]) / n
-    return max(total, 0.0) * n
+        total += 2.0 * (1.0 - k / (lags + 1)) * np.einsum("ij,ij->i", rows[:, k:], rows[:, :-k]) / n
+    total = np.maximum(total, 0.0) * n
+    return float(total[0]) if w.ndim == 1 else total
 
 
 def held_out_evidence(

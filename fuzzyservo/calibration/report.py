@@ -211,6 +211,7 @@ def _null_data(null: Null | None) -> dict[str, Any] | None:
         "bootstrap_quantile_z": null.quantile,
         "false_positive_rate": null.false_positive_rate,
         "false_positive_rate_bonferroni": null.bonferroni_rate,
+        "prediction_band_share": null.band,
         "residual": {
             c: {"rms_over_noise": lv.rms_sigma, "correlation_s": lv.correlation_s}
             for c, lv in null.levels.items()
@@ -230,6 +231,7 @@ def _judged(outcome: Outcome, r: Round, a: Assessment) -> dict[str, Any]:
         "params": dict(candidate.params),
         "z": a.z,
         "share_of_residual": a.share,
+        "share_needed": max(MIN_SHARE, r.null.band) if r.null is not None else MIN_SHARE,
         "interval_scale": list(a.interval),
         "limit_scale": a.limit,
     }
@@ -282,10 +284,16 @@ def verdict_lines(summary: dict[str, Any]) -> list[str]:
         f"residual): {rate}"
     )
     for j in summary["negligible"]:
+        band = j["share_needed"] > MIN_SHARE
         lines.append(
             f"negligible: {j['name']} ({_sizes(j['params'])}, z {j['z']:.1f}): it moves the "
-            f"outputs by {100 * j['share_of_residual']:.1f} % of the residual level, below "
-            f"its detection limit on this record ({_limit(j)})"
+            f"outputs by {100 * j['share_of_residual']:.1f} % of the residual level, "
+            + (
+                f"less than the starting model's fitted effects move them within their 95 % "
+                f"intervals ({100 * j['share_needed']:.1f} %)"
+                if band
+                else f"below its detection limit on this record ({_limit(j)})"
+            )
         )
     for j in summary["not_established"]:
         line = (
@@ -371,7 +379,14 @@ def _null_lines(r: dict[str, Any]) -> list[str]:
         f"Null: {null['draws']} surrogate records; threshold z > {null['threshold_z']:.2f} "
         f"(Bonferroni {null['bonferroni_z']:.2f}, bootstrap 95 % {null['bootstrap_quantile_z']:.2f}); "
         f"false-positive rate {100 * null['false_positive_rate']:.1f} % "
-        f"(Bonferroni alone: {100 * null['false_positive_rate_bonferroni']:.1f} %). Residual: "
+        f"(Bonferroni alone: {100 * null['false_positive_rate_bonferroni']:.1f} %). "
+        + (
+            f"The effects added before move the outputs by {100 * null['prediction_band_share']:.1f} % "
+            "of the residual level within their 95 % intervals: an effect must move them more. "
+            if null["prediction_band_share"] > MIN_SHARE
+            else ""
+        )
+        + "Residual: "
         + ", ".join(
             f"{c} {v['rms_over_noise']:.3g} σ over {1e3 * v['correlation_s']:.3g} ms"
             for c, v in null["residual"].items()
@@ -509,7 +524,9 @@ def report_markdown(
         "round's residual with its spectrum kept and its phases randomised, added to the "
         "starting model's replay; null.py), and when it matters: its contribution to the "
         f"outputs is at least {MIN_SHARE:.0%} of the residual level and its size at least "
-        f"its detection limit on this record (found in {REQUIRED:.0%} of the surrogates). "
+        f"its detection limit on this record (found in {REQUIRED:.0%} of the surrogates); "
+        "from the second round on, also more than the effects added before move them "
+        "within their 95 % intervals (the starting model's own prediction uncertainty). "
         "Else it is negligible.",
         "",
     ]

@@ -96,18 +96,19 @@ class Calibration:
         workers: int = 1,
         cluster: str | None = None,
         progress: Callable[[str], object] | None = None,
-        bootstrap_draws: int = DRAWS,
+        bootstrap_draws: int | None = None,
     ) -> CalibrationResult:
         """Fit the unknowns, then add up to ``max_effects`` effects; ``progress(name)``
         as each candidate ends; ``workers`` local processes or the Dask ``cluster``
         (``tcp://HOST:PORT``) fit a round's candidates (the same result).
-        ``bootstrap_draws``: surrogate records of each round's null (null.py; no simulation)."""
+        ``bootstrap_draws``: surrogate records of each round's null (null.py; no
+        simulation; None: DRAWS; 0: decision.py's Bonferroni threshold alone)."""
         from fuzzyservo.calibration.search import calibrate as search
 
         effects = None if self.effects is None else list(self.effects)
         outcome = search(self.replay, self.rig, effects=effects, max_effects=max_effects,
                          progress=progress, workers=workers, cluster=cluster,
-                         bootstrap_draws=bootstrap_draws)  # fmt: skip
+                         bootstrap_draws=DRAWS if bootstrap_draws is None else bootstrap_draws)  # fmt: skip
         return CalibrationResult(outcome, self.replay)
 
 

@@ -497,8 +497,10 @@ def calibrate(
             results.sort(key=lambda c: c.score)
             if _screened(replay, screen_samples) is not replay:
                 results = _confirm(replay, current, current_model, results)
+            frozen = _frozen_ends(replay, current, added, current_model)
             null = null_round(replay, current_model, [c.model for c in results],
-                              draws=bootstrap_draws, seed=SEED + len(rounds))  # fmt: skip
+                              draws=bootstrap_draws, seed=SEED + len(rounds),
+                              frozen=frozen)  # fmt: skip
             z_min = null.threshold
             best = results[0] if results else None
             significant = best is not None and _significant(best, z_min)
@@ -634,6 +636,45 @@ def _uncertainty(
     return {f: e for (_, f), e in zip(space.names, found, strict=True)}
 
 
+def _frozen_ends(
+    replay: Replay, rig: Rig, added: Sequence[Candidate], model: dict[str, np.ndarray]
+) -> list[list[dict[str, np.ndarray]]]:
+    """For each fitted parameter of the effects ``added`` so far (a round's candidates
+    leave them as they are): ``rig``'s channels at the ends of its 95 % interval with
+    the others held (uncertainty.py on its own Jacobian column), for the round's
+    prediction band (null.prediction_band). Held, not marginal: the marginal interval of
+    correlated parameters is reached only with the others moved along (Stribeck's
+    levels on the Festo record span their whole bounds), and one parameter at its
+    marginal end with the others held is a model the data reject."""
+    if not added:
+        return []
+    scales = rig.scales()
+    unknowns = {}
+    for candidate in added:
+        for param in LIBRARY[candidate.name].fitted:
+            # the box about the value: one fitted in an earlier round's box (the rig's
+            # scales move with its fitted unknowns) may lie outside today's, and an end
+            # clipped onto the box would move it for no uncertainty of its own
+            lo, hi = _bounds(rig, param, scales)
+            value = float(getattr(rig.params, param.field))
+            unknowns[param.field] = (min(lo, value), max(hi, value))
+    space = _space(dataclasses.replace(rig, unknowns=unknowns), None)
+    objective = _Objective(replay, rig, None, space)
+    values = [_start(replay, rig, f) for _, f in space.names]
+    z = np.array([space.unit(j, v) for j, v in enumerate(values)])
+    jac = _jacobian(objective.residuals, z)
+    samples, effective = effective_samples(replay, model)
+    cost_train = replay.cost(model, slice(0, replay.split))
+    out = []
+    for j, (_, name) in enumerate(space.names):
+        (held,) = estimates(jac[:, [j]], z[[j]], [values[j]],
+                            lambda _, u, j=j: space.value(j, u), [space.bounds[j]],
+                            cost_train, samples, effective)  # fmt: skip
+        ends = [v for v in held.interval if math.isfinite(v) and v != held.value]
+        out.append([replay.run(rig.with_params(**{name: v}))[0] for v in ends])
+    return out
+
+
 def _judge(
     replay: Replay, base_model: dict[str, np.ndarray], ranked: Sequence[Candidate], null: Null
 ) -> tuple[Assessment, ...]:
@@ -651,13 +692,14 @@ def _judge(
 def _establishing(
     record: Replay, base: Rig, ranked: Sequence[Candidate], judged: Sequence[Assessment]
 ) -> tuple[tuple[str, Separation, float], ...]:
-    """For each judged candidate not added that the data lean towards (z > 0): the
-    excitation (identifiability.py) that drives it furthest from ``base``, with the
-    distance the recorded experiment gives (noise units)."""
+    """For each judged candidate not established that the data lean towards (z > 0):
+    the excitation (identifiability.py) that drives it furthest from ``base``, with the
+    distance the recorded experiment gives (noise units). A negligible one is
+    established already, and too small to matter: no experiment for it."""
     out = []
     rigs = {c.name: c.rig for c in ranked}
     for a in judged:
-        if a.verdict == "failed" or not a.z > 0.0 or rigs.get(a.name) is None:
+        if a.verdict != "not established" or not a.z > 0.0 or rigs.get(a.name) is None:
             continue
         ranked_ex = separating_experiments(record, {"starting model": base, a.name: rigs[a.name]})
         recorded = next((s.distance for s in ranked_ex if s.name == "recorded"), math.nan)

@@ -35,7 +35,7 @@ def _size(params: dict[str, float]) -> str:
 
 
 def main(draws: int = 10, null_draws: int = 20) -> None:
-    """Print the seed-002 detection-limit table and null false-positive rate (README)."""
+    """Print the seed-002 detection-limit table and null false-positive rate (docs/calibration.md)."""
     rig = load_rig(old_loop(Path(tempfile.mkdtemp())))
     controller = controller_named("p_k10")
     start = time.perf_counter()

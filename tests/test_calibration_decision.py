@@ -145,7 +145,7 @@ def test_a_missing_effect_is_significant_and_none_is_not(rig) -> None:
 
 @pytest.mark.slow
 def test_null_data_adds_an_effect_in_at_most_5_percent_of_20_draws(rig) -> None:
-    """Measured: 0 of 20 (README, "Deciding whether an effect is real")."""
+    """Measured: 0 of 20 (docs/calibration.md, "Measured tables")."""
     added, runs = false_positive_rate(rig, controller_named("p_k10"), "pulses", NOISE, 20)
     assert added <= 1, runs
 

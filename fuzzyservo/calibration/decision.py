@@ -16,7 +16,7 @@ docs/modelling.md "Deciding whether an effect is real"). The statistic
 ``z = (ln L_b − ln L_a) / spread`` is compared with the normal quantile of the error
 rate; over K candidates the rate is split K ways (Bonferroni), so on data without a
 missing effect an effect is added in at most ``ALPHA`` of the runs. The rate is
-measured on null data in ``tests/test_calibration_decision.py`` and in the README.
+measured on null data in ``tests/test_calibration_decision.py`` and in docs/calibration.md.
 
 The statistic does not depend on the noise levels' absolute size (a channel's σ
 scales both the ratio and its spread), so a poor noise estimate changes how the

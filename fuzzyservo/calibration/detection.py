@@ -12,7 +12,7 @@ effect at a ladder of sizes, each over several noise draws.
   Only the true effect is fitted (a whole library per draw would take hours); whether
   it is also ranked first is checked by the tests at the typical sizes.
 
-``tests/detection_limits.py`` prints the seed-002 table of the README.
+``tests/detection_limits.py`` prints the seed-002 table of docs/calibration.md.
 """
 
 from __future__ import annotations

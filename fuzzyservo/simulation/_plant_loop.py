@@ -11,8 +11,8 @@ ordinary module, so linters and readers see ordinary Python.
 
 The plant is integrated between samples by an adaptive linearly implicit
 Rosenbrock-W method, ROS34PW2 (order 3, embedded order 2), with a finite-difference
-Jacobian evaluated at the start of each control interval and refreshed when a step is
-rejected (tableau, in transformed variables, and linear algebra in
+Jacobian (:func:`loop_jacobian`) evaluated at the start of each control interval and
+refreshed when a step is rejected (tableau, in transformed variables, and linear algebra in
 :mod:`fuzzyservo.simulation._loop`). It is
 L-stable, so the stiff valve-chamber modes of seed 002 (β/V·K/√p_lam up to ~1e6 1/s,
 docs/modelling.md "Stiffness") cost no step-size restriction. Nothing in here raises: a
@@ -58,6 +58,34 @@ plant_in_end_stop = plant_rhs = plant_signals = None
 
 # The names the loop calls its plant by: what a plant's binding must define.
 PLANT_SLOTS = ("plant_rhs", "plant_signals", "plant_in_end_stop")
+# What a binding may define, else the template's own serves (below).
+PLANT_DEFAULTS = ("plant_jacobian",)
+
+
+@njit(cache=True)
+def plant_jacobian(
+    x: np.ndarray,
+    u: float,
+    load: float,
+    p: np.ndarray,
+    f0: np.ndarray,
+    typical: np.ndarray,
+    jac: np.ndarray,
+    ftmp: np.ndarray,
+) -> None:
+    """``jac[i, j] = (f_i(x + δ_j·e_j) − f0_i)/δ_j`` of the plant's right-hand side ``f``
+    at ``x`` (``f0 = f(x)``), one whole ``f`` per column, ``δ_j = √ε·max(|x_j|, typical_j)``.
+    A composition binds its own, which re-runs only the statements each state reaches and
+    gives the same numbers (plants/_jacobian.py)."""
+    n = x.size
+    for j in range(n):
+        xj = x[j]
+        dj = 1.4901161193847656e-08 * max(abs(xj), typical[j])
+        x[j] = xj + dj
+        plant_rhs(x, u, load, p, ftmp)
+        x[j] = xj
+        for i in range(n):
+            jac[i, j] = (ftmp[i] - f0[i]) / dj
 
 
 @njit(cache=True, inline="always")
@@ -69,6 +97,43 @@ def loop_rhs(
     u = input_stage(x, a, p, null, dx)
     n = plant_states(x, p)
     plant_rhs(x[:n], u, load, p, dx[:n])
+
+
+@njit(cache=True, inline="always")
+def loop_jacobian(
+    x: np.ndarray,
+    a: float,
+    load: float,
+    p: np.ndarray,
+    null: float,
+    f0: np.ndarray,
+    typical: np.ndarray,
+    jac: np.ndarray,
+    ftmp: np.ndarray,
+) -> None:
+    """The forward-difference Jacobian of :func:`loop_rhs` at ``x`` (``f0`` its value
+    there), column ``j`` with the increment ``δ_j = √ε·max(|x_j|, typical_j)``.
+
+    A plant state does not reach the input stage, so the plant's block is
+    :func:`plant_jacobian` at the input that stage gives, and the spool's row there
+    (``valve_lag``) is ``(f0 − f0)/δ_j``: the zero (or NaN) its difference gives. The
+    spool's own column takes a whole :func:`loop_rhs`.
+    """
+    n = plant_states(x, p)
+    v = input_stage(x, a, p, null, ftmp)
+    plant_jacobian(x[:n], v, load, p, f0, typical, jac, ftmp)
+    for j in range(n):
+        dj = 1.4901161193847656e-08 * max(abs(x[j]), typical[j])
+        for i in range(n, x.size):
+            jac[i, j] = (f0[i] - f0[i]) / dj
+    for j in range(n, x.size):
+        xj = x[j]
+        dj = 1.4901161193847656e-08 * max(abs(xj), typical[j])
+        x[j] = xj + dj
+        loop_rhs(x, a, load, p, null, ftmp)
+        x[j] = xj
+        for i in range(x.size):
+            jac[i, j] = (ftmp[i] - f0[i]) / dj
 
 
 @njit(cache=True)
@@ -122,14 +187,7 @@ def integrate_interval(
             return STATUS_STEP_FAILURE, h, steps
         h_step = min(h, duration - t)
         if need_jac:
-            for j in range(n):
-                xj = x[j]
-                dj = 1.4901161193847656e-08 * max(abs(xj), typical[j])
-                x[j] = xj + dj
-                loop_rhs(x, u, load, p, null, ftmp)
-                x[j] = xj
-                for i in range(n):
-                    jac[i, j] = (ftmp[i] - f0[i]) / dj
+            loop_jacobian(x, u, load, p, null, f0, typical, jac, ftmp)
             need_jac = False
             jac_fresh = True
         h_inv = 1.0 / h_step

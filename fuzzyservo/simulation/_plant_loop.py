@@ -73,11 +73,12 @@ def plant_jacobian(
     jac: np.ndarray,
     ftmp: np.ndarray,
 ) -> None:
-    """``jac[i, j] = (f_i(x + δ_j·e_j) − f0_i)/δ_j`` of the plant's right-hand side ``f``
-    at ``x`` (``f0 = f(x)``), one whole ``f`` per column, ``δ_j = √ε·max(|x_j|, typical_j)``.
+    """``f0 = f(x)`` and ``jac[i, j] = (f_i(x + δ_j·e_j) − f0_i)/δ_j`` of the plant's
+    right-hand side ``f``, one whole ``f`` per column, ``δ_j = √ε·max(|x_j|, typical_j)``.
     A composition binds its own, which re-runs only the statements each state reaches and
     gives the same numbers (plants/_jacobian.py)."""
     n = x.size
+    plant_rhs(x, u, load, p, f0)
     for j in range(n):
         xj = x[j]
         dj = 1.4901161193847656e-08 * max(abs(xj), typical[j])
@@ -111,8 +112,8 @@ def loop_jacobian(
     jac: np.ndarray,
     ftmp: np.ndarray,
 ) -> None:
-    """The forward-difference Jacobian of :func:`loop_rhs` at ``x`` (``f0`` its value
-    there), column ``j`` with the increment ``δ_j = √ε·max(|x_j|, typical_j)``.
+    """:func:`loop_rhs` at ``x`` into ``f0``, and its forward-difference Jacobian there,
+    column ``j`` with the increment ``δ_j = √ε·max(|x_j|, typical_j)``.
 
     A plant state does not reach the input stage, so the plant's block is
     :func:`plant_jacobian` at the input that stage gives, and the spool's row there
@@ -120,7 +121,7 @@ def loop_jacobian(
     spool's own column takes a whole :func:`loop_rhs`.
     """
     n = plant_states(x, p)
-    v = input_stage(x, a, p, null, ftmp)
+    v = input_stage(x, a, p, null, f0)
     plant_jacobian(x[:n], v, load, p, f0, typical, jac, ftmp)
     for j in range(n):
         dj = 1.4901161193847656e-08 * max(abs(x[j]), typical[j])
@@ -178,9 +179,10 @@ def integrate_interval(
     steps = 0
     h = min(h, duration)
     h_min = 1e-14 * duration
-    loop_rhs(x, u, load, p, null, f0)
-    need_jac = True
-    jac_fresh = False
+    # f0 = f(x) and J at x together: the Jacobian's first pass is f(x)
+    loop_jacobian(x, u, load, p, null, f0, typical, jac, ftmp)
+    need_jac = False
+    jac_fresh = True
     h_first = 0.0
     while t < duration * (1.0 - 1e-12):
         if steps >= _MAX_STEPS_PER_INTERVAL:
@@ -233,7 +235,10 @@ def integrate_interval(
             t += h_step
             for i in range(n):
                 x[i] = xn[i]
-            loop_rhs(x, u, load, p, null, f0)
+            if t < duration * (1.0 - 1e-12):
+                # f at the next step's start (none after the last: the next interval
+                # starts from its own input)
+                loop_rhs(x, u, load, p, null, f0)
             jac_fresh = False
             fac = 5.0 if err == 0.0 else min(5.0, max(0.2, 0.8 * err ** (-1.0 / 3.0)))
             if h_step < h:

@@ -56,7 +56,9 @@ from fuzzyservo.simulation._loop import (
 # no default plant: each generated loop module binds its own (bind_plant)
 plant_in_end_stop = plant_rhs = plant_signals = None
 
-# The names the loop calls its plant by: what a plant's binding must define.
+# The names the loop calls its plant by: what a plant's binding must define. Each takes
+# the state vector ``x`` (and ``plant_rhs`` its derivative ``dx``) with the plant's own
+# states first; ``x`` may carry more after them (the spool of ``valve_lag``).
 PLANT_SLOTS = ("plant_rhs", "plant_signals", "plant_in_end_stop")
 # What a binding may define, else the template's own serves (below).
 PLANT_DEFAULTS = ("plant_jacobian",)
@@ -94,10 +96,11 @@ def loop_rhs(
     x: np.ndarray, a: float, load: float, p: np.ndarray, null: float, dx: np.ndarray
 ) -> None:
     """dx/dt of the plant behind the input effects (:func:`_loop.input_stage`), for held
-    actuator value ``a``."""
+    actuator value ``a``. The plant reads and writes the leading entries of ``x`` and
+    ``dx``, its own states (the input stage's spool follows them), so it gets the whole
+    arrays: a view of each, made on every call, costs as much as a tenth of a step."""
     u = input_stage(x, a, p, null, dx)
-    n = plant_states(x, p)
-    plant_rhs(x[:n], u, load, p, dx[:n])
+    plant_rhs(x, u, load, p, dx)
 
 
 @njit(cache=True, inline="always")
@@ -263,7 +266,7 @@ def integrate_interval(
     return STATUS_OK, h_first if h_first > 0.0 else h, steps
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def closed_loop(
     p: np.ndarray,
     null: float,
@@ -293,7 +296,8 @@ def closed_loop(
     ``actuator`` records the value the controller commanded, before the input effects.
     Fills ``states[k]``, ``command[k]``, ``actuator[k]``, ``saturated[k]`` and returns
     ``(status, sample of the first problem or -1, integration steps)``. After a
-    failure the remaining samples are NaN.
+    failure the remaining samples are NaN. It releases the GIL, so runs in Python
+    threads go side by side (:func:`fuzzyservo.analysis.margins.margins`).
     """
     n = ref.size
     x = x0.copy()

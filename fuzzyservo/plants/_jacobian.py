@@ -13,10 +13,10 @@ other value from the first pass. Each entry is the same floating-point expressio
 the same operands, as the full forward difference ``(f(x + δ_j·e_j) − f(x))/δ_j``
 (``δ_j`` the loop's increment), so the Jacobian, and every result, is identical to the
 bit; an entry no statement connects is ``(f_i − f_i)/δ_j``: 0, or NaN where ``f_i`` is
-not finite, as the difference gives. Its first pass is ``f(x)`` itself, which the
-integrator needs at the same point, so it writes that too. Code this analysis cannot follow (a state vector
-read whole, a derivative read before it is set) gets no ``plant_jacobian``, and the loop
-falls back to its column-by-column default.
+not finite, as the difference gives. The first pass is ``f(x)`` itself, which the
+integrator needs at the same point, so it is written out too. Code this analysis cannot
+follow (a state vector read whole, a derivative read before it is set) gets no
+``plant_jacobian``, and the loop's column-by-column default serves.
 """
 
 from __future__ import annotations

@@ -178,3 +178,35 @@ def test_controller_kinds_are_unique_and_each_reaches_its_kernel() -> None:
 
 # Import cycles (issue 10's in controllers among them) are checked for every module by
 # tests/test_architecture.py; annotations-only imports (TYPE_CHECKING) do not count.
+
+
+# ------------------------------------------------------------------ Jacobian
+
+
+@pytest.mark.parametrize("name", ["ehs160_motor", "dinca_cylinder"])
+def test_the_composed_jacobian_is_the_forward_difference_to_the_bit(name: str) -> None:
+    """The loop's Jacobian (plants/_jacobian.py: each column re-runs only the statements
+    its state reaches) equals the whole-rhs forward differences exactly, away from rest
+    (all states moved), with the spool of ``valve_lag`` (seed 002) among the columns."""
+    from fuzzyservo.simulation.closed_loop import prepare
+
+    rig = rig_named(name)
+    prep = prepare(rig, controller_named("p_k10"), duration_s=0.1)
+    assert "def plant_jacobian" in rig.plant.binding  # the composition's own, not the default
+    loop = rig.plant.loop
+    rng = np.random.default_rng(1)
+    x = prep.x0 + 0.05 * prep.typical * rng.standard_normal(prep.x0.size)
+    a = prep.null + 0.3 * rig.actuator.rated
+    n = x.size
+    f0, jac, ftmp = np.empty(n), np.empty((n, n)), np.empty(n)
+    loop.loop_jacobian(x, a, 0.0, prep.p, prep.null, f0, prep.typical, jac, ftmp)
+    base = loop.rhs_with_inputs(x, a, 0.0, prep.p, prep.null)
+    expected = np.empty((n, n))
+    for j in range(n):
+        dj = 1.4901161193847656e-08 * max(abs(x[j]), prep.typical[j])
+        moved = x.copy()
+        moved[j] = x[j] + dj
+        expected[:, j] = (loop.rhs_with_inputs(moved, a, 0.0, prep.p, prep.null) - base) / dj
+    np.testing.assert_array_equal(f0, base)
+    np.testing.assert_array_equal(jac, expected)
+    assert np.count_nonzero(jac) < n * n  # there is structure to skip

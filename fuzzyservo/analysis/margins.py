@@ -53,6 +53,7 @@ import dataclasses
 import math
 import time
 from collections.abc import Callable
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -407,14 +408,29 @@ def margins(
     ratio: float = DEFAULT_RATIO,
     floor: float | None = None,
 ) -> Margins:
-    """Gain margin (with the oscillation frequency at onset) and delay margin."""
+    """Gain margin (with the oscillation frequency at onset) and delay margin.
+
+    The two searches are independent: they run side by side in two threads (the
+    compiled loop releases the GIL), each run as it runs alone, so the margins are the
+    same as one after the other, in about half the time on two cores. A controller
+    stepped in Python (an FMU, one instance) runs them one after the other.
+    """
     sc = scenario if isinstance(scenario, Scenario) else rig.scenario(scenario)
     options = {"rel_tol": rel_tol, "duration_s": duration_s, "ratio": ratio, "floor": floor}
+    if getattr(controller, "stepped", False):
+        gain = gain_margin(rig, controller, sc, **options)
+        delay = delay_margin(rig, controller, sc, **options)
+    else:
+        rig.plant.loop  # noqa: B018  (import the compiled loop here, not in both threads)
+        with ThreadPoolExecutor(max_workers=2) as pool:
+            gain_run = pool.submit(gain_margin, rig, controller, sc, **options)
+            delay_run = pool.submit(delay_margin, rig, controller, sc, **options)
+            gain, delay = gain_run.result(), delay_run.result()
     return Margins(
         rig=rig.name,
         controller=controller.name,
         scenario=sc.name,
-        gain=gain_margin(rig, controller, sc, **options),
-        delay=delay_margin(rig, controller, sc, **options),
+        gain=gain,
+        delay=delay,
         base_delay_s=float(rig.params.transport_delay_s) + float(rig.io_delay_s),
     )

@@ -26,7 +26,9 @@ class PlantModel:
     """
 
     type_name: str
-    binding: str  # source that binds plant_rhs/plant_signals/plant_in_end_stop (_jit.bind_plant)
+    # source that binds plant_rhs/plant_signals/plant_in_end_stop, and a composition's
+    # plant_jacobian (plants/_jacobian.py), for _jit.bind_plant
+    binding: str
     params_cls: type
     states: tuple[str, ...]
     signals: tuple[str, ...]

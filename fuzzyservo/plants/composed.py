@@ -32,6 +32,7 @@ from fuzzyservo.components.declare import (
 )
 from fuzzyservo.components.effects import INPUT_EFFECTS, LIBRARY, E, EffectParams, Scales
 from fuzzyservo.params import index_of, pack, quantity, vector, vector_offset
+from fuzzyservo.plants._jacobian import jacobian_source
 
 _STATIC_FORCE = "static_force"
 
@@ -195,7 +196,7 @@ def compose(parts: tuple[tuple[str, str], ...]) -> Any:
         writes=_indent(writes),
         n=len(state_names),
         stop=" or ".join(stops) or "False",
-    )
+    ) + (jacobian_source(body, len(state_names)) or "")
 
     effects = tuple(
         name

@@ -11,8 +11,8 @@ ordinary module, so linters and readers see ordinary Python.
 
 The plant is integrated between samples by an adaptive linearly implicit
 Rosenbrock-W method, ROS34PW2 (order 3, embedded order 2), with a finite-difference
-Jacobian evaluated at the start of each control interval and refreshed when a step is
-rejected (tableau, in transformed variables, and linear algebra in
+Jacobian (:func:`loop_jacobian`) evaluated at the start of each control interval and
+refreshed when a step is rejected (tableau, in transformed variables, and linear algebra in
 :mod:`fuzzyservo.simulation._loop`). It is
 L-stable, so the stiff valve-chamber modes of seed 002 (β/V·K/√p_lam up to ~1e6 1/s,
 docs/modelling.md "Stiffness") cost no step-size restriction. Nothing in here raises: a
@@ -56,8 +56,39 @@ from fuzzyservo.simulation._loop import (
 # no default plant: each generated loop module binds its own (bind_plant)
 plant_in_end_stop = plant_rhs = plant_signals = None
 
-# The names the loop calls its plant by: what a plant's binding must define.
+# The names the loop calls its plant by: what a plant's binding must define. Each takes
+# the state vector ``x`` (and ``plant_rhs`` its derivative ``dx``) with the plant's own
+# states first; ``x`` may carry more after them (the spool of ``valve_lag``).
 PLANT_SLOTS = ("plant_rhs", "plant_signals", "plant_in_end_stop")
+# What a binding may define, else the template's own serves (below).
+PLANT_DEFAULTS = ("plant_jacobian",)
+
+
+@njit(cache=True)
+def plant_jacobian(
+    x: np.ndarray,
+    u: float,
+    load: float,
+    p: np.ndarray,
+    f0: np.ndarray,
+    typical: np.ndarray,
+    jac: np.ndarray,
+    ftmp: np.ndarray,
+) -> None:
+    """``f0 = f(x)`` and ``jac[i, j] = (f_i(x + δ_j·e_j) − f0_i)/δ_j`` of the plant's
+    right-hand side ``f``, one whole ``f`` per column, ``δ_j = √ε·max(|x_j|, typical_j)``.
+    A composition binds its own, which re-runs only the statements each state reaches and
+    gives the same numbers (plants/_jacobian.py)."""
+    n = x.size
+    plant_rhs(x, u, load, p, f0)
+    for j in range(n):
+        xj = x[j]
+        dj = 1.4901161193847656e-08 * max(abs(xj), typical[j])
+        x[j] = xj + dj
+        plant_rhs(x, u, load, p, ftmp)
+        x[j] = xj
+        for i in range(n):
+            jac[i, j] = (ftmp[i] - f0[i]) / dj
 
 
 @njit(cache=True, inline="always")
@@ -65,10 +96,48 @@ def loop_rhs(
     x: np.ndarray, a: float, load: float, p: np.ndarray, null: float, dx: np.ndarray
 ) -> None:
     """dx/dt of the plant behind the input effects (:func:`_loop.input_stage`), for held
-    actuator value ``a``."""
+    actuator value ``a``. The plant reads and writes the leading entries of ``x`` and
+    ``dx``, its own states (the input stage's spool follows them), so it gets the whole
+    arrays: a view of each, made on every call, costs as much as a tenth of a step."""
     u = input_stage(x, a, p, null, dx)
+    plant_rhs(x, u, load, p, dx)
+
+
+@njit(cache=True, inline="always")
+def loop_jacobian(
+    x: np.ndarray,
+    a: float,
+    load: float,
+    p: np.ndarray,
+    null: float,
+    f0: np.ndarray,
+    typical: np.ndarray,
+    jac: np.ndarray,
+    ftmp: np.ndarray,
+) -> None:
+    """:func:`loop_rhs` at ``x`` into ``f0``, and its forward-difference Jacobian there,
+    column ``j`` with the increment ``δ_j = √ε·max(|x_j|, typical_j)``.
+
+    A plant state does not reach the input stage, so the plant's block is
+    :func:`plant_jacobian` at the input that stage gives, and the spool's row there
+    (``valve_lag``) is ``(f0 − f0)/δ_j``: the zero (or NaN) its difference gives. The
+    spool's own column takes a whole :func:`loop_rhs`.
+    """
     n = plant_states(x, p)
-    plant_rhs(x[:n], u, load, p, dx[:n])
+    v = input_stage(x, a, p, null, f0)
+    plant_jacobian(x[:n], v, load, p, f0, typical, jac, ftmp)
+    for j in range(n):
+        dj = 1.4901161193847656e-08 * max(abs(x[j]), typical[j])
+        for i in range(n, x.size):
+            jac[i, j] = (f0[i] - f0[i]) / dj
+    for j in range(n, x.size):
+        xj = x[j]
+        dj = 1.4901161193847656e-08 * max(abs(xj), typical[j])
+        x[j] = xj + dj
+        loop_rhs(x, a, load, p, null, ftmp)
+        x[j] = xj
+        for i in range(x.size):
+            jac[i, j] = (ftmp[i] - f0[i]) / dj
 
 
 @njit(cache=True)
@@ -113,23 +182,17 @@ def integrate_interval(
     steps = 0
     h = min(h, duration)
     h_min = 1e-14 * duration
-    loop_rhs(x, u, load, p, null, f0)
-    need_jac = True
-    jac_fresh = False
+    # f0 = f(x) and J at x together: the Jacobian's first pass is f(x)
+    loop_jacobian(x, u, load, p, null, f0, typical, jac, ftmp)
+    need_jac = False
+    jac_fresh = True
     h_first = 0.0
     while t < duration * (1.0 - 1e-12):
         if steps >= _MAX_STEPS_PER_INTERVAL:
             return STATUS_STEP_FAILURE, h, steps
         h_step = min(h, duration - t)
         if need_jac:
-            for j in range(n):
-                xj = x[j]
-                dj = 1.4901161193847656e-08 * max(abs(xj), typical[j])
-                x[j] = xj + dj
-                loop_rhs(x, u, load, p, null, ftmp)
-                x[j] = xj
-                for i in range(n):
-                    jac[i, j] = (ftmp[i] - f0[i]) / dj
+            loop_jacobian(x, u, load, p, null, f0, typical, jac, ftmp)
             need_jac = False
             jac_fresh = True
         h_inv = 1.0 / h_step
@@ -175,7 +238,10 @@ def integrate_interval(
             t += h_step
             for i in range(n):
                 x[i] = xn[i]
-            loop_rhs(x, u, load, p, null, f0)
+            if t < duration * (1.0 - 1e-12):
+                # f at the next step's start (none after the last: the next interval
+                # starts from its own input)
+                loop_rhs(x, u, load, p, null, f0)
             jac_fresh = False
             fac = 5.0 if err == 0.0 else min(5.0, max(0.2, 0.8 * err ** (-1.0 / 3.0)))
             if h_step < h:
@@ -200,7 +266,7 @@ def integrate_interval(
     return STATUS_OK, h_first if h_first > 0.0 else h, steps
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def closed_loop(
     p: np.ndarray,
     null: float,
@@ -230,7 +296,8 @@ def closed_loop(
     ``actuator`` records the value the controller commanded, before the input effects.
     Fills ``states[k]``, ``command[k]``, ``actuator[k]``, ``saturated[k]`` and returns
     ``(status, sample of the first problem or -1, integration steps)``. After a
-    failure the remaining samples are NaN.
+    failure the remaining samples are NaN. It releases the GIL, so runs in Python
+    threads go side by side (:func:`fuzzyservo.analysis.margins.margins`).
     """
     n = ref.size
     x = x0.copy()

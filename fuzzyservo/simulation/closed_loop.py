@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+import threading
 import weakref
 from collections.abc import Sequence
 from dataclasses import dataclass
@@ -251,18 +252,20 @@ def simulate_batch(
 #: (its output set discretised) costs as much as a tenth of a run
 _PACKED: dict[tuple[int, float], tuple[weakref.ref, np.ndarray, np.ndarray]] = {}
 _PACKED_MAX = 8
+_PACKED_LOCK = threading.Lock()
 
 
 def _initial_state(controller: Controller, sample_time_s: float) -> tuple[np.ndarray, np.ndarray]:
     """``controller.init(sample_time_s)``, packed once per controller (controllers are
     immutable): the shared parameters, and a fresh copy of the initial state."""
     key = (id(controller), sample_time_s)
-    hit = _PACKED.get(key)
-    if hit is None or hit[0]() is not controller:
-        cp, cs = controller.init(sample_time_s)
-        if len(_PACKED) >= _PACKED_MAX:
-            _PACKED.pop(next(iter(_PACKED)))
-        hit = _PACKED[key] = (weakref.ref(controller), cp, cs)
+    with _PACKED_LOCK:  # runs may share it from threads (margins)
+        hit = _PACKED.get(key)
+        if hit is None or hit[0]() is not controller:
+            cp, cs = controller.init(sample_time_s)
+            if len(_PACKED) >= _PACKED_MAX:
+                _PACKED.pop(next(iter(_PACKED)))
+            hit = _PACKED[key] = (weakref.ref(controller), cp, cs)
     return hit[1], hit[2].copy()
 
 

@@ -40,7 +40,7 @@ def _trials(objectives: int) -> list:
 
 
 def _read(url: str, name: str) -> list[dict]:
-    study = optuna.load_study(study_name=name, storage=url)
+    study = optuna.load_study(study_name=name, storage=_storage(url))
     rows = []
     for t in study.get_trials():
         row = dict(vars(t))
@@ -77,7 +77,9 @@ def test_one_transaction_reads_back_like_optunas_add_trials(tmp_path, objectives
     writer.write(trials[2:], ("storage_s", 0.5))
     theirs.add_trials(trials)
     assert _read(url, ours_name) == _read(url, theirs_name)
-    assert optuna.load_study(study_name=ours_name, storage=url).user_attrs == {"storage_s": 0.5}
+    assert optuna.load_study(study_name=ours_name, storage=_storage(url)).user_attrs == {
+        "storage_s": 0.5
+    }
 
 
 def test_other_storages_go_through_add_trials():

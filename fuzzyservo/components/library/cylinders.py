@@ -21,6 +21,7 @@ from __future__ import annotations
 import math
 
 from fuzzyservo.components.declare import Component, Param, Signal, State
+from fuzzyservo.components.library.oil import two_chambers
 
 _COMMON = (
     Param("stroke", "m", "stroke L", positive=True),
@@ -74,17 +75,9 @@ _ACTUATOR = """
     L.f_fric = friction_force(vel, p)
 """
 _MOTION = """
-    DX.y = vel
-    DX.v = (p_a * area_a - p_b * area_b - L.f_fric - f_load + f_stop) / mass
-    L.na = q_a - area_a * vel - L.q_leak - E.external_leakage_m3_s_pa * p_a
-    L.nb = q_b + area_b * vel + L.q_leak - E.external_leakage_m3_s_pa * p_b
-    L.ma = mass_form * area_a * vel * p_a
-    L.mb = mass_form * area_b * vel * p_b
-    L.ea = chamber_modulus(p_a, L.na - L.ma / beta, beta, p)
-    L.eb = chamber_modulus(p_b, L.nb + L.mb / beta, beta, p)
-    DX.p_a = (L.ea * L.na - L.ma * (L.ea / beta)) / L.va
-    DX.p_b = (L.eb * L.nb + L.mb * (L.eb / beta)) / L.vb
-"""
+DX.y = vel
+DX.v = (p_a * area_a - p_b * area_b - L.f_fric - f_load + f_stop) / mass
+""" + two_chambers("L.va", "L.vb")
 
 
 def _areas(v: dict[str, float], double: bool) -> tuple[float, float]:

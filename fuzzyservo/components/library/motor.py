@@ -17,6 +17,7 @@ from each port) and ``entrained_air`` (E_a, E_b = E_mix(p) instead of E).
 from __future__ import annotations
 
 from fuzzyservo.components.declare import Component, Param, Signal, State
+from fuzzyservo.components.library.oil import two_chambers
 
 
 def _initial(v: dict[str, float], ctx: dict[str, float]) -> dict[str, float]:
@@ -82,18 +83,10 @@ COMPONENTS = (
             """,
             "mass": "mass += P.inertia",
             "motion": """
-                DX.theta = vel
-                DX.w = (P.hydromechanical_efficiency * (p_a - p_b) * area_a - L.f_fric - f_load) / mass
-                L.ke = E.external_leakage_m3_s_pa
-                L.na = q_a - area_a * vel - L.q_leak - L.ke * p_a
-                L.nb = q_b + area_b * vel + L.q_leak - L.ke * p_b
-                L.ma = mass_form * area_a * vel * p_a
-                L.mb = mass_form * area_b * vel * p_b
-                L.ea = chamber_modulus(p_a, L.na - L.ma / beta, beta, p)
-                L.eb = chamber_modulus(p_b, L.nb + L.mb / beta, beta, p)
-                DX.p_a = (L.ea * L.na - L.ma * (L.ea / beta)) / P.volume_a
-                DX.p_b = (L.eb * L.nb + L.mb * (L.eb / beta)) / P.volume_b
-            """,
+DX.theta = vel
+DX.w = (P.hydromechanical_efficiency * (p_a - p_b) * area_a - L.f_fric - f_load) / mass
+"""
+            + two_chambers("P.volume_a", "P.volume_b"),
         },
         effects=(
             "coulomb_friction",

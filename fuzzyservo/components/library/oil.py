@@ -4,6 +4,28 @@ from __future__ import annotations
 
 from fuzzyservo.components.declare import Component, Param
 
+
+def two_chambers(volume_a: str, volume_b: str) -> str:
+    """Source lines of an actuator's two chamber pressures under this oil's liquid law.
+
+    Needs ``q_a``, ``q_b`` (port flows), ``area_a``, ``area_b`` (displacement per unit of
+    motion), ``vel``, ``p_a``, ``p_b`` and ``L.q_leak`` (A→B leakage): the net inflows
+    ``L.na``, ``L.nb`` lose the external leakage; the mass form's compression term
+    ``L.ma``, ``L.mb`` (zero in the pressure form); each chamber's modulus is
+    ``chamber_modulus`` (the oil's E unless ``entrained_air`` is on). Cylinders and motors
+    share it, so the law is written once."""
+    return f"""
+L.na = q_a - area_a * vel - L.q_leak - E.external_leakage_m3_s_pa * p_a
+L.nb = q_b + area_b * vel + L.q_leak - E.external_leakage_m3_s_pa * p_b
+L.ma = mass_form * area_a * vel * p_a
+L.mb = mass_form * area_b * vel * p_b
+L.ea = chamber_modulus(p_a, L.na - L.ma / beta, beta, p)
+L.eb = chamber_modulus(p_b, L.nb + L.mb / beta, beta, p)
+DX.p_a = (L.ea * L.na - L.ma * (L.ea / beta)) / {volume_a}
+DX.p_b = (L.eb * L.nb + L.mb * (L.eb / beta)) / {volume_b}
+"""
+
+
 COMPONENTS = (
     Component(
         type="oil",

@@ -105,6 +105,9 @@ class LocalProcesses:
                 break
             except BrokenProcessPool:
                 codes = self._end_pool()
+                # the pool ends a dead worker's siblings with SIGTERM: name the one that died
+                term = (-signal.SIGTERM, 128 + signal.SIGTERM)
+                codes = [c for c in codes if c not in term] or codes
                 died = ", ".join(_exit_text(c) for c in codes) or "ended"
                 if restarts == self.RESTARTS:
                     raise WorkerError(

@@ -4,10 +4,9 @@ The public API is small and imported lazily, so ``import fuzzyservo`` pulls in n
 YAML, matplotlib nor optuna::
 
     from fuzzyservo import load_rig, load_controller, simulate
-    from fuzzyservo.io.paths import find_file   # a shipped file by name, or a path
 
-    rig = load_rig(find_file("dinca_cylinder", "rigs", "rig"))
-    p_k10 = load_controller(find_file("p_k10", "studies/controllers", "controller"))
+    rig = load_rig("dinca_cylinder")   # a shipped rig by name, or a path
+    p_k10 = load_controller("p_k10")
     result = simulate(rig, p_k10, "pulses")
 
 Rigs, controllers and studies can also be built in code (``compose_rig``, ``P``,

@@ -583,3 +583,18 @@ def test_number_walk_flags_bare_numbers():
         "plant.parameters.m = 1 is a bare number",
         "plant.parameters.d lacks ['source']",
     ]
+
+
+def test_the_public_loaders_take_a_shipped_name_or_a_path(tmp_path):
+    """``load_rig("dinca_cylinder")`` and ``load_controller("p_k10")`` find the shipped
+    files from any folder, as every command does; a path still means that file, and an
+    unknown name lists the known ones."""
+    from fuzzyservo import load_controller, load_rig
+    from fuzzyservo.errors import ConfigError
+
+    assert load_rig("dinca_cylinder").name == "dinca_cylinder"
+    assert load_controller("p_k10").name == "p_k10"
+    with pytest.raises(ConfigError, match=r"no rig named .nope.; known: .*dinca_cylinder"):
+        load_rig("nope")
+    with pytest.raises(ConfigError, match="file not found"):
+        load_rig(tmp_path / "missing.yaml")

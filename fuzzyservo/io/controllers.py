@@ -39,8 +39,12 @@ _KINDS = {
 
 
 def load_controller(path: str | Path) -> Controller:
-    """Read and validate a controller file (YAML, a MATLAB ``.fis`` or an FCL file); raise
-    :class:`ConfigError` naming file and key."""
+    """Read and validate a controller file (YAML, a MATLAB ``.fis`` or an FCL file, or a
+    shipped controller's name such as ``"p_k10"``); raise :class:`ConfigError` naming file
+    and key."""
+    from fuzzyservo.io.paths import shipped_or_path
+
+    path = shipped_or_path(path, "studies/controllers", "controller")
     file = str(path)
     suffix = Path(file).suffix.lower()
     if suffix in (".fis", ".fcl"):

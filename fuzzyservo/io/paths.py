@@ -57,6 +57,15 @@ def find_file(name: str, folder: str, what: str, *, relative_to: Path | None = N
     raise ConfigError(f"no {what} named {name!r}; known: {', '.join(known) or 'none'}", file=name)
 
 
+def shipped_or_path(name: str | Path, folder: str, what: str) -> str | Path:
+    """``name`` unchanged when it is a path; a bare name that is not a file here (no
+    suffix, no folder) is a shipped file's name, found by :func:`find_file`."""
+    text = str(name)
+    if Path(text).suffix or "/" in text or "\\" in text or Path(text).is_file():
+        return name
+    return find_file(text, folder, what)
+
+
 _UNSAFE = re.compile(r"[/\\:\x00-\x1f]")
 
 

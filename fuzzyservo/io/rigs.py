@@ -39,7 +39,7 @@ import numpy as np
 from fuzzyservo.errors import ConfigError, DataError
 from fuzzyservo.io._yaml import Node, read_yaml
 from fuzzyservo.io.measured import ColumnScaling
-from fuzzyservo.io.paths import name_problem
+from fuzzyservo.io.paths import name_problem, shipped_or_path
 from fuzzyservo.limits import duration_problem, period_problem
 from fuzzyservo.params import check, fields_by_key, vectors_by_key
 from fuzzyservo.plants import PlantModel
@@ -64,12 +64,14 @@ _TOP = (
 
 
 def load_rig(path: str | Path, *, plants: Mapping[str, PlantModel] | None = None) -> Rig:
-    """Read and validate a rig file; raise :class:`ConfigError` naming file and key.
+    """Read and validate a rig file (a path, or a shipped rig's name such as
+    ``"dinca_cylinder"``); raise :class:`ConfigError` naming file and key.
 
     ``plants``: plants a file may name under ``plant.type`` with flat ``parameters``
     instead of composing one (none ship; the tests hold the compositions to the seeds'
     hand-written equations so).
     """
+    path = shipped_or_path(path, "rigs", "rig")
     return rig_from_data(read_yaml(path), str(path), plants=plants)
 
 

@@ -38,16 +38,18 @@ MISSES: dict[str, str] = {
 }
 
 
+def _expected_misses(cases, misses: dict[str, str]) -> list:
+    """The cases, those ``misses`` names marked as expected failures with its reason."""
+    return [
+        pytest.param(c, marks=pytest.mark.xfail(reason=misses[c], strict=False))
+        if c in misses
+        else c
+        for c in cases
+    ]
+
+
 @pytest.mark.slow
-@pytest.mark.parametrize(
-    "effect",
-    [
-        pytest.param(e, marks=pytest.mark.xfail(reason=MISSES[e], strict=False))
-        if e in MISSES
-        else e
-        for e in MIDDLE
-    ],
-)
+@pytest.mark.parametrize("effect", _expected_misses(MIDDLE, MISSES))
 def test_independent_formulation_is_named_first_and_added(tmp_path: Path, effect: str) -> None:
     ctl = controller_named("p_k10")
     data = independent_run(effect, NOISE, seed=11)
@@ -74,15 +76,7 @@ MISMATCH_MISSES: dict[str, str] = {
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize(
-    "mismatch",
-    [
-        pytest.param(m, marks=pytest.mark.xfail(reason=MISMATCH_MISSES[m], strict=False))
-        if m in MISMATCH_MISSES
-        else m
-        for m in MISMATCHES
-    ],
-)
+@pytest.mark.parametrize("mismatch", _expected_misses(MISMATCHES, MISMATCH_MISSES))
 def test_model_mismatch_alone_adds_nothing(tmp_path: Path, mismatch: str) -> None:
     """No effect, one model error of a real bench's size (issue 28: ADC codes, a sensor
     filter, another orifice smoothing, a 5 % flow-gain error): the record's null

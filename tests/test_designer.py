@@ -202,6 +202,24 @@ def test_a_study_storage_lists_its_best_trials_to_compare_and_edit(study_out):
         session.open_study("dinca_flc", "nosuchdb://user@127.0.0.1:1/x")
 
 
+def test_a_study_default_storage_is_the_working_folders_out(study_out, tmp_path):
+    """``tune`` run in the working folder keeps a study in its out/<name>/<name>.db; the
+    designer opens that one, never an out/ beside the shipped files (a checkout's own
+    runs), and finds none where the working folder has none."""
+    import shutil
+
+    work = tmp_path / "work"
+    # the whole folder: the study may still sit in the database's write-ahead log
+    shutil.copytree(study_out / "dinca_flc", work / "out" / "dinca_flc")
+    session = Session.open(Folders.make(DATA, tmp_path / "o", work), RIG, FLC2)
+    db = work.resolve() / "out" / "dinca_flc" / "dinca_flc.db"
+    assert session.default_storage("dinca_flc") == f"sqlite:///{db}"
+    assert session.open_study("dinca_flc").complete == 6
+    empty = Session.open(Folders.make(DATA, tmp_path / "o", tmp_path / "empty"), RIG, FLC2)
+    with pytest.raises(ConfigError, match="fuzzyservo tune"):
+        empty.open_study("dinca_flc")
+
+
 def test_the_dashboard_link_serves_optuna_dashboard_on_the_same_storage(study_out):
     pytest.importorskip("optuna_dashboard", reason="pip install optuna-dashboard")
     from fuzzyservo.designer.app import start_dashboard

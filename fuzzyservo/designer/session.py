@@ -350,11 +350,14 @@ class Session:
         return self.folders.names("studies")
 
     def default_storage(self, study: str) -> str:
-        """Where ``fuzzyservo tune`` keeps the study: its ``storage``, else out/<name>/<name>.db."""
+        """Where ``fuzzyservo tune`` keeps the study: its ``storage``, else
+        out/<name>/<name>.db of the working folder (where ``tune`` run there writes it; never
+        the shipped files' folder, whose ``out/`` is another run's)."""
         spec = self._study_spec(study)
         if spec.storage:
             return spec.storage
-        return f"sqlite:///{Path('out') / spec.name / f'{spec.name}.db'}"
+        base = self.folders.work or self.folders.project
+        return f"sqlite:///{base / 'out' / spec.name / f'{spec.name}.db'}"
 
     def _study_spec(self, study: str):
         from fuzzyservo.io.studies import load_study

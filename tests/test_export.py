@@ -283,6 +283,38 @@ def test_an_fmu_controller_in_compare_reproduces_the_native_run(tmp_path, capsys
     assert len(err) == 1 and "'y' is not an input" in err[0] and "bad.yaml" in err[0]
 
 
+@needs_fmpy
+@pytest.mark.skipif(CC is None, reason="no C compiler (cc/gcc) on PATH")
+def test_an_fmu_controller_in_margins_and_robustness_equals_the_native_one(tmp_path):
+    """The FMU controller in the two other analyses the issue names: the same gain and
+    delay margins and the same Monte Carlo table as the YAML controller it came from."""
+    from support import shipped
+
+    import fuzzyservo
+    from fuzzyservo.io.studies import load_study
+    from fuzzyservo.tuning import MAIN_STUDY
+
+    assert main(["export", "flc2_reshaped", "--fmu", str(tmp_path / "flc2.fmu")]) == 0
+    file = tmp_path / "flc2_fmu.yaml"
+    file.write_text("name: flc2_reshaped\nkind: fmu\nfile: flc2.fmu\noutput_limits: [-10, 10]\n"
+                    "reference: reference\nmeasurement: measurement\ncommand: command\n",
+                    encoding="utf-8")  # fmt: skip
+    rig, native, fmu = (
+        rig_named("dinca_cylinder"),
+        controller_named("flc2_reshaped"),
+        load_controller(file),
+    )
+    a, b = fuzzyservo.margins(rig, native), fuzzyservo.margins(rig, fmu)
+    timed = ("seconds",)
+    assert {k: v for k, v in b.to_dict().items() if k not in timed} == {
+        k: v for k, v in a.to_dict().items() if k not in timed
+    }
+    study = load_study(shipped(MAIN_STUDY, "studies"))
+    draw = {"samples": 2, "scenarios": ["steps"]}
+    rows = [fuzzyservo.robustness(rig, [c], study, **draw).rows() for c in (native, fmu)]
+    assert rows[0] == rows[1]
+
+
 # --------------------------------------------------------------------------- Structured Text
 def st_to_python(text: str) -> dict:
     """The Structured Text of an exported system run as Python: a literal translation of

@@ -89,6 +89,28 @@ def test_a_study_stored_before_typed_fingerprints_still_opens(tmp_path):
         open_study(_edited(spec, "output.translate", 2.0, 3.0), url)
 
 
+def test_another_sampler_or_seed_does_not_resume_the_study(tmp_path):
+    """A study's trials were proposed by its sampler and seed: resuming under another is
+    refused with the change named (it was resumed silently). A study stored before the
+    sampler was fingerprinted adopts the one it is opened with."""
+    from fuzzyservo.tuning.integrity import FINGERPRINT_ATTR
+
+    study, _ = study_copy(tmp_path, "sampler")
+    spec = load_study(study)
+    url = sqlite_url(tmp_path, spec.name)
+    stored = open_study(spec, url)
+    for other in (dict(sampler="tpe" if spec.sampler != "tpe" else "cmaes"), dict(seed=7)):
+        with pytest.raises(ConfigError, match="sampler"):
+            open_study(dataclasses.replace(spec, **other), url)
+    old = {k: v for k, v in stored.user_attrs[FINGERPRINT_ATTR].items() if k != "sampler"}
+    stored.set_user_attr(FINGERPRINT_ATTR, old)
+    tpe = dataclasses.replace(spec, sampler="tpe" if spec.sampler != "tpe" else "cmaes")
+    assert "sampler" in open_study(tpe, url).user_attrs[FINGERPRINT_ATTR]
+    open_study(tpe, url)  # and keeps it
+    with pytest.raises(ConfigError, match="sampler"):
+        open_study(spec, url)
+
+
 def test_edited_study_file_rerun_exits_2_with_one_line(tmp_path, capsys):
     study, _ = cheap_copy(tmp_path, "cli")
     out = tmp_path / "out"

@@ -32,7 +32,7 @@ if TYPE_CHECKING:
 
 FINGERPRINT_ATTR = "fingerprint"
 DEFINITION_ATTR = "definition"
-PARTS = ("rig", "scenarios", "template", "search space", "objective", "uncertainty")
+PARTS = ("rig", "scenarios", "template", "search space", "objective", "uncertainty", "sampler")
 
 
 # --------------------------------------------------------------------------- fingerprint
@@ -81,6 +81,9 @@ def definition(spec: Study) -> dict[str, Any]:
         },
         "objective": objective,
         "uncertainty": uncertainty.describe_data() if uncertainty is not None else None,
+        # what proposes the trials: a study resumed under another sampler or seed is not
+        # the study its first trials belong to (and no longer reproducible)
+        "sampler": {"name": spec.sampler, "seed": spec.seed},
     }
 
 
@@ -141,6 +144,13 @@ def check_definition(study: Any, spec: Study, url: str) -> None:
             stored = None  # nothing comparable changed: adopt the new fingerprint
         else:
             stored = {**current, **{part: stored.get(part) for part in _KEPT}}
+    missing = [part for part in PARTS if stored is not None and part not in stored]
+    if missing:  # stored before the part was fingerprinted: it takes the definition's
+        stored = {**stored, **{part: current[part] for part in missing}}
+        new = definition(spec)
+        old = dict(study.user_attrs.get(DEFINITION_ATTR, {}))
+        study.set_user_attr(FINGERPRINT_ATTR, stored)
+        study.set_user_attr(DEFINITION_ATTR, {**old, **{part: new[part] for part in missing}})
     if stored is None:
         study.set_user_attr(FINGERPRINT_ATTR, current)
         study.set_user_attr(DEFINITION_ATTR, definition(spec))

@@ -93,6 +93,7 @@ def summary_data(outcome: Outcome, replay: Replay) -> dict[str, Any]:
                 "params": dict(c.params),
                 "ambiguous_with": list(_round_of(outcome, c.name).ambiguous_with),
                 "z": c.evidence.z if c.evidence else None,
+                "lookalike": LIBRARY[c.name].lookalike,
             }
             for c in outcome.added
         ],
@@ -279,6 +280,9 @@ def verdict_lines(summary: dict[str, Any]) -> list[str]:
         )
     else:
         lines.append("added: no effect")
+    for e in added:
+        if e.get("lookalike"):
+            lines.append(f"{e['name']} may also be {e['lookalike']}")
     lines.append(
         f"false-positive rate of the decision on this record's null (bootstrap of its "
         f"residual): {rate}"

@@ -112,7 +112,9 @@ class EffectParam:
 @dataclass(frozen=True)
 class Effect:
     """A library entry: name, stage (``input`` or ``plant``), parameters, and what it
-    models; ``screened``: a calibration tries it unless told which effects to try."""
+    models; ``screened``: a calibration tries it unless told which effects to try;
+    ``lookalike``: what else a record explained by it may hold, which the data cannot
+    tell from it (calibration's verdict says so when it adds the effect)."""
 
     name: str
     stage: str
@@ -120,6 +122,7 @@ class Effect:
     formulation: str
     source: str
     screened: bool = True
+    lookalike: str = ""
 
     @property
     def fitted(self) -> tuple[EffectParam, ...]:
@@ -246,6 +249,14 @@ LIBRARY: dict[str, Effect] = {
             ),
             "i_eff(t) = i(t − d): computation, bus and converter delay [s]",
             "docs/modelling.md transport delay (cross-correlation peak at lag > 0)",
+            lookalike=(
+                "a first-order lag of about the same time constant elsewhere in the loop, "
+                "e.g. the position sensor's or the converter's filter: a lag much shorter "
+                "than the sample period acts in the loop as a delay of its time constant "
+                "(a 1 ms sensor filter on seed 002's bench comes back as a 0.99 ms delay, "
+                "docs/calibration.md); check the sensor's bandwidth before reading it as a "
+                "delay"
+            ),
         ),
         Effect(
             "bulk_modulus",

@@ -21,7 +21,7 @@ from __future__ import annotations
 import math
 
 from fuzzyservo.components.declare import Component, Param, Signal, State
-from fuzzyservo.components.library.oil import two_chambers
+from fuzzyservo.components.library.oil import CHAMBER_EFFECTS, two_chambers
 
 _COMMON = (
     Param("stroke", "m", "stroke L", positive=True),
@@ -134,13 +134,7 @@ def _cylinder(type_name: str, double: bool, doc: str) -> Component:
             "mass": "mass += P.piston_mass",
             "motion": _MOTION,
         },
-        effects=(
-            "coulomb_friction",
-            "stribeck_friction",
-            "internal_leakage",
-            "external_leakage",
-            "entrained_air",
-        ),
+        effects=CHAMBER_EFFECTS,
         initial=_initial(double),
         initial_keys={
             "position": ("position", "m"),

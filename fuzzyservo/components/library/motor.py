@@ -17,7 +17,7 @@ from each port) and ``entrained_air`` (E_a, E_b = E_mix(p) instead of E).
 from __future__ import annotations
 
 from fuzzyservo.components.declare import Component, Param, Signal, State
-from fuzzyservo.components.library.oil import two_chambers
+from fuzzyservo.components.library.oil import CHAMBER_EFFECTS, two_chambers
 
 
 def _initial(v: dict[str, float], ctx: dict[str, float]) -> dict[str, float]:
@@ -88,13 +88,7 @@ DX.w = (P.hydromechanical_efficiency * (p_a - p_b) * area_a - L.f_fric - f_load)
 """
             + two_chambers("P.volume_a", "P.volume_b"),
         },
-        effects=(
-            "coulomb_friction",
-            "stribeck_friction",
-            "internal_leakage",
-            "external_leakage",
-            "entrained_air",
-        ),
+        effects=CHAMBER_EFFECTS,
         initial=_initial,
         initial_keys={
             "angle": ("angle", "rad"),

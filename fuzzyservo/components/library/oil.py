@@ -4,6 +4,16 @@ from __future__ import annotations
 
 from fuzzyservo.components.declare import Component, Param
 
+#: the effects an actuator with :func:`two_chambers` reads: friction on its motion, the
+#: leakages and the air in the law below (cylinders and motors declare these alike)
+CHAMBER_EFFECTS = (
+    "coulomb_friction",
+    "stribeck_friction",
+    "internal_leakage",
+    "external_leakage",
+    "entrained_air",
+)
+
 
 def two_chambers(volume_a: str, volume_b: str) -> str:
     """Source lines of an actuator's two chamber pressures under this oil's liquid law.

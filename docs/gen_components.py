@@ -145,6 +145,9 @@ def components_markdown() -> str:
                 f"| `{e.name}` | `{p.key}` | {_unit(p.unit)} | {_cell(p.doc)}{signed} | {fitted} |"
             )
     out.append("")
+    for e in LIBRARY.values():  # what calibration's verdict says when it adds the effect
+        if e.lookalike:
+            out += [f"`{e.name}` may also be {e.lookalike}.", ""]
     return "\n".join(out)
 
 

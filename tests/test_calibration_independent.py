@@ -29,12 +29,12 @@ from fuzzyservo.calibration.search import calibrate
 from fuzzyservo.io.rigs import load_rig
 
 # effect -> why it is not found (an xfail). Measured when the seed-002 rig became the
-# composition (issue 25; before, on the hand-written mass-form kernel, both were named
-# first): the pressure-form chambers, right about this generator's, leave these
-# look-alike pairs to the residual's finer shape, and round 1 ranks the other one first.
+# composition (issue 25; before, on the hand-written mass-form kernel, it was named
+# first): the second-order spool and a delay look alike, and on this draw round 1 ranks
+# the delay first (on draws 100 and 101 the lag). The LuGre Stribeck friction, missed
+# too until parsimony kept to one law's forms (search._special_cases), is named again.
 MISSES: dict[str, str] = {
-    "stribeck_friction": "the LuGre data: coulomb_friction ranks first on the composition",
-    "valve_lag": "the 100 Hz second-order spool: transport_delay ranks first on the composition",
+    "valve_lag": "the 100 Hz second-order spool: transport_delay ranks first on this draw",
 }
 
 
@@ -67,10 +67,27 @@ def test_independent_null_run_adds_nothing(tmp_path: Path) -> None:
     assert calibrate(make_replay(rig, data, ctl), rig).added == ()
 
 
+@pytest.mark.slow
+def test_an_established_special_case_goes_before_an_unestablished_generalisation(
+    tmp_path: Path,
+) -> None:
+    """Draw 100 of the mid-range LuGre friction: Stribeck's law predicts the held-out part
+    best but is not established (z 3.4 under a threshold of 3.7); Coulomb's, its special
+    case, is (z 36) and the data cannot tell the two apart, so Coulomb's is named first
+    and added (search._established_first). Nothing was added before."""
+    rig = load_rig(old_loop(tmp_path))
+    data = independent_run("coulomb_friction", NOISE, seed=100)
+    outcome = calibrate(make_replay(rig, data, controller_named("p_k10")), rig, max_effects=1)
+    first = outcome.rounds[0].candidates
+    assert first[0].name == "coulomb_friction" and first[1].name == "stribeck_friction"
+    assert first[1].score < first[0].score  # the better predictor, not established
+    assert [c.name for c in outcome.added] == ["coulomb_friction"]
+
+
 # mismatch -> why an effect is still added (an xfail): measured on issue 28's rule
 MISMATCH_MISSES: dict[str, str] = {
     "sensor_filter": "a 1 ms first-order sensor in the loop is a 1 ms loop delay: "
-    "transport_delay is added at 0.99 ms in 20 of 20 draws (z 31-85); the record does not "
+    "transport_delay is added at 0.99 ms in 20 of 20 draws (z 31-246); the record does not "
     "tell the two apart, pressures included (test below, docs/calibration.md)",
 }
 

@@ -114,7 +114,9 @@ class Effect:
     """A library entry: name, stage (``input`` or ``plant``), parameters, and what it
     models; ``screened``: a calibration tries it unless told which effects to try;
     ``lookalike``: what else a record explained by it may hold, which the data cannot
-    tell from it (calibration's verdict says so when it adds the effect)."""
+    tell from it (calibration's verdict says so when it adds the effect);
+    ``special_cases``: the effects it contains (calibration prefers an established
+    special case to it when the data cannot tell them apart)."""
 
     name: str
     stage: str
@@ -123,6 +125,7 @@ class Effect:
     source: str
     screened: bool = True
     lookalike: str = ""
+    special_cases: tuple[str, ...] = ()  # effects this one becomes with a parameter at 0
 
     @property
     def fitted(self) -> tuple[EffectParam, ...]:
@@ -183,6 +186,7 @@ LIBRARY: dict[str, Effect] = {
             ),
             "F = (Fc + Fst·exp(−(v/vs)²))·tanh(v/vc): breakaway Fc + Fst at rest, Fc in motion",
             "docs/modelling.md Friction and typical ranges (Fs/Fc 1.1-1.5, vs 1-10 mm/s)",
+            special_cases=("coulomb_friction",),  # Fst = 0
         ),
         Effect(
             "line_resistance",
@@ -238,6 +242,12 @@ LIBRARY: dict[str, Effect] = {
             (EffectParam("time_constant", "valve_lag_s", "s", lambda s: (0.0, 0.02), doc="spool time constant"),),
             "τ·di_s/dt = i − i_s: first-order spool dynamics [s]",
             "docs/modelling.md typical ranges (spool bandwidth 50-200 Hz: τ 0.8-3.2 ms); seed 000 eq. 8",
+            lookalike=(
+                "a transport delay of about its time constant, or a spool of higher order: "
+                "a lag much faster than the loop acts as a delay (a 100 Hz second-order "
+                "spool on seed 002's bench comes back as either, depending on the noise "
+                "draw)"
+            ),
         ),
         Effect(
             "transport_delay",

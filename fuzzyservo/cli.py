@@ -473,7 +473,8 @@ BENCH = [
     _arg("--runs", type=int, default=7, help="timed runs per case (median reported)"),
     _arg("--reference-runs", type=int, default=3, help="timed runs of the reference path"),
     _arg("--study-trials", type=int, default=300, help="trials of the study case (default: 300)"),
-    _arg("--workers", type=int, default=2, help="worker processes of the study case (default: 2)"),
+    _arg("--workers", type=int, default=2,
+         help="worker processes of the study and calibrate cases (default: 2)"),
 ]  # fmt: skip
 CALIBRATE = [
     _arg("rig", help="rig file or name in rigs/"),

@@ -326,3 +326,28 @@ def test_an_effect_within_the_starting_models_prediction_band_is_negligible(rig)
         assert z > null.threshold and MIN_SHARE < judged.share < 1.2
         verdicts[band] = judged.verdict
     assert verdicts == {0.0: "added", 1.2: "negligible"}
+
+
+def test_a_detection_limit_reads_as_a_magnitude_and_says_when_the_range_cannot_reach_it():
+    """The Festo record printed "offset ≥ -0.433" for a null shift fitted below 0 and
+    "delay ≥ 1.97" for a delay the fit may not take beyond 0.05 s."""
+    from fuzzyservo.calibration.report import verdict_lines
+
+    def weak(name: str, param: str, value: float, limit: float, lo: float, hi: float) -> dict:
+        size = {"param": param, "value": value, "limit": limit, "range": [lo, hi]}
+        return {"name": name, "params": {param: value}, "z": 1.0, "size": size}
+
+    summary = {
+        "false_positive_rate": 0.05,
+        "effects_added": [],
+        "negligible": [],
+        "not_established": [
+            weak("valve_bias", "offset", -0.135, -0.433, -1.0, 1.0),
+            weak("transport_delay", "delay", 0.1, 1.97, 0.0, 0.05),
+            weak("coulomb_friction", "force", 40.0, 80.0, 0.0, 500.0),
+        ],
+    }
+    lines = verdict_lines(summary)
+    assert "limit on this record |offset| ≥ 0.433)" in lines[2]
+    assert "delay ≥ 1.97, beyond its range (up to 0.05): this record cannot detect it" in lines[3]
+    assert "limit on this record force ≥ 80)" in lines[4]

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import dataclasses
+import math
 from collections.abc import Iterable
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -239,11 +240,13 @@ def _judged(outcome: Outcome, r: Round, a: Assessment) -> dict[str, Any]:
     size = _size_param(outcome.declared, a.name)
     if size is not None and size in candidate.params:
         value = candidate.params[size]
+        param = LIBRARY[a.name].param(size)
         out["size"] = {
             "param": size,
             "value": value,
             "interval": [value * a.interval[0], value * a.interval[1]],
             "limit": value * a.limit,
+            "range": list(param.value_bounds(outcome.declared.scales())),  # the fit's box
         }
     for name, experiment, recorded in r.establish:
         if name == a.name:
@@ -319,9 +322,18 @@ def _sizes(params: dict[str, float]) -> str:
 
 
 def _limit(j: dict[str, Any]) -> str:
-    if "size" in j:
-        return f"{j['size']['param']} ≥ {j['size']['limit']:.3g}"
-    return f"{j['limit_scale']:.3g}× the fitted contribution"
+    """The detection limit in words: the size (its magnitude for a signed one found
+    below 0), and whether the fit's range reaches it at all."""
+    if "size" not in j:
+        return f"{j['limit_scale']:.3g}× the fitted contribution"
+    size = j["size"]
+    limit, name = size["limit"], size["param"]
+    text = f"|{name}| ≥ {-limit:.3g}" if limit < 0 else f"{name} ≥ {limit:.3g}"
+    lo, hi = size.get("range", (-math.inf, math.inf))
+    reach = hi if limit >= 0 else -lo
+    if abs(limit) > reach:
+        text += f", beyond its range (up to {reach:.3g}): this record cannot detect it"
+    return text
 
 
 def warnings(outcome: Outcome) -> list[str]:

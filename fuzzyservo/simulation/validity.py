@@ -72,23 +72,22 @@ def pressure_violation(
     reported, as cavitation the model holds at the vapour pressure.
     """
     name, worst, at = lowest_pressure(t, signals, pressures)
+    # the gauge pressure below which the run is reported: with entrained air its floor
+    # (2·p_v absolute), without it the vapour pressure itself
+    floor = VAPOUR_PRESSURE_PA if air is None else 2.0 * air.vapour_pressure_pa - ATMOSPHERE_PA
+    if worst >= floor:
+        return ""
+    first = float(t[np.flatnonzero(np.asarray(signals[name]) < floor)[0]])
     if air is not None:
-        floor = 2.0 * air.vapour_pressure_pa - ATMOSPHERE_PA
-        if worst >= floor:
-            return ""
-        first = np.flatnonzero(np.asarray(signals[name]) < floor)[0]
         return (
             f"{name} reached the oil's vapour pressure ({air.vapour_pressure_pa / 1e5:.2g} bar "
-            f"absolute) at t = {float(t[first]):.3f} s, down to "
+            f"absolute) at t = {first:.3f} s, down to "
             f"{(worst + ATMOSPHERE_PA) / 1e5:.3g} bar absolute at t = {at:.3f} s: the oil "
             "cavitates there; the entrained_air effect holds the chamber at that floor"
         )
-    if worst >= VAPOUR_PRESSURE_PA:
-        return ""
-    first = np.flatnonzero(np.asarray(signals[name]) < VAPOUR_PRESSURE_PA)[0]
     return (
         f"{name} fell below the oil's vapour pressure ({VAPOUR_PRESSURE_PA / 1e5:.2f} bar gauge, "
-        f"0 Pa absolute) at t = {float(t[first]):.3f} s, down to {worst / 1e5:.4g} bar at "
+        f"0 Pa absolute) at t = {first:.3f} s, down to {worst / 1e5:.4g} bar at "
         f"t = {at:.3f} s; the model has no cavitation, so the run is unphysical from there"
     )
 

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import dataclasses
-import math
 from collections.abc import Iterable
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -284,7 +283,7 @@ def verdict_lines(summary: dict[str, Any]) -> list[str]:
     else:
         lines.append("added: no effect")
     for e in added:
-        if e.get("lookalike"):
+        if e["lookalike"]:
             lines.append(f"{e['name']} may also be {e['lookalike']}")
     lines.append(
         f"false-positive rate of the decision on this record's null (bootstrap of its "
@@ -329,7 +328,7 @@ def _limit(j: dict[str, Any]) -> str:
     size = j["size"]
     limit, name = size["limit"], size["param"]
     text = f"|{name}| ≥ {-limit:.3g}" if limit < 0 else f"{name} ≥ {limit:.3g}"
-    lo, hi = size.get("range", (-math.inf, math.inf))
+    lo, hi = size["range"]
     reach = hi if limit >= 0 else -lo
     if abs(limit) > reach:
         text += f", beyond its range (up to {reach:.3g}): this record cannot detect it"

@@ -496,7 +496,8 @@ def calibrate(
             done = None if progress is None else (lambda k, todo=todo: progress(todo[k]))
             results = executor.map(task, todo, done)
             results.sort(key=lambda c: c.score)
-            if _screened(replay, screen_samples) is not replay:
+            screened = _screened(replay, screen_samples) is not replay
+            if screened:
                 results = _confirm(replay, current, current_model, results)
             frozen = _frozen_ends(replay, current, added, current_model)
             null = null_round(replay, current_model, [c.model for c in results],
@@ -504,7 +505,7 @@ def calibrate(
                               frozen=frozen)  # fmt: skip
             z_min = null.threshold
             results = _established_first(replay, current, current_model, results, z_min,
-                                         screened=_screened(replay, screen_samples) is not replay)  # fmt: skip
+                                         screened=screened)  # fmt: skip
             best = results[0] if results else None
             significant = best is not None and _significant(best, z_min)
             ambiguous = _ties(replay, results, z_min) if significant else ()
@@ -595,17 +596,24 @@ def _confirm(
     ranked = list(ranked)
     refitted: set[str] = set()
     while ranked and ranked[0].name not in refitted and math.isfinite(ranked[0].score):
-        screened = ranked.pop(0)
-        refit = _candidate(replay, base, base_model, screened.name, start_from=screened)
-        refit = dataclasses.replace(
-            refit,
-            evaluations=screened.evaluations + refit.evaluations,
-            seconds=screened.seconds + refit.seconds,
-        )
+        refit = _refit(replay, base, base_model, ranked.pop(0))
         refitted.add(refit.name)
         ranked.append(refit)
         ranked.sort(key=lambda c: c.score)
     return ranked
+
+
+def _refit(
+    replay: Replay, base: Rig, base_model: dict[str, np.ndarray], screened: Candidate
+) -> Candidate:
+    """``screened`` refitted on the whole training part from its screening fit, its
+    evaluations and time counting both fits."""
+    refit = _candidate(replay, base, base_model, screened.name, start_from=screened)
+    return dataclasses.replace(
+        refit,
+        evaluations=screened.evaluations + refit.evaluations,
+        seconds=screened.seconds + refit.seconds,
+    )
 
 
 def _uncertainty(
@@ -737,21 +745,16 @@ def _established_first(
     if not ranked or _significant(ranked[0], z_min):
         return ranked
     best = ranked[0]
+
+    def promoted(c: Candidate) -> bool:
+        return _significant(c, z_min) and _tied(replay, best, c, z_min)
+
     for k, candidate in enumerate(ranked[1:], start=1):
-        if candidate.name not in _special_cases(best) or not _significant(candidate, z_min):
+        if candidate.name not in _special_cases(best) or not promoted(candidate):
             continue
-        if held_out_evidence(replay, candidate.model, best.model).z >= z_min:
-            continue  # the best predicts better beyond noise: not a tie
         if screened:
-            refit = _candidate(replay, base, base_model, candidate.name, start_from=candidate)
-            candidate = dataclasses.replace(
-                refit,
-                evaluations=candidate.evaluations + refit.evaluations,
-                seconds=candidate.seconds + refit.seconds,
-            )
-            if not _significant(candidate, z_min):
-                continue
-            if held_out_evidence(replay, candidate.model, best.model).z >= z_min:
+            candidate = _refit(replay, base, base_model, candidate)
+            if not promoted(candidate):
                 continue
         return [candidate, *ranked[:k], *ranked[k + 1 :]]
     return ranked
@@ -759,8 +762,13 @@ def _established_first(
 
 def _special_cases(candidate: Candidate) -> tuple[str, ...]:
     """The effects ``candidate``'s law becomes with a parameter at 0 (effects.py)."""
-    effect = LIBRARY.get(candidate.name)
-    return effect.special_cases if effect is not None else ()
+    return LIBRARY[candidate.name].special_cases
+
+
+def _tied(replay: Replay, best: Candidate, other: Candidate, z_min: float) -> bool:
+    """``best`` does not beat ``other`` on the held-out data by ``z_min`` spreads: the
+    data cannot tell them apart."""
+    return held_out_evidence(replay, other.model, best.model).z < z_min
 
 
 def _significant(candidate: Candidate, z_min: float) -> bool:
@@ -774,13 +782,11 @@ def _ties(replay: Replay, ranked: list[Candidate], z_min: float) -> tuple[str, .
     data by the same ``z_min`` spreads an added effect needs: the data cannot tell them
     from the best (and more parameters must earn their place as an effect does)."""
     best = ranked[0]
-    tied = []
-    for other in ranked[1:]:
-        if not _significant(other, z_min):
-            continue
-        if held_out_evidence(replay, other.model, best.model).z < z_min:
-            tied.append(other.name)
-    return tuple(tied)
+    return tuple(
+        other.name
+        for other in ranked[1:]
+        if _significant(other, z_min) and _tied(replay, best, other, z_min)
+    )
 
 
 def _refit_jointly(

@@ -269,7 +269,8 @@ def cmd_designer(args: argparse.Namespace) -> int:
 
     rig = resolve(args.rig, "rigs", "rig")
     controller = resolve(args.controller, "studies/controllers", "controller")
-    serve(rig, controller, port=args.port, host=args.host, out_dir=args.out, show=args.show)
+    serve(rig, controller, port=args.port, host=args.host, out_dir=args.out, show=args.show,
+          allow_hosts=tuple(args.allow_host), storages=tuple(args.storage))  # fmt: skip
     return 0
 
 
@@ -457,6 +458,12 @@ DESIGNER = [
     _arg("--out", default="out/designer",
          help="the only folder the app writes to (default: out/designer)"),
     _arg("--show", action="store_true", help="open the page in the web browser"),
+    _arg("--allow-host", action="append", default=[], metavar="NAME",
+         help="also answer pages that reach the designer by this host name (repeat; default: "
+         "127.0.0.1, localhost and --host only)"),
+    _arg("--storage", action="append", default=[], metavar="URL",
+         help="a database server URL the page may open studies from (repeat; SQLite files in "
+         "the designer's folders need none)"),
 ]  # fmt: skip
 FREQUENCY = [
     RIG,

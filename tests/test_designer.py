@@ -9,6 +9,7 @@ import math
 import os
 import socket
 import time
+import urllib.parse
 import urllib.request
 
 import numpy as np
@@ -198,7 +199,7 @@ def test_a_study_storage_lists_its_best_trials_to_compare_and_edit(study_out):
     with pytest.raises(ConfigError, match="fuzzyservo tune"):
         session.open_study("dinca_flc", f"sqlite:///{study_out / 'none.db'}")
     assert not (study_out / "none.db").exists()
-    with pytest.raises(ConfigError, match="cannot open the storage"):
+    with pytest.raises(ConfigError, match="not started with"):
         session.open_study("dinca_flc", "nosuchdb://user@127.0.0.1:1/x")
 
 
@@ -221,19 +222,29 @@ def test_a_study_default_storage_is_the_working_folders_out(study_out, tmp_path)
 
 
 def test_the_dashboard_link_serves_optuna_dashboard_on_the_same_storage(study_out):
+    """The link carries the dashboard's own token; with it (a cookie after the first
+    request) the dashboard answers, and it lists the study."""
     pytest.importorskip("optuna_dashboard", reason="pip install optuna-dashboard")
+    import http.cookiejar
+
     from fuzzyservo.designer.app import start_dashboard
+    from fuzzyservo.designer.guard import Guard
 
     with socket.socket() as s:
         s.bind(("127.0.0.1", 0))
         port = s.getsockname()[1]
     url = f"sqlite:///{study_out / 'dinca_flc' / 'dinca_flc.db'}"
-    link = start_dashboard(url, port)
-    assert link == f"http://127.0.0.1:{port}/"
+    link = start_dashboard(url, Guard.make(port, "127.0.0.1"))
+    port = urllib.parse.urlsplit(link).port  # the next one when this process runs another
+    assert link.startswith(f"http://127.0.0.1:{port}/?token=")
+    opener = urllib.request.build_opener(
+        urllib.request.HTTPCookieProcessor(http.cookiejar.CookieJar())
+    )
     deadline = time.monotonic() + 30
     while True:
         try:
-            with urllib.request.urlopen(f"{link}api/studies", timeout=5) as reply:
+            opener.open(link, timeout=5).read()  # sets the cookie
+            with opener.open(f"http://127.0.0.1:{port}/api/studies", timeout=5) as reply:
                 body = reply.read().decode()
             break
         except OSError:

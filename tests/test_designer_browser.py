@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import json
 import os
+import re
 import socket
 import statistics
 import subprocess
@@ -100,7 +101,9 @@ def server(tmp_path_factory):
             proc.kill()
             pytest.fail(f"the designer did not start:\n{log.read_text()}")
         time.sleep(0.2)
-    yield f"http://127.0.0.1:{port}/", out
+    # the address with this launch's token, as the command printed it
+    url = re.search(r"designer on (\S+)", log.read_text()).group(1)
+    yield url, out
     proc.terminate()
     try:
         proc.wait(timeout=10)
@@ -373,10 +376,13 @@ def test_fits_a_1280_by_800_window_and_lists_a_study_s_trials(page, study, shots
 )
 def test_the_server_serves_no_file_outside_its_assets(server, path):
     import http.client
+    from urllib.parse import parse_qs, urlsplit
 
-    host, port = server[0].split("//")[1].rstrip("/").split(":")
-    conn = http.client.HTTPConnection(host, int(port), timeout=30)
-    conn.request("GET", path)  # sent as written: http.client does not normalise '..'
+    parts = urlsplit(server[0])
+    token = parse_qs(parts.query)["token"][0]
+    conn = http.client.HTTPConnection(parts.hostname, parts.port, timeout=30)
+    # sent as written (http.client does not normalise '..'), with the session's cookie
+    conn.request("GET", path, headers={"Cookie": f"fuzzyservo_token_{parts.port}={token}"})
     reply = conn.getresponse()
     body = reply.read().decode(errors="replace")
     conn.close()

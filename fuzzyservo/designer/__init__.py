@@ -4,7 +4,8 @@ Built on Panel and Bokeh (the only place either is imported). :mod:`.session` ho
 browser session's state and does the work with the library's own functions (files →
 :func:`~fuzzyservo.io.controllers.controller_from_data`, :func:`~fuzzyservo.simulate`,
 :func:`~fuzzyservo.metrics.result_metrics`); :mod:`.files` confines every file the app
-opens or writes to the project and output folders; :mod:`.app` is the page.
+opens or writes to the project and output folders; :mod:`.guard` lets only local pages
+that know the launch's token drive it; :mod:`.app` is the page.
 """
 
 from __future__ import annotations
@@ -21,11 +22,16 @@ def serve(
     out_dir: str | Path = "out/designer",
     show: bool = False,
     ready=None,
+    allow_hosts: tuple[str, ...] = (),
+    storages: tuple[str, ...] = (),
 ):
-    """Start the designer on ``http://host:port/`` and block until stopped (Ctrl-C).
+    """Start the designer on ``http://host:port/?token=...`` and block until stopped (Ctrl-C).
 
-    ``rig`` and ``controller`` are files (already resolved by the caller); ``ready`` is
-    called with the server once it listens (tests use it to learn the port).
+    ``rig`` and ``controller`` are files (already resolved by the caller). The page answers
+    only requests naming a loopback host, ``host`` or one of ``allow_hosts`` and carrying
+    this launch's token (see :mod:`fuzzyservo.designer.guard`); it may open the database
+    servers in ``storages`` besides SQLite files in its folders. ``ready`` is called with the
+    server and the address with its token once it listens (tests use it).
     """
     from fuzzyservo.errors import require
 
@@ -40,4 +46,6 @@ def serve(
         out_dir=Path(out_dir),
         show=show,
         ready=ready,
+        allow_hosts=tuple(allow_hosts),
+        storages=tuple(storages),
     )

@@ -28,8 +28,10 @@ from bokeh.models import (
 )
 from bokeh.plotting import figure
 from matplotlib.colors import to_hex
+from tornado.web import RequestHandler
 
 from fuzzyservo.designer.files import Folders
+from fuzzyservo.designer.guard import LOOPBACK, Guard, GuardedWSGI, Verdict
 from fuzzyservo.designer.session import Session, StudyView, metrics_rows
 from fuzzyservo.display import (
     PRESSURE_COLOURS,
@@ -74,9 +76,9 @@ def _colour(k: int) -> str:
 class Designer:
     """The page of one browser session."""
 
-    def __init__(self, session: Session, dashboard_port: int):
+    def __init__(self, session: Session, guard: Guard):
         self.s = session
-        self.dashboard_port = dashboard_port
+        self.web_guard = guard
         self.updates = 0
         self.study: StudyView | None = None
         self.status = pn.pane.HTML("", css_classes=["fs-status"], sizing_mode="stretch_width")
@@ -705,7 +707,7 @@ class Designer:
         url = self.study.url if self.study else None
         if url is None:
             raise FuzzyservoError("open a study's storage first")
-        link = start_dashboard(url, self.dashboard_port)
+        link = start_dashboard(url, self.web_guard.with_port(self.web_guard.port + 1))
         self.dash_link.object = (
             f"<a href='{link}' target='_blank'>optuna-dashboard on {_esc(url)}</a>"
         )
@@ -827,6 +829,10 @@ class Designer:
             except (FuzzyservoError, ValueError) as exc:
                 self._say(str(exc), error=True)
                 self.rebuild_soft()
+            except OSError as exc:  # a full disk, a name too long, a folder where a file goes
+                where = f"{_cut(exc.filename)}: " if exc.filename else ""
+                self._say(f"{where}{exc.strerror or exc}; nothing was changed", error=True)
+                self.rebuild_soft()
 
     def rebuild_soft(self) -> None:
         """Put the tables and dragged points back to the last good controller after a refused edit."""
@@ -836,7 +842,7 @@ class Designer:
 
     def _say(self, text: str, error: bool = False) -> None:
         cls = "fs-error" if error else "fs-ok"
-        self.status.object = f"<div class='{cls}' id='fs-status'>{_esc(text)}</div>"
+        self.status.object = f"<div class='{cls}' id='fs-status'>{_esc(_cut(text, 400))}</div>"
 
 
 # ==================================================================== helpers
@@ -884,6 +890,11 @@ def _breakpoint_frame(var):
     return frame[["term", "shape", "a", "b", "c", "d"]]
 
 
+def _cut(value: object, limit: int = 80) -> str:
+    text = str(value)
+    return text if len(text) <= limit else f"{text[: limit - 1]}…"
+
+
 def _esc(text: str) -> str:
     import html
 
@@ -894,26 +905,80 @@ _DASHBOARDS: dict[str, str] = {}
 _DASH_LOCK = threading.Lock()
 
 
-def start_dashboard(url: str, port: int) -> str:
-    """Start optuna-dashboard on ``url`` (once per URL, in this process) and return its address."""
+def start_dashboard(url: str, guard: Guard) -> str:
+    """Start optuna-dashboard on ``url`` (once per URL, in this process) behind ``guard``'s
+    hosts on its port with a token of its own, and return its address (with the token)."""
     try:
         import optuna_dashboard
     except ImportError:
         raise FuzzyservoError(
             "optuna-dashboard is not installed; pip install -e '.[dashboard]' and restart the designer"
         ) from None
+    from wsgiref.simple_server import WSGIRequestHandler, make_server
+
+    class Quiet(WSGIRequestHandler):
+        def log_message(self, *args) -> None:  # no line per request on the designer's console
+            pass
+
     with _DASH_LOCK:
         if url in _DASHBOARDS:
             return _DASHBOARDS[url]
-        port = port + len(_DASHBOARDS)
-        thread = threading.Thread(
-            target=optuna_dashboard.run_server,
-            kwargs={"storage": url, "host": "127.0.0.1", "port": port},
-            daemon=True,
-        )
-        thread.start()
-        _DASHBOARDS[url] = f"http://127.0.0.1:{port}/"
+        own = guard.with_port(guard.port + len(_DASHBOARDS))
+        try:
+            httpd = make_server(
+                "127.0.0.1", own.port, GuardedWSGI(optuna_dashboard.wsgi(url), own),
+                handler_class=Quiet,
+            )  # fmt: skip
+        except OSError as exc:
+            raise FuzzyservoError(
+                f"cannot start optuna-dashboard on 127.0.0.1:{own.port} ({exc.strerror or exc}); "
+                "free that port or start the designer on another --port"
+            ) from None
+        threading.Thread(target=httpd.serve_forever, daemon=True).start()
+        _DASHBOARDS[url] = own.url("127.0.0.1")
         return _DASHBOARDS[url]
+
+
+class _Refused(RequestHandler):
+    """The answer to a request the guard refuses (403, one line) or logs in (302 + cookie)."""
+
+    def initialize(self, verdict: Verdict, guard: Guard) -> None:
+        self.verdict = verdict
+        self.guard = guard
+
+    def prepare(self) -> None:
+        if self.verdict.action == "login":
+            self.set_header("Set-Cookie", self.guard.set_cookie())
+            self.redirect(self.verdict.location)
+            return
+        self.set_status(403)
+        self.set_header("Content-Type", "text/plain; charset=utf-8")
+        self.finish(self.verdict.reason)
+
+
+def install_guard(server, guard: Guard) -> None:
+    """Put ``guard`` before every route of the designer's server: each HTTP request and
+    websocket is checked (Host, Origin, token) before Bokeh or Panel sees it.
+
+    Bokeh's server keeps its Tornado application in ``_tornado`` (Panel reads it the same
+    way); its router is replaced by one that asks the guard first.
+    """
+    app = server._tornado
+    find = app.find_handler
+
+    def find_handler(request, **kwargs):
+        verdict = guard.check(
+            request.headers.get("Host"),
+            request.headers.get("Origin"),
+            request.path,
+            request.query,
+            request.headers.get("Cookie"),
+        )
+        if verdict.action == "pass":
+            return find(request, **kwargs)
+        return app.get_handler_delegate(request, _Refused, {"verdict": verdict, "guard": guard})
+
+    app.find_handler = find_handler
 
 
 def run_server(
@@ -925,16 +990,19 @@ def run_server(
     out_dir: Path,
     show: bool,
     ready=None,
+    allow_hosts: tuple[str, ...] = (),
+    storages: tuple[str, ...] = (),
 ):
     """Check the files once (a bad file fails here, before the server starts), then serve."""
     from fuzzyservo.io.paths import data_root
 
-    folders = Folders.make(data_root(), out_dir, Path.cwd())
+    folders = Folders.make(data_root(), out_dir, Path.cwd(), storages=storages)
     Session.open(folders, rig, controller)  # raises ConfigError for a bad file
+    state: dict[str, Guard] = {}
 
     def page():
         session = Session.open(folders, rig, controller)
-        return Designer(session, dashboard_port=port + 1).view()
+        return Designer(session, guard=state["guard"]).view()
 
     pn.extension("tabulator", raw_css=[CSS], notifications=False)
     try:
@@ -942,8 +1010,11 @@ def run_server(
             {"/": page},
             port=port,
             address=host,
-            websocket_origin=[f"{host}:{port}", f"localhost:{port}"],
-            show=show,
+            # Bokeh's own origin list, kept as a second check (it takes no [v6] names)
+            websocket_origin=[
+                f"{h}:{port}" for h in (*LOOPBACK, host, *allow_hosts) if "[" not in h
+            ],
+            show=False,
             start=False,
             title="fuzzyservo designer",
             verbose=False,
@@ -952,10 +1023,23 @@ def run_server(
         raise FuzzyservoError(
             f"cannot listen on {host}:{port} ({exc.strerror or exc}); give another --port"
         ) from None
-    print(f"fuzzyservo designer on http://{host}:{server.port}/ (Ctrl-C stops it)", flush=True)
+    guard = state["guard"] = Guard.make(server.port, host, allow_hosts)
+    install_guard(server, guard)
+    url = guard.url(host)
+    print(f"fuzzyservo designer on {url} (Ctrl-C stops it)", flush=True)
+    if host not in LOOPBACK:
+        print(
+            f"listening on {host}: any machine that reaches it and knows the address above "
+            "can drive the designer",
+            flush=True,
+        )
     server.start()
+    if show:
+        import webbrowser
+
+        webbrowser.open(url)
     if ready is not None:
-        ready(server)
+        ready(server, url)
     try:
         server.io_loop.start()
     except KeyboardInterrupt:

@@ -1,9 +1,14 @@
-"""The folders the designer may read and write, nothing else: the shipped files (package
-data), the working folder (a user's own ``rigs/`` and ``studies/``) and the output folder.
+"""The folders the designer may read and write, nothing else.
+
+It reads the shipped ``rigs/`` and ``studies/`` (package data), the working folder's
+``rigs/``, ``studies/`` and ``out/`` (a user's own files, and the studies ``fuzzyservo
+tune`` keeps there) and the output folder; it writes only to the output folder.
 
 Every path the page names (open, save, a study's SQLite storage) goes through
 :meth:`Folders.resolve`, which resolves links and ``..`` first and refuses anything
-that does not land inside one of the allowed folders.
+that does not land inside one of the allowed folders; a storage URL of any other
+database goes through :meth:`Folders.storage_url`, which takes only the URLs the
+command line (``--storage``) or a study file named.
 """
 
 from __future__ import annotations
@@ -13,7 +18,19 @@ from pathlib import Path
 
 from fuzzyservo.errors import ConfigError
 
+
+def excerpt_text(text: str, limit: int = 80) -> str:
+    """``text`` cut to ``limit`` characters for a message (a page may send any length)."""
+    return text if len(text) <= limit else f"{text[: limit - 1]}… ({len(text)} characters)"
+
+
 CONTROLLER_SUFFIXES = (".yaml", ".yml", ".fis")
+#: the folders of a source (the working folder, the shipped files) the designer reads
+READ_FOLDERS = ("rigs", "studies")
+#: the longest name the page may give: per folder or file (bytes, as file systems count),
+#: and in all (characters)
+MAX_NAME = 255
+MAX_PATH = 1024
 
 
 @dataclass(frozen=True)
@@ -24,11 +41,22 @@ class Folders:
     project: Path
     output: Path
     work: Path | None = None
+    #: database URLs (not SQLite files) the page may open: those the command line named
+    storages: tuple[str, ...] = ()
 
     @classmethod
-    def make(cls, project: Path, output: Path, work: Path | None = None) -> Folders:
+    def make(
+        cls,
+        project: Path,
+        output: Path,
+        work: Path | None = None,
+        storages: tuple[str, ...] = (),
+    ) -> Folders:
         return cls(
-            Path(project).resolve(), Path(output).resolve(), Path(work).resolve() if work else None
+            Path(project).resolve(),
+            Path(output).resolve(),
+            Path(work).resolve() if work else None,
+            tuple(storages),
         )
 
     @property
@@ -39,7 +67,10 @@ class Folders:
 
     @property
     def roots(self) -> tuple[Path, ...]:
-        return (*self.sources, self.output)
+        """The folders read from: each source's ``rigs/`` and ``studies/``, the working
+        folder's ``out/`` and the output folder (nothing else of either source)."""
+        runs = (self.work / "out",) if self.work is not None else ()
+        return (*(s / f for s in self.sources for f in READ_FOLDERS), *runs, self.output)
 
     def find(self, folder: str, name: str) -> Path | None:
         """``<folder>/<name>.yaml`` in the first source that has it."""
@@ -60,33 +91,89 @@ class Folders:
         text = str(name).strip()
         if not text:
             raise ConfigError("no file name given; type one, e.g. my_controller.yaml")
-        given = Path(text).expanduser()
-        if given.is_absolute():
-            path = given.resolve()
-        elif write:
-            path = (self.output / given).resolve()
-        else:
-            bases = [s for s in self.sources if (s / given).exists()] or [self.sources[-1]]
-            path = (bases[0] / given).resolve()
+        if len(text) > MAX_PATH or any(len(part.encode()) > MAX_NAME for part in Path(text).parts):
+            raise ConfigError(
+                f"too long for a file name ({len(text)} characters); give a name of at most "
+                f"{MAX_NAME} characters per folder and {MAX_PATH} in all",
+                file=excerpt_text(text),
+            )
+        try:
+            given = Path(text).expanduser()
+            if given.is_absolute():
+                path = given.resolve()
+            elif write:
+                path = (self.output / given).resolve()
+            else:
+                bases = [s for s in self.sources if (s / given).exists()] or [self.sources[-1]]
+                path = (bases[0] / given).resolve()
+        except (OSError, RuntimeError) as exc:  # a name too long, a link loop, no home folder
+            raise ConfigError(
+                f"not a usable file name ({getattr(exc, 'strerror', None) or exc}); give a "
+                "shorter name inside the designer's folders",
+                file=excerpt_text(text),
+            ) from None
         allowed = (self.output,) if write else self.roots
         if not any(path.is_relative_to(root) for root in allowed):
             where = " or ".join(str(r) for r in allowed)
             raise ConfigError(
                 f"outside the designer's folders; the designer {'writes' if write else 'reads'} "
                 f"only inside {where}",
-                file=text,
+                file=excerpt_text(text),
             )
         return path
+
+    def storage_url(
+        self, url: str, named: tuple[str, ...] = (), study: str = ""
+    ) -> tuple[str, Path | None]:
+        """A study storage URL the page may open: a SQLite file inside the folders (its
+        resolved path, which must exist: the designer creates no database), or a database
+        URL that the command line (``--storage``) or ``named`` (the study file's own
+        ``storage:``) gave, word for word (``study`` names it in the error when the
+        file is missing). Returns the URL to open and the SQLite path.
+        Every SQLAlchemy dialect is read as SQLAlchemy reads it, so no spelling
+        (``sqlite+pysqlite:``, a ``file:`` URI, a query) gets around the check."""
+        from sqlalchemy.engine import make_url
+        from sqlalchemy.exc import ArgumentError
+
+        text = url.strip()
+        try:
+            parsed = make_url(text)
+        except (ArgumentError, ValueError):
+            raise ConfigError(
+                "not a storage URL; give sqlite:///path/to/study.db or a URL the designer "
+                "was started with (--storage)",
+                file=excerpt_text(text),
+            ) from None
+        if parsed.get_backend_name() != "sqlite":
+            if text in (*self.storages, *named):
+                return text, None
+            raise ConfigError(
+                "a database server the designer was not started with; restart it with "
+                f"--storage {excerpt_text(text)} to open it from the page",
+                file=excerpt_text(text),
+            )
+        database = parsed.database or ""
+        if parsed.query or not database or database == ":memory:" or database.startswith("file:"):
+            raise ConfigError(
+                "give a SQLite file as sqlite:///path/to/study.db (no query, no memory or "
+                "file: URI database)",
+                file=excerpt_text(text),
+            )
+        path = self.resolve(database)
+        if not path.is_file():
+            command = f"fuzzyservo tune {study}".strip()
+            raise ConfigError(f"no study database here; run '{command}' first", file=str(path))
+        return f"sqlite:///{path}", path
 
     def controller_path(self, name: str, *, write: bool = False) -> Path:
         path = self.resolve(name, write=write)
         if path.suffix.lower() not in CONTROLLER_SUFFIXES:
             raise ConfigError(
                 f"a controller file ends in {', '.join(CONTROLLER_SUFFIXES)}; rename it",
-                file=str(name),
+                file=excerpt_text(str(name)),
             )
         if not write and not path.is_file():
-            raise ConfigError("file not found; check the name", file=str(name))
+            raise ConfigError("file not found; check the name", file=excerpt_text(str(name)))
         return path
 
     def controller_files(self) -> list[str]:

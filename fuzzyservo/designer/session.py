@@ -12,6 +12,8 @@ from __future__ import annotations
 import copy
 import math
 import time
+from collections.abc import Iterator
+from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -328,7 +330,8 @@ class Session:
         path = self.folders.controller_path(name, write=True)
         if path.suffix.lower() == ".fis":
             raise ConfigError("use 'Save .fis' for a .fis file", file=name)
-        return write_controller_file(self.data, path)
+        with _writing(path):
+            return write_controller_file(self.data, path)
 
     def save_fis(self, name: str) -> Path:
         """Write the inference system as a MATLAB .fis file inside the output folder."""
@@ -337,8 +340,9 @@ class Session:
         path = self.folders.controller_path(name, write=True)
         if path.suffix.lower() != ".fis":
             raise ConfigError("a .fis file name ends in .fis", file=name)
-        path.parent.mkdir(parents=True, exist_ok=True)
-        return write_fis(self.controller.system, path)
+        with _writing(path):
+            path.parent.mkdir(parents=True, exist_ok=True)
+            return write_fis(self.controller.system, path)
 
     def yaml_text(self) -> str:
         from fuzzyservo.io.controllers import controller_yaml
@@ -370,30 +374,35 @@ class Session:
     def open_study(self, study: str, url: str | None = None, top: int = TOP_TRIALS) -> StudyView:
         """The best complete trials of a study's storage (read only: an absent database is an error)."""
         spec = self._study_spec(study)
-        url = (url or self.default_storage(study)).strip()
-        if url.startswith("sqlite:"):
-            file = url.split(":///", 1)[-1] if ":///" in url else ""
-            path = self.folders.resolve(file)
-            if not path.is_file():
-                raise ConfigError(
-                    f"no study database here; run 'fuzzyservo tune {study}' first", file=file
-                )
-            url = f"sqlite:///{path}"
+        given = (url or self.default_storage(study)).strip()
+        named = (spec.storage,) if spec.storage else ()
+        url, path = self.folders.storage_url(given, named, study=study)
         import optuna
+        from optuna.exceptions import OptunaError
         from optuna.trial import TrialState
         from sqlalchemy.exc import SQLAlchemyError
 
         from fuzzyservo.tuning.runner import driver_url, trial_counts
 
         optuna.logging.set_verbosity(optuna.logging.WARNING)
+        # a SQLite file is opened read-only: looking at a study never changes its database
+        if path is not None:
+            from urllib.parse import quote
+
+            opened = f"sqlite:///file:{quote(str(path))}?mode=ro&uri=true"
+        else:
+            opened = driver_url(url)
         try:
-            loaded = optuna.load_study(study_name=spec.name, storage=driver_url(url))
+            loaded = optuna.load_study(study_name=spec.name, storage=opened)
         except KeyError:
             raise ConfigError(f"the storage holds no study named {spec.name!r}", file=url) from None
-        except (SQLAlchemyError, ValueError, ImportError) as exc:
-            first = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
+        except (SQLAlchemyError, OptunaError, ValueError, ImportError) as exc:
+            first = (
+                str(exc).strip().splitlines()[0][:120] if str(exc).strip() else type(exc).__name__
+            )
             raise ConfigError(
-                f"cannot open the storage ({first}); check the URL and that the server runs",
+                f"cannot open the storage ({first}); check that it is a study database "
+                "(fuzzyservo tune writes one) and that its server runs",
                 file=url,
             ) from None
         trials = loaded.get_trials(deepcopy=False, states=(TrialState.COMPLETE,))
@@ -431,10 +440,32 @@ class Session:
 
 
 # ---------------------------------------------------------------------- helpers
+@contextmanager
+def _writing(path: Path) -> Iterator[None]:
+    """A failed write (a full disk, no permission, a folder in the way) as one line."""
+    try:
+        yield
+    except OSError as exc:
+        raise ConfigError(
+            f"cannot write the file ({exc.strerror or exc}); free space or choose another name",
+            file=str(path),
+        ) from None
+
+
 def build(data: dict[str, Any], source: str) -> FuzzyController:
-    """The fuzzy controller a mapping describes (checked as a file would be)."""
+    """The fuzzy controller a mapping describes (checked as a file would be).
+
+    The kind is checked first: the designer builds fuzzy controllers only, so no other
+    kind's files (an FMU's native library above all) are opened for a page."""
     from fuzzyservo.io.controllers import controller_from_data
 
+    kind = data.get("kind") if isinstance(data, dict) else None
+    if kind != "fuzzy":
+        raise ConfigError(
+            f"is a {str(kind)[:40]} controller; the designer edits 'kind: fuzzy' files "
+            "and opens no other kind's files",
+            file=source,
+        )
     controller = controller_from_data(data, source)
     if not isinstance(controller, FuzzyController):
         raise ConfigError(

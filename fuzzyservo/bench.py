@@ -22,7 +22,7 @@ if TYPE_CHECKING:
 
 import numpy as np
 
-from fuzzyservo.errors import ConfigError
+from fuzzyservo.errors import ConfigError, did_you_mean
 from fuzzyservo.io.paths import data_root
 from fuzzyservo.results import Result
 from fuzzyservo.simulation import SimResult, simulate
@@ -512,7 +512,10 @@ def benchmark(
     wanted = list(cases or REGISTRY)
     unknown = [c for c in wanted if c not in REGISTRY]
     if unknown:
-        raise ConfigError(f"unknown bench case {unknown[0]!r}; known: {', '.join(REGISTRY)}")
+        raise ConfigError(
+            f"unknown bench case {unknown[0]!r}; {did_you_mean(unknown[0], REGISTRY)}"
+            f"known: {', '.join(REGISTRY)}"
+        )
     results = []
     for name in wanted:
         if progress is not None:

@@ -12,6 +12,7 @@ import argparse
 import math
 import os
 import sys
+import time
 from collections.abc import Sequence
 from pathlib import Path
 from typing import NoReturn
@@ -218,6 +219,7 @@ def cmd_tune(args: argparse.Namespace) -> int:
     summary = read_json(paths["summary"])  # as written
     print(tuning_text(outcome, summary))
     print(f"report: {paths['report']}")
+    print(f"the command took {_took()} (the optimisation {_took(outcome.wall_s)})")
     _json(args.json, summary)
     return 0
 
@@ -330,10 +332,11 @@ def cmd_calibrate(args: argparse.Namespace) -> int:
     out = out or _out_dir(str(Path("out") / f"calibrate_{rig.name}_{stem}"))
     paths = write_calibration(result, out, ", ".join(Path(d).name for d in args.data))
     print(result.text())
-    print(f"calibrated in {result.outcome.seconds:.1f} s; report: {paths['report']}")
+    print(f"report: {paths['report']}")
     if "rig" in paths:
         print(f"calibrated rig: {paths['rig']}")
     _json(args.json, read_json(paths["summary"]))  # summary.json as written
+    print(f"the command took {_took()} (the search {_took(result.outcome.seconds)})")
     return 0
 
 
@@ -357,6 +360,14 @@ class _Parser(argparse.ArgumentParser):
     """argparse with its errors on one line (what, and where to read the usage)."""
 
     def error(self, message: str) -> NoReturn:
+        import re
+
+        from fuzzyservo.errors import did_you_mean
+
+        choice = re.search(r"invalid choice: '([^']*)' \(choose from (.*)\)", message)
+        if choice:  # a misspelt command or choice: name the closest
+            hint = did_you_mean(choice.group(1), re.findall(r"'([^']*)'", choice.group(2)))
+            message = message.replace("(choose from", f"({hint}choose from") if hint else message
         self.exit(EXIT_USAGE, f"{self.prog}: error: {message}; see {self.prog} --help\n")
 
 
@@ -560,6 +571,9 @@ def build_parser() -> argparse.ArgumentParser:
         prog="fuzzyservo",
         description="Design, simulate and tune controllers for electro-hydraulic servo systems.",
     )
+    from fuzzyservo import __version__
+
+    parser.add_argument("--version", action="version", version=f"fuzzyservo {__version__}")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=_Parser)
     for name, text, func, arguments in COMMANDS:
         p = sub.add_parser(name, help=text)
@@ -569,14 +583,42 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+def _took(seconds: float | None = None) -> str:
+    """``seconds`` (default: the time since :func:`main` started, the command's own) as text."""
+    from fuzzyservo.display import elapsed_text
+
+    return elapsed_text(time.perf_counter() - _STARTED[0] if seconds is None else seconds)
+
+
+_STARTED = [time.perf_counter()]
+
+
+def _show_warning(message, category, filename, lineno, file=None, line=None) -> None:
+    """A :class:`~fuzzyservo.errors.FileWarning` as one line; others as Python shows them."""
+    import warnings
+
+    from fuzzyservo.errors import FileWarning
+
+    if issubclass(category, FileWarning):  # a file read with a repair
+        print(f"fuzzyservo: warning: {message}", file=sys.stderr)
+    else:
+        print(warnings.formatwarning(message, category, filename, lineno, line), end="",
+              file=sys.stderr if file is None else file)  # fmt: skip
+
+
 def main(argv: Sequence[str] | None = None) -> int:
+    import warnings
+
+    _STARTED[0] = time.perf_counter()
     parser = build_parser()
     args = parser.parse_args(argv)
     if not getattr(args, "func", None):
         parser.print_help()
         return EXIT_USAGE
     try:
-        return args.func(args)
+        with warnings.catch_warnings():
+            warnings.showwarning = _show_warning
+            return args.func(args)
     except FuzzyservoError as exc:
         print(f"fuzzyservo: error: {exc}", file=sys.stderr)
         return EXIT_USAGE

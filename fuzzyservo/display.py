@@ -157,23 +157,59 @@ def metric_units(source: SimResult | object) -> MetricUnits:
     return MetricUnits(si, source.display_units.get(name) or preferred_unit(si))
 
 
+#: every aggregate metric is a cost: the lower value is the better one
+LOWER_IS_BETTER = "lower is better for every metric"
+
+
+def elapsed_text(seconds: float) -> str:
+    """A duration as a person reads it: ``4.6 s``, ``1.5 min``."""
+    return f"{seconds / 60:.1f} min" if seconds >= 120 else f"{seconds:.3g} s"
+
+
+def change_text(before: float | None, after: float | None) -> str:
+    """``after`` against ``before`` (SI values of one metric) as a signed percentage with
+    the better direction named: ``-75.3 % better``; ``n/a`` when either is undefined or
+    ``before`` is zero (no ratio), ``same`` when both are rounding noise."""
+    b = math.nan if before is None else before
+    a = math.nan if after is None else after
+    if not (math.isfinite(b) and math.isfinite(a)):
+        return "n/a"
+    if abs(b) < 1e-9 and abs(a) < 1e-9:
+        return "same"
+    if abs(b) < 1e-9 or abs(a) > 1e6 * abs(b):
+        # e.g. an overshoot of 1e-13 % (rounding noise) against a real one: no ratio to show
+        return "worse (from 0)" if a > b else "n/a"
+    pct = 100.0 * (a - b) / abs(b)
+    word = "same" if abs(pct) < 0.05 else "better" if a < b else "worse"
+    return f"{pct:+.1f} % {word}" if word != "same" else "same"
+
+
 def metrics_table(
     names: Sequence[str],
     rows: Sequence[Mapping[str, float]],
     units: MetricUnits,
     metrics: Sequence[str] | None = None,
+    change: bool = False,
 ) -> str:
     """A plain-text table: one row per metric (``metrics``, default all, labelled with
-    its display unit), one column per run (``rows``: SI values by metric)."""
-    header = ["metric", *names]
+    its display unit), one column per run (``rows``: SI values by metric); with
+    ``change``, a last column of the second run against the first (:func:`change_text`)."""
+    header = ["metric", *names, *(["change"] if change else [])]
     shown = METRIC_NAMES if metrics is None else metrics
     lines = [
-        [units.label(m), *(format_value(units.value(m, r.get(m))) for r in rows)] for m in shown
+        [
+            units.label(m),
+            *(format_value(units.value(m, r.get(m))) for r in rows),
+            *([change_text(rows[0].get(m), rows[1].get(m))] if change else []),
+        ]
+        for m in shown
     ]
     widths = [max(len(row[i]) for row in [header, *lines]) for i in range(len(header))]
-    out = ["  ".join(h.ljust(w) for h, w in zip(header, widths, strict=True))]
+    out = ["  ".join(h.ljust(w) for h, w in zip(header, widths, strict=True)).rstrip()]
     out.append("  ".join("-" * w for w in widths))
-    out += ["  ".join(c.ljust(w) for c, w in zip(row, widths, strict=True)) for row in lines]
+    out += [
+        "  ".join(c.ljust(w) for c, w in zip(row, widths, strict=True)).rstrip() for row in lines
+    ]
     return "\n".join(out)
 
 
@@ -247,13 +283,16 @@ def saturated_spans(result: SimResult) -> list[tuple[float, float]]:
 
 __all__ = [
     "CONTROLLER_COLOURS",
+    "LOWER_IS_BETTER",
     "PRESSURE_COLOURS",
     "TRIAL_COUNTS_NOTE",
     "MetricUnits",
     "axis_label",
+    "change_text",
     "controller_colour",
     "display_scale",
     "display_unit",
+    "elapsed_text",
     "metric_units",
     "metrics_table",
     "preferred_unit",

@@ -6,6 +6,7 @@ Every message says what is wrong, where (file and key), the value, and the fix, 
 from __future__ import annotations
 
 import importlib
+from collections.abc import Iterable
 from types import ModuleType
 
 
@@ -42,6 +43,12 @@ class WorkerError(FuzzyservoError, RuntimeError):
     """Parallel work that cannot go on: local worker processes that keep dying."""
 
 
+class FileWarning(UserWarning):
+    """A file read the way its own tool reads it, where that differs from what it says (a
+    MATLAB ``.fis`` whose ``MF2`` is given twice: the second is read as ``MF3``). The
+    command line prints it as one ``fuzzyservo: warning:`` line."""
+
+
 class MissingExtraError(FuzzyservoError, ImportError):
     """A feature whose optional dependencies (an install extra) are not installed."""
 
@@ -58,3 +65,12 @@ def require(module: str, extra: str, purpose: str) -> ModuleType:
             f"{purpose} needs the '{extra}' extra, which is not installed ({exc.name or module} "
             f"missing): pip install 'fuzzyservo[{extra}]' (or -e '.[{extra}]' in a clone)"
         ) from None
+
+
+def did_you_mean(name: object, known: Iterable[str]) -> str:
+    """``"did you mean 'steps'? "`` for the known name closest to a misspelt ``name`` (to
+    put before the list of known names in a message), ``""`` when none is close."""
+    import difflib
+
+    close = difflib.get_close_matches(str(name), [str(k) for k in known], n=1, cutoff=0.6)
+    return f"did you mean {close[0]!r}? " if close else ""

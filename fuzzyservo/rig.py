@@ -12,7 +12,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from fuzzyservo.components.effects import LIBRARY, Scales, fixed_defaults
-from fuzzyservo.errors import ConfigError
+from fuzzyservo.errors import ConfigError, did_you_mean
 from fuzzyservo.params import check
 from fuzzyservo.plants import PlantModel
 from fuzzyservo.signals import Constant, Signal
@@ -224,7 +224,8 @@ class Rig:
             return next(iter(self.scenarios.values()))
         if name not in self.scenarios:
             raise ConfigError(
-                f"unknown scenario {name!r}; this rig has {', '.join(self.scenarios)}",
+                f"unknown scenario {name!r}; {did_you_mean(name, self.scenarios)}this rig has "
+                f"{', '.join(self.scenarios)}",
                 file=self.path or None,
                 key="scenarios",
             )
@@ -252,7 +253,9 @@ class Rig:
         """A copy with effect ``name`` declared: ``values`` by parameter key (SI); fixed
         parameters not given take their library default."""
         if name not in LIBRARY:
-            raise KeyError(f"unknown effect {name!r}; choose one of {sorted(LIBRARY)}")
+            raise KeyError(
+                f"unknown effect {name!r}; {did_you_mean(name, LIBRARY)}choose one of {sorted(LIBRARY)}"
+            )
         refusal = self.plant.refusal(name)
         if refusal:
             raise ValueError(refusal)

@@ -260,7 +260,6 @@ BAD = {
     "MF params order": (edit("[0 5 10]", "[10 5 0]"), "[Output1].MF1", "in order"),
     "MF param text": (edit("[0 5 10]", "[0 five 10]"), "[Output1].MF1", "'five'"),
     "MF param inf": (edit("[0 5 10]", "[0 5 Inf]"), "[Output1].MF1", "finite"),
-    "MF gap": (edit("MF3='excellent'", "MF4='excellent'"), "[Input1].MF4", "MF3"),
     "range reversed": (edit("Range=[0 30]", "Range=[30 0]"), "[Output1].Range", "low"),
     "range empty": (edit("Range=[0 30]", "Range=[5 5]"), "[Output1].Range", "low"),
     "range one number": (edit("Range=[0 30]", "Range=[30]"), "[Output1].Range", "two numbers"),
@@ -358,3 +357,21 @@ def test_cli_turns_a_bad_fis_into_one_line(tmp_path, capsys):
     assert main(["compare", "dinca_cylinder", str(bad), "--out", str(tmp_path / "o")]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and str(bad) in err[0] and "my_custom_mf" in err[0]
+
+
+def test_mf_lines_are_read_in_order_as_matlab_does(tmp_path):
+    """A key that names another number than its line's place (a gap, a number given twice)
+    is read by its place, as MATLAB reads MF lines, with a warning naming the line."""
+    from fuzzyservo.errors import FileWarning
+
+    path = tmp_path / "gap.fis"
+    path.write_text(edit("MF3='excellent'", "MF4='excellent'"), encoding="utf-8")
+    with pytest.warns(FileWarning, match=r"\[Input1\]\.MF4 \(line \d+\): read as MF3"):
+        system = read_fis(path)
+    assert system == read_fis_text_quietly(BASE)
+
+
+def read_fis_text_quietly(text: str):
+    from fuzzyservo.io.fis import parse_fis
+
+    return parse_fis(text, "base.fis")

@@ -15,7 +15,7 @@ from fuzzyservo.calibration.null import DRAWS
 from fuzzyservo.calibration.replay import Replay
 from fuzzyservo.calibration.search import Outcome, candidate_effects
 from fuzzyservo.components.effects import LIBRARY
-from fuzzyservo.errors import ConfigError
+from fuzzyservo.errors import ConfigError, did_you_mean
 from fuzzyservo.metrics import format_value
 from fuzzyservo.results import Result, json_ready
 
@@ -132,7 +132,10 @@ def prepare(
     fields = per_record_fields(rig, per_record)
     for e in effects or ():
         if e not in LIBRARY:
-            raise ConfigError(f"--effects: unknown effect {e!r}; choose from {', '.join(LIBRARY)}")
+            raise ConfigError(
+                f"--effects: unknown effect {e!r}; {did_you_mean(e, LIBRARY)}"
+                f"choose from {', '.join(LIBRARY)}"
+            )
     replays = [make_replay(rig, d, controller) for d in records]
     replay = joint_replay(replays, rig, fields) if several or fields else replays[0]
     return Calibration(rig, replay, records, None if effects is None else tuple(effects))

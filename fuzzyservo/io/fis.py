@@ -53,6 +53,7 @@ from __future__ import annotations
 
 import math
 import re
+import warnings
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import NoReturn
@@ -76,7 +77,7 @@ from fuzzyservo.controllers.fuzzy.system import (
     from_matlab,
     to_matlab,
 )
-from fuzzyservo.errors import ConfigError
+from fuzzyservo.errors import ConfigError, FileWarning
 
 __all__ = [
     "controller_from_fis", "controller_from_law", "fis_text", "law_text", "parse_fis",
@@ -213,6 +214,9 @@ class _Reader:
                     f"[{current.name}]",
                     number,
                 )
+            mf = _MF_KEY.match(key) if current.name != "System" else None
+            if mf is not None:
+                key = self._mf_in_order(current, key, number)
             if key in current.entries:
                 self.fail(
                     f"{key} is given twice (first at line {current.entries[key].number}); "
@@ -222,6 +226,21 @@ class _Reader:
                 )
             current.entries[key] = _Line(value, number)
         return sections
+
+    def _mf_in_order(self, section: _Section, key: str, number: int) -> str:
+        """MATLAB reads a variable's MF lines in order: the k-th is MF k whatever its key
+        says. A key that names another number (``MF2`` given twice, a gap) is read as
+        MATLAB reads it, with a warning naming the line."""
+        k = 1 + sum(1 for name in section.entries if _MF_KEY.match(name))
+        if key != f"MF{k}":
+            warnings.warn(
+                f"{self.file}: [{section.name}].{key} (line {number}): read as MF{k}, the "
+                f"{_ordinal(k)} membership function line, as MATLAB reads them in order; "
+                f"renumber it MF{k}",
+                FileWarning,
+                stacklevel=2,
+            )
+        return f"MF{k}"
 
     def _settings(self, text: str, current: _Section | None, number: int) -> None:
         """``key=value`` pairs of a ``% fuzzyservo:`` line; ``points`` per section."""
@@ -324,6 +343,10 @@ class _Reader:
         return value.lower()
 
 
+def _ordinal(k: int) -> str:
+    return f"{k}{'th' if 10 <= k % 100 <= 20 else {1: 'st', 2: 'nd', 3: 'rd'}.get(k % 10, 'th')}"
+
+
 def _with_fix(exc: ValueError, fix: str) -> str:
     """A model's validation message, with ``fix`` appended when it names none."""
     message = str(exc)
@@ -374,14 +397,6 @@ def _variable(
             where,
             section.number,
         )
-    for expected, (n, key) in enumerate(numbered, start=1):
-        if n != expected:
-            reader.fail(
-                f"membership functions must be numbered MF1, MF2, … without gaps, found {key} "
-                f"where MF{expected} was expected; renumber them",
-                f"{where}.{key}",
-                section.entries[key].number,
-            )
     _count(reader, section, "NumMFs", len(numbered), "membership functions")
     sugeno_output = sugeno and section.name.startswith("Output")
     terms = [_term(reader, section, key, sugeno_output) for _, key in numbered]

@@ -12,7 +12,7 @@ from __future__ import annotations
 import re
 from pathlib import Path
 
-from fuzzyservo.errors import ConfigError
+from fuzzyservo.errors import ConfigError, did_you_mean
 
 _PACKAGE = Path(__file__).resolve().parent.parent
 
@@ -54,7 +54,10 @@ def find_file(name: str, folder: str, what: str, *, relative_to: Path | None = N
         if candidate.is_file():
             return candidate
     known = sorted({p.stem for base in search_dirs() for p in (base / folder).glob("*.yaml")})
-    raise ConfigError(f"no {what} named {name!r}; known: {', '.join(known) or 'none'}", file=name)
+    raise ConfigError(
+        f"no {what} named {name!r}; {did_you_mean(name, known)}known: {', '.join(known) or 'none'}",
+        file=name,
+    )
 
 
 def shipped_or_path(name: str | Path, folder: str, what: str) -> str | Path:

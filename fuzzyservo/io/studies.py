@@ -50,7 +50,7 @@ import re
 from pathlib import Path
 from typing import Any
 
-from fuzzyservo.errors import ConfigError
+from fuzzyservo.errors import ConfigError, did_you_mean
 from fuzzyservo.io._yaml import Node, read_yaml
 from fuzzyservo.io.controllers import load_controller
 from fuzzyservo.io.paths import find_file
@@ -136,7 +136,8 @@ def load_study(path: str | Path) -> Study:
             root.fail(str(exc), key=f"constraints[{n}]")
         if c.metric not in (*METRIC_NAMES, *MARGIN_METRICS):
             root.fail(
-                f"unknown metric {c.metric!r}; choose one of "
+                f"unknown metric {c.metric!r}; "
+                f"{did_you_mean(c.metric, (*METRIC_NAMES, *MARGIN_METRICS))}choose one of "
                 f"{', '.join((*METRIC_NAMES, *MARGIN_METRICS))}",
                 key=f"constraints[{n}]",
             )
@@ -351,8 +352,8 @@ def _uncertainty(node: Node, rig: Any, scenarios: tuple[str, ...]) -> Any:
         node.fail(f"must be a whole number >= 1, got {samples}", key="samples")
     margin_scenario = node.str("margin_scenario", default=scenarios[0])
     if margin_scenario not in rig.scenarios:
-        node.fail(f"unknown scenario {margin_scenario!r}; the rig has {', '.join(rig.scenarios)}",
-                  key="margin_scenario")  # fmt: skip
+        node.fail(f"unknown scenario {margin_scenario!r}; {did_you_mean(margin_scenario, rig.scenarios)}"
+                  f"the rig has {', '.join(rig.scenarios)}", key="margin_scenario")  # fmt: skip
     try:
         u = Uncertainty(
             parameters=tuple(dists), samples=int(samples), seed=seed, noise=noise,

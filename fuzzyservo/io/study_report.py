@@ -24,8 +24,11 @@ from typing import Any
 
 from fuzzyservo.analysis.robustness import SUMMARY_METRICS, comparison_text
 from fuzzyservo.display import (
+    LOWER_IS_BETTER,
     TRIAL_COUNTS_NOTE,
     MetricUnits,
+    change_text,
+    elapsed_text,
     metric_units,
     metrics_table,
     trial_counts_text,
@@ -42,8 +45,6 @@ CONTROLLER_FILE = "best_controller.yaml"
 FIS_FILE = "best_controller.fis"
 SUMMARY_FILE = "summary.json"
 REPORT_FILE = "report.md"
-# metric values below this are rounding noise (e.g. a 1e-14 % overshoot of a creeping response)
-_NOISE = 1e-9
 
 
 def write_outputs(
@@ -128,7 +129,13 @@ def tuning_text(outcome: Outcome, summary: dict[str, Any]) -> str:
     units = metric_units(outcome.spec.rig)
     best, base = outcome.best, outcome.baseline
     rows = [base.metrics, best.metrics]
-    lines = [f"trials: {_counts(outcome)}", metrics_table(["baseline", "best"], rows, units)]
+    names = [f"baseline {outcome.spec.baseline.name}", "best"]
+    lines = [
+        f"trials: {_counts(outcome)}",
+        f"metrics, worst over the scenarios{' and samples' if outcome.spec.uncertainty else ''}"
+        f" ({LOWER_IS_BETTER}; change: best against the baseline):",
+        metrics_table(names, rows, units, change=True),
+    ]
     if note := undefined_note(METRIC_NAMES, rows):
         lines.append(note)
     values = [", ".join(format_value(v) for v in e.values) for e in (best, base)]
@@ -346,9 +353,9 @@ def _split_text(outcome: Outcome) -> str:
     recorded: simulation and the rest)."""
     if not outcome.sampler_time_s:
         rest_s = max(0.0, outcome.worker_time_s - outcome.sim_time_s)
-        return (f"simulation {_duration(outcome.sim_time_s)}, sampler, storage and controller "
-                f"building {_duration(rest_s)}")  # fmt: skip
-    return ", ".join(f"{k} {_duration(v)}" for k, v in time_split(outcome).items())
+        return (f"simulation {elapsed_text(outcome.sim_time_s)}, sampler, storage and controller "
+                f"building {elapsed_text(rest_s)}")  # fmt: skip
+    return ", ".join(f"{k} {elapsed_text(v)}" for k, v in time_split(outcome).items())
 
 
 def time_split(outcome: Outcome) -> dict[str, float]:
@@ -515,7 +522,8 @@ def _report(
         ),
         f"| sampler | {sampler} |",
         f"| trials | {_trials_text(outcome)} |",
-        f"| wall time (this run) | {_duration(outcome.wall_s)} |",
+        f"| optimisation time (this run) | {elapsed_text(outcome.wall_s)} (compiling and the "
+        "trials; not the check on fresh samples nor this report) |",
         f"| time in trials | {_split_text(outcome)} (summed over the stored trials) |",
         f"| storage | `{outcome.storage_url}` |",
         "",
@@ -649,25 +657,19 @@ def _metrics_table(
     base: dict[str, float], best: dict[str, float], base_name: str, units: MetricUnits
 ) -> list[str]:
     """Baseline and best side by side in display units; the ``n/a`` ones explained under it."""
-    lines = [f"| metric | baseline ({base_name}) | best | change |", "|---|---:|---:|---:|"]
+    lines = [
+        "Lower is better for every metric; change is the best against the baseline.",
+        "",
+        f"| metric | baseline ({base_name}) | best | change |",
+        "|---|---:|---:|---:|",
+    ]
     for m in METRIC_NAMES:
         b, n = base.get(m, math.nan), best.get(m, math.nan)
         unit = units.unit(m)
         lines.append(f"| `{m}`{f' [{unit}]' if unit else ''} | {_num(units.value(m, b))} | "
-                     f"{_num(units.value(m, n))} | {_change(b, n)} |")  # fmt: skip
+                     f"{_num(units.value(m, n))} | {change_text(b, n)} |")  # fmt: skip
     note = undefined_note(METRIC_NAMES, [base, best])
     return [*lines, "", *([note, ""] if note else [])]
-
-
-def _change(base: float, best: float) -> str:
-    if not (math.isfinite(base) and math.isfinite(best)):
-        return "n/a"
-    if abs(base) < _NOISE and abs(best) < _NOISE:
-        return "0 %"
-    if base == 0 or abs(best) > 1e6 * abs(base):
-        # e.g. an overshoot of 1e-13 % (rounding noise) against a real one: no ratio to show
-        return "n/a"
-    return f"{100.0 * (best - base) / abs(base):+.1f} %"
 
 
 def _same(a: tuple[float, ...], b: tuple[float, ...]) -> bool:
@@ -687,9 +689,3 @@ def _num(value: float | None, missing: str = "n/a") -> str:
 def _values_text(values: tuple[float, ...] | list[float]) -> str:
     text = ", ".join(_num(v) for v in values)
     return text if len(values) == 1 else f"({text})"
-
-
-def _duration(seconds: float) -> str:
-    if seconds >= 120:
-        return f"{seconds / 60:.1f} min"
-    return f"{seconds:.3g} s"

@@ -23,7 +23,7 @@ from collections.abc import Mapping
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING
 
-from fuzzyservo.errors import ConfigError
+from fuzzyservo.errors import ConfigError, did_you_mean
 from fuzzyservo.tuning.uncertainty import Uncertainty
 
 if TYPE_CHECKING:
@@ -225,8 +225,8 @@ class Study:
         for n, name in enumerate(self.scenarios):
             if name not in self.rig.scenarios:
                 raise ConfigError(
-                    f"unknown scenario {name!r}; rig {self.rig.name} has "
-                    f"{', '.join(self.rig.scenarios)}",
+                    f"unknown scenario {name!r}; {did_you_mean(name, self.rig.scenarios)}"
+                    f"rig {self.rig.name} has {', '.join(self.rig.scenarios)}",
                     file=file, key=f"scenarios[{n}]",
                 )  # fmt: skip
         known = self.template.params()
@@ -235,7 +235,7 @@ class Study:
             if p.path not in known:
                 raise ConfigError(
                     f"the template {self.template.name} has no searchable number {p.path!r}; "
-                    f"it has {', '.join(known) or 'none'}",
+                    f"{did_you_mean(p.path, known)}it has {', '.join(known) or 'none'}",
                     file=file, key=f"parameters.{p.path}",
                 )  # fmt: skip
             for value in (p.low, p.high):

@@ -164,6 +164,7 @@ def cmd_export(args: argparse.Namespace) -> int:
 def cmd_evaluate(args: argparse.Namespace) -> int:
     from fuzzyservo.io.evaluation import evaluate
 
+    _out_file(args.out, "--out", "out.csv")
     source = resolve(args.controller, "studies/controllers", "controller")
     result = evaluate(source, args.inputs, args.semantics)
     for note in result.notes:
@@ -579,6 +580,11 @@ def main(argv: Sequence[str] | None = None) -> int:
     except BrokenPipeError:  # output piped into head & co.
         sys.stderr.close()
         return 0
+    except OSError as exc:  # a file fault no writer or reader named: still one line
+        from fuzzyservo.atomic import file_error
+
+        print(f"fuzzyservo: error: {file_error(exc.filename, exc, 'use')}", file=sys.stderr)
+        return EXIT_USAGE
 
 
 if __name__ == "__main__":  # pragma: no cover

@@ -371,6 +371,19 @@ def _seconds(text: str) -> float:
     return value
 
 
+def _port(text: str) -> int:
+    """A ``--port``: a TCP port number (0: any free port)."""
+    from fuzzyservo.limits import port_problem
+
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a port number") from None
+    if port_problem(value):
+        raise argparse.ArgumentTypeError(port_problem(value))
+    return value
+
+
 def _arg(*names: str, **options) -> tuple[tuple[str, ...], dict]:
     return names, options
 
@@ -453,7 +466,8 @@ DESIGNER = [
     _arg("rig", nargs="?", default=DEFAULT_RIG, help=f"rig file or name (default: {DEFAULT_RIG})"),
     _arg("controller", nargs="?", default=DEFAULT_DESIGN,
          help=f"{FUZZY} (default: {DEFAULT_DESIGN})"),
-    _arg("--port", type=int, default=5006, help="port (default: 5006)"),
+    _arg("--port", type=_port, default=5006,
+         help="port, 1-65535 (default: 5006; 0: any free port)"),
     _arg("--host", default="127.0.0.1", help="address to listen on (default: 127.0.0.1)"),
     _arg("--out", default="out/designer",
          help="the only folder the app writes to (default: out/designer)"),

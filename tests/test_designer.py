@@ -198,7 +198,7 @@ def test_a_study_storage_lists_its_best_trials_to_compare_and_edit(study_out):
     with pytest.raises(ConfigError, match="fuzzyservo tune"):
         session.open_study("dinca_flc", f"sqlite:///{study_out / 'none.db'}")
     assert not (study_out / "none.db").exists()
-    with pytest.raises(ConfigError, match="cannot open or use it"):
+    with pytest.raises(ConfigError, match="cannot open the storage"):
         session.open_study("dinca_flc", "nosuchdb://user@127.0.0.1:1/x")
 
 

@@ -24,16 +24,17 @@ def serve(
 ):
     """Start the designer on ``http://host:port/`` and block until stopped (Ctrl-C).
 
-    ``rig`` and ``controller`` are files (already resolved by the caller); ``port`` 0 asks
-    for any free port; ``ready`` is called with the server once it listens (tests use it
-    to learn the port).
+    ``rig`` and ``controller`` are files (already resolved by the caller); ``ready`` is
+    called with the server once it listens (tests use it to learn the port).
     """
-    from fuzzyservo.errors import ConfigError, require
+    from fuzzyservo.errors import require
+
+    require("panel", "designer", "the designer")
+    from fuzzyservo.errors import ConfigError
     from fuzzyservo.limits import port_problem
 
-    if port_problem(port):
+    if port_problem(port):  # refused before anything listens (0: any free port)
         raise ConfigError(f"port: {port_problem(port)}")
-    require("panel", "designer", "the designer")
     from fuzzyservo.designer.app import run_server
 
     return run_server(

@@ -381,17 +381,22 @@ class Session:
             url = f"sqlite:///{path}"
         import optuna
         from optuna.trial import TrialState
+        from sqlalchemy.exc import SQLAlchemyError
 
-        from fuzzyservo.tuning.runner import driver_url, storage_error, storage_faults, trial_counts
+        from fuzzyservo.tuning.runner import driver_url, trial_counts
 
         optuna.logging.set_verbosity(optuna.logging.WARNING)
         try:
             loaded = optuna.load_study(study_name=spec.name, storage=driver_url(url))
-            trials = loaded.get_trials(deepcopy=False, states=(TrialState.COMPLETE,))
         except KeyError:
             raise ConfigError(f"the storage holds no study named {spec.name!r}", file=url) from None
-        except (*storage_faults(), ValueError, ImportError) as exc:
-            raise storage_error(url, exc) from None
+        except (SQLAlchemyError, ValueError, ImportError) as exc:
+            first = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
+            raise ConfigError(
+                f"cannot open the storage ({first}); check the URL and that the server runs",
+                file=url,
+            ) from None
+        trials = loaded.get_trials(deepcopy=False, states=(TrialState.COMPLETE,))
         ranked = sorted(
             trials,
             key=lambda t: (t.user_attrs.get("status", "ok") != "ok", t.values[0]),

@@ -19,9 +19,10 @@ from typing import NoReturn
 
 from fuzzyservo.errors import ConfigError, FuzzyservoError
 from fuzzyservo.io.jsonfile import read_json, write_json
+from fuzzyservo.io.paths import find_file as resolve  # a path, or a name under rigs/, studies/
 from fuzzyservo.io.paths import output_dir as _out_dir
 from fuzzyservo.io.paths import output_file as _out_file
-from fuzzyservo.progress import note_compiling, progress_bar
+from fuzzyservo.progress import note_compiling, progress_bar, warnings_as_lines
 from fuzzyservo.tuning import MAIN_STUDY as DEFAULT_STUDY
 
 DEFAULT_RIG = "dinca_cylinder"
@@ -32,22 +33,12 @@ EXIT_FAILED_RUN = 1
 
 
 # --------------------------------------------------------------------------- files
-def resolve(name: str, folder: str, what: str) -> Path:
-    """A path as given, or a bare name looked up as ``<folder>/<name>.yaml`` (here, then in the shipped ``rigs/`` and ``studies/``)."""
-    from fuzzyservo.io.paths import find_file
-
-    return find_file(name, folder, what)
-
-
 def _load(rig_name: str, controller_names: Sequence[str]):
+    """The rig and controllers named (paths, or shipped names: ``load_rig`` finds both)."""
     from fuzzyservo.io.controllers import load_controller
     from fuzzyservo.io.rigs import load_rig
 
-    rig = load_rig(resolve(rig_name, "rigs", "rig"))
-    controllers = [
-        load_controller(resolve(c, "studies/controllers", "controller")) for c in controller_names
-    ]
-    return rig, controllers
+    return load_rig(rig_name), [load_controller(c) for c in controller_names]
 
 
 def _load_fuzzy(name: str):
@@ -165,6 +156,7 @@ def cmd_export(args: argparse.Namespace) -> int:
 def cmd_evaluate(args: argparse.Namespace) -> int:
     from fuzzyservo.io.evaluation import evaluate
 
+    _out_file(args.out, "--out", "out.csv")
     source = resolve(args.controller, "studies/controllers", "controller")
     result = evaluate(source, args.inputs, args.semantics)
     for note in result.notes:
@@ -382,6 +374,19 @@ def _seconds(text: str) -> float:
     return value
 
 
+def _port(text: str) -> int:
+    """A ``--port``: a TCP port number (0: any free port)."""
+    from fuzzyservo.limits import port_problem
+
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a port number") from None
+    if port_problem(value):
+        raise argparse.ArgumentTypeError(port_problem(value))
+    return value
+
+
 def _arg(*names: str, **options) -> tuple[tuple[str, ...], dict]:
     return names, options
 
@@ -464,7 +469,8 @@ DESIGNER = [
     _arg("rig", nargs="?", default=DEFAULT_RIG, help=f"rig file or name (default: {DEFAULT_RIG})"),
     _arg("controller", nargs="?", default=DEFAULT_DESIGN,
          help=f"{FUZZY} (default: {DEFAULT_DESIGN})"),
-    _arg("--port", type=int, default=5006, help="port (default: 5006)"),
+    _arg("--port", type=_port, default=5006,
+         help="port, 1-65535 (default: 5006; 0: any free port)"),
     _arg("--host", default="127.0.0.1", help="address to listen on (default: 127.0.0.1)"),
     _arg("--out", default="out/designer",
          help="the only folder the app writes to (default: out/designer)"),
@@ -583,6 +589,9 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+_STARTED = [time.perf_counter()]
+
+
 def _took(seconds: float | None = None) -> str:
     """``seconds`` (default: the time since :func:`main` started, the command's own) as text."""
     from fuzzyservo.display import elapsed_text
@@ -590,25 +599,7 @@ def _took(seconds: float | None = None) -> str:
     return elapsed_text(time.perf_counter() - _STARTED[0] if seconds is None else seconds)
 
 
-_STARTED = [time.perf_counter()]
-
-
-def _show_warning(message, category, filename, lineno, file=None, line=None) -> None:
-    """A :class:`~fuzzyservo.errors.FileWarning` as one line; others as Python shows them."""
-    import warnings
-
-    from fuzzyservo.errors import FileWarning
-
-    if issubclass(category, FileWarning):  # a file read with a repair
-        print(f"fuzzyservo: warning: {message}", file=sys.stderr)
-    else:
-        print(warnings.formatwarning(message, category, filename, lineno, line), end="",
-              file=sys.stderr if file is None else file)  # fmt: skip
-
-
 def main(argv: Sequence[str] | None = None) -> int:
-    import warnings
-
     _STARTED[0] = time.perf_counter()
     parser = build_parser()
     args = parser.parse_args(argv)
@@ -616,8 +607,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         parser.print_help()
         return EXIT_USAGE
     try:
-        with warnings.catch_warnings():
-            warnings.showwarning = _show_warning
+        with warnings_as_lines():
             return args.func(args)
     except FuzzyservoError as exc:
         print(f"fuzzyservo: error: {exc}", file=sys.stderr)
@@ -628,6 +618,11 @@ def main(argv: Sequence[str] | None = None) -> int:
     except BrokenPipeError:  # output piped into head & co.
         sys.stderr.close()
         return 0
+    except OSError as exc:  # a file fault no writer or reader named: still one line
+        from fuzzyservo.atomic import file_error
+
+        print(f"fuzzyservo: error: {file_error(exc.filename, exc, 'use')}", file=sys.stderr)
+        return EXIT_USAGE
 
 
 if __name__ == "__main__":  # pragma: no cover

@@ -39,6 +39,15 @@ class DataError(FuzzyservoError, ValueError):
     """A measured-data file that cannot be used (unknown unit, bad time column, NaN ...)."""
 
 
+class FileError(FuzzyservoError, OSError):
+    """A file or folder that cannot be read or written: permissions, a full disk, a name
+    too long, a folder where a file is wanted. Raised by :mod:`fuzzyservo.atomic`, with the
+    ``errno`` of the fault; its text is the one-line message alone."""
+
+    def __str__(self) -> str:
+        return str(self.args[0]) if self.args else ""
+
+
 class WorkerError(FuzzyservoError, RuntimeError):
     """Parallel work that cannot go on: local worker processes that keep dying."""
 

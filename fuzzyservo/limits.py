@@ -1,4 +1,4 @@
-"""Sizes refused before any work starts: a run's length and the shortest sample period.
+"""Sizes refused before any work starts: a run's length, the shortest sample period, a port.
 
 A closed-loop run keeps every controller sample of every signal in memory, so its
 length is bounded; a sample period below a microsecond is no controller or logger
@@ -42,4 +42,15 @@ def duration_problem(duration_s: float, sample_time_s: float) -> str | None:
             f"than the {MAX_SAMPLES:,} a run holds in memory; give at most "
             f"{MAX_SAMPLES * sample_time_s:g} s"
         )
+    return None
+
+
+#: the highest TCP port number (0 asks the system for any free port)
+MAX_PORT = 65535
+
+
+def port_problem(port: int) -> str | None:
+    """Why ``port`` is no TCP port a server can listen on, or ``None``."""
+    if isinstance(port, bool) or not isinstance(port, int) or not 0 <= port <= MAX_PORT:
+        return f"{port!r} is not a port; give a whole number 1-{MAX_PORT} (0: any free port)"
     return None

@@ -6,6 +6,9 @@ from __future__ import annotations
 import sys
 import threading
 import time
+import warnings
+from collections.abc import Iterator
+from contextlib import contextmanager
 from typing import Protocol
 
 
@@ -133,3 +136,22 @@ class _KernelLines:
         ratio = sum(self.took.values()) / sum(self.estimates[k] for k in self.took)
         self.scale = max(1.0, ratio)
         self._say(f"compiled {name} in {seconds:.0f} s")
+
+
+@contextmanager
+def warnings_as_lines() -> Iterator[None]:
+    """Inside the block, a :class:`~fuzzyservo.errors.FileWarning` (a file read with a
+    repair, e.g. a ``.fis`` MF key read by its place) shows as one ``fuzzyservo: warning:``
+    line on stderr; other warnings as Python shows them."""
+    from fuzzyservo.errors import FileWarning
+
+    def show(message, category, filename, lineno, file=None, line=None) -> None:
+        if issubclass(category, FileWarning):
+            print(f"fuzzyservo: warning: {message}", file=sys.stderr)
+        else:
+            text = warnings.formatwarning(message, category, filename, lineno, line)
+            print(text, end="", file=sys.stderr if file is None else file)
+
+    with warnings.catch_warnings():
+        warnings.showwarning = show
+        yield

@@ -23,7 +23,7 @@ CLI_MODULES = sorted(
     if p.exists()
 )
 FORBIDDEN = {"numpy", "scipy", "optuna", "csv", "yaml", "numba"}
-BUDGET = 600  # lines, every CLI module together
+BUDGET = 640  # lines, every CLI module together (parsing, checks of options, printing)
 
 
 def test_cli_modules_fit_the_line_budget():

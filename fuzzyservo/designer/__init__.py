@@ -36,6 +36,11 @@ def serve(
     from fuzzyservo.errors import require
 
     require("panel", "designer", "the designer")
+    from fuzzyservo.errors import ConfigError
+    from fuzzyservo.limits import port_problem
+
+    if port_problem(port):  # refused before anything listens (0: any free port)
+        raise ConfigError(f"port: {port_problem(port)}")
     from fuzzyservo.designer.app import run_server
 
     return run_server(

@@ -12,6 +12,7 @@ from typing import Any
 
 import numpy as np
 
+from fuzzyservo.atomic import ensure_folder, write_text
 from fuzzyservo.calibration.joint import split_field
 from fuzzyservo.calibration.replay import Replay
 from fuzzyservo.calibration.report import (
@@ -41,7 +42,7 @@ def write_outputs(
     from fuzzyservo.io.rigs import write_calibrated_rig
     from fuzzyservo.plots import candidates_figure, overlay_figure, residual_figure, save
 
-    out_dir.mkdir(parents=True, exist_ok=True)
+    out_dir = ensure_folder(out_dir)
     rig = outcome.calibrated
     paths: dict[str, Path] = {}
     stamp = _dt.date.today().isoformat()
@@ -154,9 +155,7 @@ def write_outputs(
         paths[f"candidates_{k}"] = save(fig, out_dir / f"candidates_{k}.png")
     paths["summary"] = write_json(out_dir / "summary.json", summary)
     paths["report"] = out_dir / "report.md"
-    paths["report"].write_text(
-        report_markdown(outcome, replay, summary, paths, data_path), encoding="utf-8"
-    )
+    write_text(paths["report"], report_markdown(outcome, replay, summary, paths, data_path))
     return paths, summary
 
 

@@ -21,6 +21,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from fuzzyservo.atomic import write_text
 from fuzzyservo.controllers.base import Controller
 from fuzzyservo.controllers.classical import PI, PID_FORMS, PIDF, OpenLoop, P
 from fuzzyservo.errors import ConfigError
@@ -242,10 +243,7 @@ def write_controller_file(data: dict, path: str | Path) -> Path:
     ``repr`` round-trips, so the file rebuilds the same controller bit for bit); a
     non-finite number is a ``ValueError`` naming its key, since no controller file takes one.
     """
-    p = Path(path)
-    p.parent.mkdir(parents=True, exist_ok=True)
-    p.write_text(controller_yaml(data), encoding="utf-8")
-    return p
+    return write_text(path, controller_yaml(data))
 
 
 def _plain(value, key: str):

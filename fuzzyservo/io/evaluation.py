@@ -16,6 +16,7 @@ from typing import Any
 
 import numpy as np
 
+from fuzzyservo.atomic import atomic_write
 from fuzzyservo.controllers.fuzzy.controller import FuzzyController
 from fuzzyservo.controllers.fuzzy.system import FuzzySystem
 from fuzzyservo.errors import ConfigError
@@ -169,11 +170,8 @@ def read_input_table(path: str | Path, names: list[str]) -> tuple[np.ndarray, li
 
 def write_output_table(path: str | Path, names: list[str], values: np.ndarray) -> Path:
     """Write the outputs (m, len(names)) as CSV with a header row of output names."""
-    p = Path(path)
-    if p.parent != Path() and not p.parent.is_dir():
-        p.parent.mkdir(parents=True, exist_ok=True)
-    with p.open("w", newline="", encoding="utf-8") as f:
+    with atomic_write(path, newline="") as f:
         writer = csv.writer(f)
         writer.writerow(names)
         writer.writerows([[repr(float(v)) for v in row] for row in values])
-    return p
+    return Path(path)

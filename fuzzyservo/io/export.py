@@ -16,6 +16,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from fuzzyservo.atomic import write_files, write_text
 from fuzzyservo.controllers.fuzzy.controller import FuzzyController
 from fuzzyservo.controllers.fuzzy.system import FuzzySystem
 from fuzzyservo.errors import ConfigError
@@ -149,9 +150,6 @@ def export(
 
     system = controller.system if isinstance(controller, FuzzyController) else controller
     name, lines, notes, paths = system.name, [], [], []
-    for file in (fis, fcl, st, fmu):  # a file in a folder not made yet: make it
-        if file:
-            Path(file).parent.mkdir(parents=True, exist_ok=True)
     law = law_text(controller) if isinstance(controller, FuzzyController) else ""
     if isinstance(controller, FuzzyController):
         name = controller.name
@@ -174,14 +172,13 @@ def export(
         _controller_code(controller, c_dir, st, lut, real, sample_time_s, lines, paths)
     else:
         if c_dir:
-            written = _write_files(system_c_sources(system, real), c_dir)
+            written = write_files(system_c_sources(system, real), c_dir)
             paths += written
             lines.append(f"{name}: C99 ({real}, {len(system.inputs)} input(s), "
                          f"{len(system.outputs)} output(s)) written to "
                          + ", ".join(str(p) for p in written))  # fmt: skip
         if st:
-            path = Path(st)
-            path.write_text(_system_st(system), encoding="utf-8")
+            path = write_text(st, _system_st(system))
             how = "exact" if system.type == "sugeno" else "lookup tables"
             paths.append(path)
             lines.append(f"{name}: IEC 61131-3 Structured Text ({how}) written to {path}")
@@ -252,7 +249,7 @@ def single_precision_error(target: FuzzyController | FuzzySystem, n: int = 2000)
             for key, value in (("@P@", name), ("@R@", real), ("@NIN@", str(n_in)),
                                ("@NOUT@", str(1 if isinstance(target, FuzzyController) else n_out))):  # fmt: skip
                 main = main.replace(key, value)
-            paths = _write_files({**files, "main.c": main}, folder)
+            paths = write_files({**files, "main.c": main}, folder)
             exe = folder / "sweep"
             built = subprocess.run([cc, "-std=c99", "-O2", "-o", str(exe),
                                     *(str(p) for p in paths if p.suffix == ".c"), "-lm"],
@@ -273,17 +270,6 @@ def _system_st(system: FuzzySystem) -> str:
     from fuzzyservo.codegen import identifier, system_st_source
 
     return system_st_source(system, identifier(system.name))
-
-
-def _write_files(files: dict[str, str], folder: str | Path) -> list[Path]:
-    out = Path(folder)
-    out.mkdir(parents=True, exist_ok=True)
-    paths = []
-    for file, text in files.items():
-        path = out / file
-        path.write_text(text, encoding="utf-8")
-        paths.append(path)
-    return paths
 
 
 def _controller_code(
@@ -316,7 +302,6 @@ def _controller_code(
                      f"{', lookup table' if lut else ''}) written to "
                      + ", ".join(str(p) for p in written))  # fmt: skip
     if st:
-        Path(st).parent.mkdir(parents=True, exist_ok=True)
         path, n = write_st(controller, st, sample_time_s, lut)
         if not c_dir or lut is None:
             lines.append(table(n))

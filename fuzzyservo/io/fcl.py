@@ -48,6 +48,7 @@ import re
 from pathlib import Path
 from typing import NoReturn
 
+from fuzzyservo.atomic import write_text
 from fuzzyservo.controllers.fuzzy.controller import FuzzyController
 from fuzzyservo.controllers.fuzzy.shapes import SUGENO_SHAPES
 from fuzzyservo.controllers.fuzzy.system import (
@@ -490,6 +491,4 @@ def fcl_text(system: FuzzySystem, law: str = "") -> str:
 
 def write_fcl(system: FuzzySystem, path: str | Path, law: str = "") -> Path:
     """Write ``system`` (and the control law ``law``) as FCL (UTF-8); returns the path."""
-    p = Path(path)
-    p.write_text(fcl_text(system, law), encoding="utf-8")
-    return p
+    return write_text(path, fcl_text(system, law))

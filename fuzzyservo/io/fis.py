@@ -58,6 +58,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import NoReturn
 
+from fuzzyservo.atomic import write_text
 from fuzzyservo.controllers.fuzzy.controller import FuzzyController
 from fuzzyservo.controllers.fuzzy.shapes import SUGENO_SHAPES
 from fuzzyservo.controllers.fuzzy.system import (
@@ -822,6 +823,4 @@ def fis_text(system: FuzzySystem, law: str = "") -> str:
 def write_fis(system: FuzzySystem, path: str | Path, law: str = "") -> Path:
     """Write ``system`` (and the control law ``law``, :func:`fis_text`) as a MATLAB
     ``.fis`` file (UTF-8); returns the path."""
-    p = Path(path)
-    p.write_text(fis_text(system, law), encoding="utf-8")
-    return p
+    return write_text(path, fis_text(system, law))

@@ -19,6 +19,7 @@ import tempfile
 import zipfile
 from pathlib import Path
 
+from fuzzyservo.atomic import atomic_write
 from fuzzyservo.codegen import fmu_model, fmu_sources, model_description
 from fuzzyservo.controllers.fuzzy.controller import FuzzyController
 from fuzzyservo.controllers.fuzzy.system import FuzzySystem
@@ -74,7 +75,6 @@ def write_fmu(
     files |= {f"sources/{name}": text for name, text in sources.items()}
     files["documentation/index.html"] = _documentation(model.description, fmi)
     out = Path(path)
-    out.parent.mkdir(parents=True, exist_ok=True)
     cc = c_compiler()
     binary: tuple[str, bytes] | None = None
     problem = None
@@ -96,7 +96,7 @@ def write_fmu(
                 binary = (name, lib.read_bytes())
             else:
                 problem = f"{cc} failed: {run.stderr.strip().splitlines()[:3]}"
-    with zipfile.ZipFile(out, "w", zipfile.ZIP_DEFLATED) as z:
+    with atomic_write(out, "wb") as fh, zipfile.ZipFile(fh, "w", zipfile.ZIP_DEFLATED) as z:
         for file, text in files.items():
             z.writestr(file, text)
         if binary:

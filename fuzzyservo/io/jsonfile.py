@@ -6,21 +6,18 @@ import json
 from pathlib import Path
 from typing import Any
 
+from fuzzyservo.atomic import write_text
 from fuzzyservo.results import json_ready
 
 __all__ = ["json_ready", "read_json", "write_json"]
 
 
 def write_json(path: str | Path, payload: Any) -> Path:
-    """Write ``payload`` (a result object: its ``to_dict()``) as indented strict JSON, creating the folder."""
+    """Write ``payload`` (a result object: its ``to_dict()``) as indented strict JSON, creating
+    the folder (whole or not at all: :func:`~fuzzyservo.atomic.atomic_write`)."""
     if hasattr(payload, "to_dict"):
         payload = payload.to_dict()
-    p = Path(path)
-    p.parent.mkdir(parents=True, exist_ok=True)
-    p.write_text(
-        json.dumps(json_ready(payload), indent=2, allow_nan=False) + "\n", encoding="utf-8"
-    )
-    return p
+    return write_text(path, json.dumps(json_ready(payload), indent=2, allow_nan=False) + "\n")
 
 
 def read_json(path: str | Path) -> Any:

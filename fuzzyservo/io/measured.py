@@ -27,6 +27,7 @@ from typing import TYPE_CHECKING, NoReturn
 
 import numpy as np
 
+from fuzzyservo.atomic import atomic_write
 from fuzzyservo.errors import DataError
 from fuzzyservo.measured import ColumnScaling, Measured
 
@@ -634,8 +635,6 @@ def read_rig_data(
 def write_measured(path: str | Path, data: Measured, units: Mapping[str, str]) -> Path:
     """Write ``data`` as a CSV with ``<signal>_<unit>`` headers, each signal converted from
     SI to the header unit given in ``units`` (a key of :data:`UNIT_SUFFIXES`; SI if absent)."""
-    p = Path(path)
-    p.parent.mkdir(parents=True, exist_ok=True)
     columns = [np.asarray(data.t, dtype=float)]
     header = [f"t_{units.get('t', 's')}"]
     for name in data.signals:
@@ -648,11 +647,11 @@ def write_measured(path: str | Path, data: Measured, units: Mapping[str, str]) -
         expr, si = UNIT_SUFFIXES[units["t"]]
         columns[0] = columns[0] / to_si(1.0, expr, si)
     rows = np.column_stack(columns)
-    with p.open("w", encoding="utf-8", newline="") as fh:
+    with atomic_write(path, newline="") as fh:
         fh.write(",".join(header) + "\n")
         for row in rows:
             fh.write(",".join(f"{v:.10g}" for v in row) + "\n")
-    return p
+    return Path(path)
 
 
 def _si_suffix(si_unit: str) -> str:

@@ -1,6 +1,7 @@
 """Result objects to files: signals as CSV, figures as PNG (drawn by :mod:`fuzzyservo.plots`).
 
-JSON is :func:`fuzzyservo.io.jsonfile.write_json` (a result object or a dict).
+JSON is :func:`fuzzyservo.io.jsonfile.write_json` (a result object or a dict). Every file
+is written whole or not at all (:mod:`fuzzyservo.atomic`).
 """
 
 from __future__ import annotations
@@ -9,6 +10,8 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 import numpy as np
+
+from fuzzyservo.atomic import atomic_write, ensure_folder
 
 if TYPE_CHECKING:
     from fuzzyservo.analysis.compare import ComparisonResult
@@ -22,7 +25,8 @@ def write_signals_csv(path: str | Path, result: SimResult) -> Path:
     """Every signal of a run, one column each (:meth:`SimResult.columns`), 9 digits."""
     cols = result.columns()
     data = np.column_stack(list(cols.values()))
-    np.savetxt(path, data, delimiter=",", header=",".join(cols), comments="", fmt="%.9g")
+    with atomic_write(path) as fh:
+        np.savetxt(fh, data, delimiter=",", header=",".join(cols), comments="", fmt="%.9g")
     return Path(path)
 
 
@@ -34,8 +38,7 @@ def save_comparison(comparison: ComparisonResult, out: str | Path) -> list[Path]
     controllers on the same scenario writes beside an earlier comparison, not over it."""
     from fuzzyservo import plots
 
-    out = Path(out)
-    out.mkdir(parents=True, exist_ok=True)
+    out = ensure_folder(out)
     stem = f"{comparison.rig}_{comparison.scenario}"
     fig = plots.response_figure(list(comparison.values()))
     paths = [plots.save(fig, out / f"{stem}_{'+'.join(comparison)}_response.png")]
@@ -78,8 +81,7 @@ def save_robustness(result: RobustnessResult, out: str | Path) -> list[Path]:
     from fuzzyservo import plots
     from fuzzyservo.analysis.robustness import SUMMARY_METRICS
 
-    out = Path(out)
-    out.mkdir(parents=True, exist_ok=True)
+    out = ensure_folder(out)
     units = {m: result.units.unit(m) for m in SUMMARY_METRICS}
     fig = plots.distribution_figure(result.distributions(), units)
     paths = [plots.save(fig, out / f"{result.rig}_robustness.png")]

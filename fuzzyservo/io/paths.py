@@ -9,9 +9,14 @@ pyproject.toml), so an installed package finds them from any folder.
 
 from __future__ import annotations
 
+import errno
+import os
 import re
+import stat
+import tempfile
 from pathlib import Path
 
+from fuzzyservo.atomic import NAME_MAX_BYTES, file_error, shown_path
 from fuzzyservo.errors import ConfigError, did_you_mean
 
 _PACKAGE = Path(__file__).resolve().parent.parent
@@ -45,8 +50,11 @@ def find_file(name: str, folder: str, what: str, *, relative_to: Path | None = N
     given = Path(name)
     candidates = [given] if relative_to is None else [relative_to.parent / given, given]
     for candidate in candidates:
-        if candidate.is_file():
-            return candidate
+        try:
+            if candidate.is_file():
+                return candidate
+        except OSError as exc:  # a name too long, a loop of links
+            raise file_error(name, exc, "read") from None
     if given.suffix in (".yaml", ".yml", ".fis") or "/" in name:
         raise ConfigError(f"{what} file not found; check the path", file=name)
     for base in search_dirs():
@@ -88,23 +96,70 @@ def name_problem(name: str) -> str | None:
     return None
 
 
+def _creatable(path: Path) -> None:
+    """Raise the :class:`OSError` that creating ``path`` (absent: a file or a folder, with
+    its missing parents) would meet: a name too long, a file in the way, no permission or
+    a read-only file system in the nearest folder that exists. Writes nothing."""
+    if any(len(os.fsencode(part)) > NAME_MAX_BYTES for part in path.parts):
+        raise OSError(errno.ENAMETOOLONG, os.strerror(errno.ENAMETOOLONG))
+    ancestor = path
+    while True:
+        try:
+            info = os.stat(ancestor)
+            break
+        except FileNotFoundError:
+            if ancestor == ancestor.parent:
+                raise
+            ancestor = ancestor.parent
+    if not stat.S_ISDIR(info.st_mode):
+        raise NotADirectoryError(errno.ENOTDIR, os.strerror(errno.ENOTDIR))
+    if not os.access(ancestor, os.W_OK | os.X_OK):
+        read_only = hasattr(os, "statvfs") and os.statvfs(ancestor).f_flag & os.ST_RDONLY
+        code = errno.EROFS if read_only else errno.EACCES
+        raise OSError(code, os.strerror(code))
+
+
 def output_dir(path: str | None, option: str = "--out") -> Path | None:
-    """The output folder ``path`` given to ``option``: refused when a file of that name is
-    in the way."""
+    """The output folder ``path`` given to ``option``, checked before any work starts:
+    refused (one line) when a file of that name is in the way, when a file or folder
+    cannot be made in it (a probe file is created and removed), or when it cannot be made."""
     if path is None:
         return None
     out = Path(path)
-    if out.exists() and not out.is_dir():
-        raise ConfigError(
-            f"{option} {path}: is a file, not a folder; name a folder (new or existing)"
-        )
+    try:
+        if out.is_dir():
+            with tempfile.TemporaryFile(dir=out):  # a probe, gone when closed
+                pass
+        elif out.exists():
+            raise ConfigError(
+                f"{option} {shown_path(out)}: is a file, not a folder; name a folder (new or "
+                "existing)"
+            )
+        else:
+            _creatable(out)
+    except OSError as exc:
+        raise file_error(out, exc, option=option) from None
     return out
 
 
-def output_file(path: str | None, option: str) -> str | None:
-    """An output file ``path`` given to ``option``: refused when it names a folder."""
-    if path is not None and Path(path).is_dir():
-        raise ConfigError(
-            f"{option} {path}: is a folder; give a file name such as {Path(path) / 'out.json'}"
-        )
+def output_file(path: str | None, option: str, example: str = "out.json") -> str | None:
+    """An output file ``path`` given to ``option``, checked before any work starts: refused
+    (one line) when it names a folder (the message suggests ``example`` in it) or when it
+    could not be written there."""
+    if path is None:
+        return None
+    p = Path(path)
+    try:
+        if p.is_dir():
+            raise ConfigError(
+                f"{option} {shown_path(p)}: is a folder; give a file name such as "
+                f"{shown_path(p / example)}"
+            )
+        if p.exists():
+            if not os.access(p, os.W_OK):
+                raise PermissionError(errno.EACCES, os.strerror(errno.EACCES))
+        else:
+            _creatable(p)
+    except OSError as exc:
+        raise file_error(p, exc, option=option) from None
     return path

@@ -45,6 +45,7 @@ from fuzzyservo.analysis.reproduction import (
     Variant,
     run_reproduction,
 )
+from fuzzyservo.atomic import write_text
 from fuzzyservo.errors import ConfigError
 from fuzzyservo.io._yaml import Node, read_yaml
 from fuzzyservo.io.controllers import load_controller
@@ -143,10 +144,7 @@ def write_reproduction(
     if json_path:
         written.append(write_json(json_path, result))
     if markdown_path:
-        path = Path(markdown_path)
-        path.parent.mkdir(parents=True, exist_ok=True)
-        path.write_text(result.to_markdown(), encoding="utf-8")
-        written.append(path)
+        written.append(write_text(markdown_path, result.to_markdown()))
     return written
 
 

@@ -36,6 +36,7 @@ from typing import Any
 
 import numpy as np
 
+from fuzzyservo.atomic import write_text
 from fuzzyservo.errors import ConfigError, DataError
 from fuzzyservo.io._yaml import Node, read_yaml
 from fuzzyservo.io.measured import ColumnScaling
@@ -796,7 +797,6 @@ def write_calibrated_rig(
     data = read_yaml(source)
     src_dir = Path(source).resolve().parent
     out = Path(out)
-    out.parent.mkdir(parents=True, exist_ok=True)
     plant = data["plant"]
     composed = "components" in plant
     sections = (
@@ -835,8 +835,7 @@ def write_calibrated_rig(
     data["effects"] = section
     text = yaml.safe_dump(data, sort_keys=False, allow_unicode=True, width=100)
     lines = "".join(f"# {line}\n" for line in header.splitlines())
-    out.write_text(lines + text, encoding="utf-8")
-    return out
+    return write_text(out, lines + text)
 
 
 def _add_interval(entry: dict, interval: tuple[float, float, bool] | None) -> None:

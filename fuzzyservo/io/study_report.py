@@ -23,6 +23,7 @@ from pathlib import Path
 from typing import Any
 
 from fuzzyservo.analysis.robustness import SUMMARY_METRICS, comparison_text
+from fuzzyservo.atomic import ensure_folder, write_text
 from fuzzyservo.display import (
     LOWER_IS_BETTER,
     TRIAL_COUNTS_NOTE,
@@ -71,8 +72,7 @@ def write_outputs(
     from fuzzyservo.controllers.fuzzy.controller import FuzzyController
     from fuzzyservo.io.controllers import controller_data, load_controller, write_controller_file
 
-    out_dir = Path(out_dir)
-    out_dir.mkdir(parents=True, exist_ok=True)
+    out_dir = ensure_folder(out_dir)
     spec = outcome.spec
     paths: dict[str, Path] = {}
     evaluator = build_evaluator(spec)
@@ -118,7 +118,7 @@ def write_outputs(
     paths["summary"] = write_json(out_dir / SUMMARY_FILE, summary)
     paths["report"] = out_dir / REPORT_FILE
     text = _report(outcome, evaluator, trial, check, paths, out_dir, comparison, measured, units)
-    paths["report"].write_text(text, encoding="utf-8")
+    write_text(paths["report"], text)
     return paths
 
 

@@ -21,6 +21,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from fuzzyservo.atomic import atomic_write, write_text
 from fuzzyservo.components.valves import (
     NN_B1,
     NN_B2,
@@ -117,9 +118,8 @@ def read_valve_csv(path: str | Path) -> np.ndarray:
 def write_valve_csv(path: str | Path, data: np.ndarray) -> Path:
     """Write SI rows as a valve-data CSV in the default units (bar, V, l/min)."""
     p = Path(path)
-    p.parent.mkdir(parents=True, exist_ok=True)
     factors = [_UNITS[c][u] for c, u in zip(COLUMNS, DEFAULT_UNITS, strict=True)]
-    with p.open("w", newline="", encoding="utf-8") as fh:
+    with atomic_write(p, newline="") as fh:
         writer = csv.writer(fh)
         writer.writerow(f"{c}_{u}" for c, u in zip(COLUMNS, DEFAULT_UNITS, strict=True))
         for row in np.asarray(data, dtype=np.float64):
@@ -176,10 +176,7 @@ def write_valve_network(
             zip(("q_a", "q_b"), [v * to_l_min for v in validation_rms_m3_s], strict=True)
         ),
     }
-    p = Path(path)
-    p.parent.mkdir(parents=True, exist_ok=True)
-    p.write_text(json.dumps(payload, indent=2) + "\n", encoding="utf-8")
-    return p
+    return write_text(path, json.dumps(payload, indent=2) + "\n")
 
 
 def read_valve_network(path: str | Path) -> ValveNetwork:

@@ -7,6 +7,8 @@ from pathlib import Path
 from matplotlib.axes import Axes
 from matplotlib.figure import Figure
 
+from fuzzyservo.atomic import atomic_write
+
 
 def label_span(ax: Axes, start: float, end: float, text: str) -> None:
     """A small grey label at the top of a shaded time span (warm-up, validation)."""
@@ -23,12 +25,13 @@ def label_span(ax: Axes, start: float, end: float, text: str) -> None:
 
 
 def save(fig: Figure, path: str | Path) -> Path:
-    """Write ``fig`` to ``path`` (PNG unless the suffix names another format) at 120 dpi.
+    """Write ``fig`` to ``path`` (PNG unless the suffix names another format) at 120 dpi,
+    whole or not at all (:func:`fuzzyservo.atomic.atomic_write`).
 
     Creates the parent folder; leaves the figure open and touches no pyplot state.
     """
     path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
     fmt = path.suffix[1:].lower() or "png"
-    fig.savefig(path, dpi=120, format=fmt)
+    with atomic_write(path, "wb") as fh:
+        fig.savefig(fh, dpi=120, format=fmt)
     return path

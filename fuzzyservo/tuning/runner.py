@@ -36,10 +36,10 @@ import sys
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, NoReturn
+from typing import Any
 
 from fuzzyservo.display import trial_counts_text
-from fuzzyservo.errors import require
+from fuzzyservo.errors import ConfigError, require
 from fuzzyservo.rig import Rig
 from fuzzyservo.tuning.evaluation import Evaluation
 from fuzzyservo.tuning.integrity import check_definition, die_with_parent, per_trial_seeded
@@ -141,14 +141,37 @@ def _fast_sqlite(engine) -> None:
     engine.dispose()  # connections opened while creating the tables get the pragmas too
 
 
-def _cannot_open(url: str, exc: BaseException | None) -> NoReturn:
-    from fuzzyservo.errors import ConfigError
+def storage_error(url: str, exc: BaseException) -> ConfigError:
+    """One line for a storage that cannot be opened or used (``exc``: what the database
+    driver, SQLAlchemy or Optuna raised): a SQLite file that is no database or a damaged
+    one, or a server or URL that does not answer; each with its fix."""
+    import sqlite3
 
-    reason = (str(exc).strip().splitlines() or [type(exc).__name__])[0]
-    raise ConfigError(
-        f"storage {url}: cannot open it ({reason}); check that the server runs and the URL "
+    cause = exc
+    while cause.__cause__ is not None:  # Optuna's StorageInternalError wraps SQLAlchemy's
+        cause = cause.__cause__
+    cause = getattr(cause, "orig", None) or cause  # SQLAlchemy's wraps the driver's
+    reason = (str(cause).strip().splitlines() or [type(cause).__name__])[0]
+    garbled = isinstance(cause, sqlite3.DatabaseError) and not isinstance(
+        cause, sqlite3.OperationalError
+    )
+    if garbled:
+        return ConfigError(
+            f"storage {url}: not an Optuna study database, or a damaged one ({reason}); move "
+            "the file away (the study then starts afresh) or give another --storage"
+        )
+    return ConfigError(
+        f"storage {url}: cannot open or use it ({reason}); check that the server runs and the URL "
         "(--storage or the study's storage key), or leave it out for SQLite in the output folder"
-    ) from None
+    )
+
+
+def storage_faults() -> tuple[type[BaseException], ...]:
+    """What a storage raises when its database is damaged or gone while in use."""
+    import optuna
+    from sqlalchemy.exc import SQLAlchemyError
+
+    return (optuna.exceptions.StorageInternalError, SQLAlchemyError)
 
 
 def _record_constraints(trial, spec: Study, violations: list[float]) -> None:
@@ -214,13 +237,13 @@ def open_study(spec: Study, url: str, worker: int = 0, *, shared: bool = False):
             ProgrammingError,
             OperationalError,
             optuna.exceptions.DuplicatedStudyError,
-        ):
+        ) as exc:
             # two processes creating the tables or the study at once on an empty database
             if attempt == 4:
-                _cannot_open(url, sys.exc_info()[1])
+                raise storage_error(url, exc) from None
             time.sleep(0.2 + random.random())
-        except (SQLAlchemyError, ImportError) as exc:  # a driver or URL we cannot use
-            _cannot_open(url, exc)
+        except (SQLAlchemyError, ImportError, optuna.exceptions.StorageInternalError) as exc:
+            raise storage_error(url, exc) from None  # a driver or URL we cannot use, damage
     check_definition(study, spec, url)
     study.sampler = per_trial_seeded(make_sampler(spec, spec.seed), spec.seed)
     return study
@@ -395,35 +418,42 @@ def run_study(
 
         executor = make_executor(workers, cluster)
     try:
-        study = open_study(spec, url)  # creates it (and its tables) before any worker starts
-        done_before = count_complete(study)
-        if done_before and progress:
-            left = max(total - done_before, 0)
-            counts = trial_counts_text(**trial_counts(study))
-            print(f"resuming study {spec.name}: {done_before} of {total} trials done "
-                  f"({counts}), {left} to run ({url})", file=sys.stderr, flush=True)  # fmt: skip
-        t0 = time.perf_counter()
-        _warm_kernels(spec)  # before the bar: its rate (and ETA) should not count compiling
-        bar = _bar(total, done_before, spec.name, progress)
-        try:
-            if executor is not None:
-                with _interruptible():
-                    run_batches(spec, study, total, executor, bar)
-            else:
-                enqueue(study, spec)
-                if workers <= 1:
-                    _run_inline(spec, url, total, bar, shared)
-                else:
-                    _run_processes(spec, url, total, workers, bar, shared)
-        finally:
-            bar.close()
-        wall = time.perf_counter() - t0
-        # a batch run wrote every trial through this study: read it back without reopening
-        return collect(spec, url, wall_s=wall, executor=executor,
-                       study=study if executor is not None else None)  # fmt: skip
+        return _run(spec, url, total, executor, workers, shared, progress)
+    except storage_faults() as exc:  # damaged while in use (open_study names what it meets)
+        raise storage_error(url, exc) from None
     finally:
         if executor is not None:
             executor.close()
+
+
+def _run(spec: Study, url: str, total: int, executor, workers: int, shared: bool, progress):
+    """:func:`run_study` once its storage URL and executor are known."""
+    study = open_study(spec, url)  # creates it (and its tables) before any worker starts
+    done_before = count_complete(study)
+    if done_before and progress:
+        left = max(total - done_before, 0)
+        counts = trial_counts_text(**trial_counts(study))
+        print(f"resuming study {spec.name}: {done_before} of {total} trials done "
+              f"({counts}), {left} to run ({url})", file=sys.stderr, flush=True)  # fmt: skip
+    t0 = time.perf_counter()
+    _warm_kernels(spec)  # before the bar: its rate (and ETA) should not count compiling
+    bar = _bar(total, done_before, spec.name, progress)
+    try:
+        if executor is not None:
+            with _interruptible():
+                run_batches(spec, study, total, executor, bar)
+        else:
+            enqueue(study, spec)
+            if workers <= 1:
+                _run_inline(spec, url, total, bar, shared)
+            else:
+                _run_processes(spec, url, total, workers, bar, shared)
+    finally:
+        bar.close()
+    wall = time.perf_counter() - t0
+    # a batch run wrote every trial through this study: read it back without reopening
+    return collect(spec, url, wall_s=wall, executor=executor,
+                   study=study if executor is not None else None)  # fmt: skip
 
 
 @contextlib.contextmanager

@@ -16,7 +16,14 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from fuzzyservo.metrics import METRIC_NAMES, METRIC_UNITS, format_value, metric_unit
+from fuzzyservo.metrics import (
+    METRIC_NAMES,
+    METRIC_UNITS,
+    NOT_MOVED,
+    Metrics,
+    format_value,
+    metric_unit,
+)
 from fuzzyservo.simulation.result import SimResult
 from fuzzyservo.units import parse_unit, to_si
 
@@ -226,8 +233,43 @@ def undefined_note(shown: Sequence[str], rows: Sequence[Mapping[str, float | Non
     return (
         f"n/a ({', '.join(blank)}): undefined on this run; step metrics need a step in "
         "the reference (a constant reference has none: such a scenario, e.g. a brake, tests "
-        "a disturbance: read iae/ise), settling needs a response that settles, and a run "
-        "that did not end ok has only its status"
+        "a disturbance: read iae/ise), settling needs a response that settles, rise, "
+        "settling and overshoot need an output that moved, and a run that did not end ok "
+        "has only its status"
+    )
+
+
+_PREFIXES = ((1e-15, "f"), (1e-12, "p"), (1e-9, "n"), (1e-6, "µ"), (1e-3, "m"), (1.0, ""))
+
+
+def prefixed(value: float, unit: str) -> str:
+    """``value`` [``unit``, SI] with an SI prefix and three significant digits: a motion
+    of 4.2e-15 m reads ``4.2 fm``, a resolution of 1.58e-5 m ``15.8 µm`` (values of 1 and
+    more, or a unit of ``1``, keep the unit as it is)."""
+    if not math.isfinite(value):
+        return "n/a"
+    if unit in ("", "1"):
+        return f"{value:.3g}"
+    mag = abs(value)
+    if mag == 0.0 or mag >= 1.0:
+        return f"{value:.3g} {unit}"
+    # the first prefix under which it prints below 1000 (999.5 rounds to 1e+03)
+    scale, prefix = next((sp for sp in _PREFIXES if mag / sp[0] < 999.5), (1.0, ""))
+    return f"{value / scale:.3g} {prefix}{unit}"
+
+
+def not_moved_note(metrics: Metrics, units: MetricUnits) -> str:
+    """Why a run has no rise, settling or overshoot although its reference stepped: it
+    did not move by what its sensor resolves ("" for a run that moved), e.g. ``did not
+    move (4.2 fm peak to peak, below the 15.8 µm resolution: the feedback ADC's step,
+    ...); rise_time_s, settling_time_s, overshoot_pct not computed``."""
+    if metrics.moved:
+        return ""
+    unit = units.output_si
+    return (
+        f"did not move ({prefixed(metrics.motion, unit)} peak to peak, below the "
+        f"{prefixed(metrics.resolution, unit)} resolution: {metrics.resolution_source}); "
+        f"{', '.join(NOT_MOVED)} not computed"
     )
 
 
@@ -295,7 +337,9 @@ __all__ = [
     "elapsed_text",
     "metric_units",
     "metrics_table",
+    "not_moved_note",
     "preferred_unit",
+    "prefixed",
     "saturated_spans",
     "signal_unit",
     "to_display",

@@ -60,6 +60,19 @@ class LinearSensor:
         return (self.adc_upper - self.adc_lower) / 2.0**self.adc_bits
 
     @property
+    def resolution(self) -> tuple[float, str]:
+        """The smallest change of the sensed signal this acquisition resolves [signal
+        unit] and what sets it: the ADC's step, else the noise's standard deviation;
+        ``(0.0, "")`` for a sensor that declares neither."""
+        if self.adc_bits:
+            where = f"{self.adc_bits} bits over {self.adc_lower:g}..{self.adc_upper:g} {self.unit}"
+            return self.adc_step / abs(self.slope), f"the feedback ADC's step, {where}"
+        if self.noise_std > 0:
+            noise = f"{self.noise_std:g} {self.unit} rms"
+            return self.noise_std / abs(self.slope), f"the feedback sensor's noise, {noise}"
+        return 0.0, ""
+
+    @property
     def slope(self) -> float:
         """Reading per unit of the sensed signal (gain / ratio)."""
         return self.gain / self.ratio

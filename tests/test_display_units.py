@@ -19,6 +19,7 @@ from fuzzyservo.display import MetricUnits, metric_units, metrics_table, undefin
 from fuzzyservo.metrics import (
     METRIC_NAMES,
     METRIC_UNITS,
+    Metrics,
     StepMetrics,
     heave_metrics,
     metric_unit,
@@ -34,7 +35,8 @@ def _produced_names() -> set[str]:
         t=t, warmup_s=0.0, signals={"z_wave": np.sin(t), "z_load": 0.1 * np.sin(t)}
     )
     step_fields = {f.name for f in dataclasses.fields(StepMetrics)}
-    return {*METRIC_NAMES, *step_fields, *heave_metrics(heave), *MARGIN_METRICS}
+    run_fields = {f.name for f in dataclasses.fields(Metrics) if f.type == "float"}
+    return {*METRIC_NAMES, *step_fields, *run_fields, *heave_metrics(heave), *MARGIN_METRICS}
 
 
 def test_every_metric_the_package_produces_has_a_unit_in_the_schema():
@@ -47,7 +49,8 @@ def test_each_schema_unit_has_the_dimension_of_its_formula(output):
     """sse_abs is an output, iae an output·s, ise an output²·s, itae an output·s²; time
     metrics are s, ratios %, the command V (its variation V/s)."""
     y, s = parse_unit(output), parse_unit("s")
-    expected = {"sse_abs": y, "r0": y, "r1": y, "y_init": y, "y_final": y, "iae": y * s,
+    expected = {"sse_abs": y, "r0": y, "r1": y, "y_init": y, "y_final": y, "motion": y,
+                "resolution": y, "iae": y * s,
                 "ise": y * y * s, "itae": y * s * s, "peak_command": parse_unit("V"),
                 "command_tv": parse_unit("V") / s}  # fmt: skip
     for name in METRIC_UNITS:

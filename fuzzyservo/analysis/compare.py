@@ -8,7 +8,7 @@ from functools import cached_property
 from typing import Any
 
 from fuzzyservo.controllers.base import Controller
-from fuzzyservo.display import metric_units, metrics_table, undefined_note
+from fuzzyservo.display import metric_units, metrics_table, not_moved_note, undefined_note
 from fuzzyservo.errors import ConfigError
 from fuzzyservo.metrics import (
     METRIC_NAMES,
@@ -52,8 +52,18 @@ class ComparisonResult(Result, Mapping[str, SimResult]):
 
     @property
     def problems(self) -> list[str]:
-        """One line for each run that did not end ``ok``."""
+        """One line for each run that did not end ``ok`` (an end stop says when the
+        piston hit it: ``hit the end stop at t = ... s``)."""
         return [f"{n}: status {r.status}: {r.message}" for n, r in self.items() if r.status != "ok"]
+
+    @cached_property
+    def not_moved(self) -> dict[str, str]:
+        """Why each run that did not move has no rise, settling or overshoot (runs that
+        moved are left out): ``did not move (4.2 fm peak to peak, below the 15.8 µm
+        resolution: ...)``."""
+        units = metric_units(next(iter(self.values())))
+        notes = {n: not_moved_note(self.metrics[n], units) for n in self}
+        return {n: note for n, note in notes.items() if note}
 
     @property
     def failed(self) -> bool:
@@ -71,6 +81,7 @@ class ComparisonResult(Result, Mapping[str, SimResult]):
             left_out = ", ".join(m for m in METRIC_NAMES if m not in shown)
             lines.append(f"not shown: {left_out} (step metrics; this scenario's reference is "
                          "tracked, not stepped)")  # fmt: skip
+        lines += [f"{n}: {note}" for n, note in self.not_moved.items()]
         if note := undefined_note(shown, rows):
             lines.append(note)
         if any(self.heave.values()):
@@ -82,6 +93,7 @@ class ComparisonResult(Result, Mapping[str, SimResult]):
     def to_dict(self) -> dict[str, Any]:
         runs = [
             {"controller": n, "status": r.status, "message": r.message,
+             "end_stop_s": r.end_stop_s, "not_moved": self.not_moved.get(n),
              **self.metrics[n].to_dict(), **self.heave[n]}
             for n, r in self.items()
         ]  # fmt: skip

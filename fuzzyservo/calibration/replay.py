@@ -16,7 +16,10 @@ load reads); ``f_hyd`` with the hydraulic force p_A·A_A − p_B·A_B.
 
 The record is split in time: the first 70 % trains (parameters are fitted on it), the
 last 30 % is held out (fit % is reported on it), as MATLAB's System Identification
-Toolbox users split estimation and validation data.
+Toolbox users split estimation and validation data. A channel whose held-out part does
+not move (peak to peak within its noise level) has no fit % (it divides by that
+spread): :meth:`Scored.still_channels`; a record with no channel that moves there is
+refused (calibration/run.py).
 """
 
 from __future__ import annotations
@@ -33,6 +36,7 @@ from fuzzyservo.calibration.gains import fit_from_log
 from fuzzyservo.calibration.residuals import noise_floor
 from fuzzyservo.controllers.base import Controller
 from fuzzyservo.controllers.classical import OpenLoop
+from fuzzyservo.display import display_scale
 from fuzzyservo.errors import DataError
 from fuzzyservo.measured import Measured
 from fuzzyservo.rig import Rig, Scenario
@@ -83,6 +87,43 @@ class Scored:
     def noise_cost(self) -> float:
         """The cost a perfect model leaves: 1 (white noise of the estimated level)."""
         return 1.0
+
+    def still_channels(self) -> dict[str, float]:
+        """The channels whose held-out part does not move, with their peak-to-peak there:
+        constant, or within the channel's noise level ``sigma`` (what its sensor
+        resolves). Their fit % (``‖y − ȳ‖`` in the denominator) is undefined."""
+        out = {}
+        for channel in self.channels:
+            held = np.asarray(self.measured(channel)[self.split :], dtype=float)
+            held = held[np.isfinite(held)]
+            spread = float(np.ptp(held)) if held.size else 0.0
+            if spread == 0.0 or spread <= self.sigma[channel]:
+                out[channel] = spread
+        return out
+
+    def sources(self) -> str:
+        """The data files, as the messages name them."""
+        records = getattr(self, "records", (self,))
+        return ", ".join(str(r.data.source) for r in records)
+
+    def held_out_words(self) -> str:
+        """Where the held-out part is, in words (``the last 30 %, from t = 2.8 s``)."""
+        share = f"{100 * VALIDATION_FRACTION:g} %"
+        records = getattr(self, "records", (self,))
+        if len(records) > 1:
+            return f"each record's last {share}"
+        return f"the last {share}, from t = {self.split_s:.4g} s"
+
+    def still_words(self, still: Mapping[str, float]) -> str:
+        """``y (0 mm peak to peak, noise level 0.005 mm), ...`` for ``still`` channels."""
+        parts = []
+        for channel, spread in still.items():
+            unit, k = display_scale(self.data.units[channel])
+            parts.append(
+                f"{channel} ({k * spread:.3g} {unit} peak to peak, "
+                f"noise level {k * self.sigma[channel]:.3g} {unit})"
+            )
+        return ", ".join(parts)
 
 
 @dataclass(frozen=True, eq=False)

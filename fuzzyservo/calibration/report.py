@@ -172,6 +172,12 @@ def summary_data(outcome: Outcome, replay: Replay) -> dict[str, Any]:
     data["warnings"] = warnings(outcome) + [
         w for r in records for w in data_warnings(r.data, r.channels)
     ]
+    if still := replay.still_channels():  # not all of them: calibration/run.py refuses that
+        data["warnings"].append(
+            f"{replay.sources()}: the held-out part ({replay.held_out_words()}) does not move "
+            f"in {replay.still_words(still)}: its held-out fit % is undefined and left out "
+            "(n/a); a record whose held-out part moves there would validate it"
+        )
     data["noise_cost"] = outcome.noise_cost
     data["noise_floor"] = {c: replay.sigma[c] for c in replay.channels}
     data["cost_val"] = {

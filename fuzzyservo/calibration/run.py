@@ -15,7 +15,7 @@ from fuzzyservo.calibration.null import DRAWS
 from fuzzyservo.calibration.replay import Replay
 from fuzzyservo.calibration.search import Outcome, candidate_effects
 from fuzzyservo.components.effects import LIBRARY
-from fuzzyservo.errors import ConfigError, did_you_mean
+from fuzzyservo.errors import ConfigError, DataError, did_you_mean
 from fuzzyservo.metrics import format_value
 from fuzzyservo.results import Result, json_ready
 
@@ -138,4 +138,12 @@ def prepare(
             )
     replays = [make_replay(rig, d, controller) for d in records]
     replay = joint_replay(replays, rig, fields) if several or fields else replays[0]
+    still = replay.still_channels()
+    if len(still) == len(replay.channels):
+        raise DataError(
+            f"{replay.sources()}: the held-out part ({replay.held_out_words()}) does not move "
+            f"in any channel: {replay.still_words(still)}; a fit % there is undefined and the "
+            "held-out test has nothing to judge; give a record whose held-out part moves (a "
+            "step or pulse there), or cut the record so that it ends after one"
+        )
     return Calibration(rig, replay, records, None if effects is None else tuple(effects))

@@ -429,9 +429,15 @@ def _jacobian(
 
 
 def fit_table(replay: Replay, model: dict[str, np.ndarray]) -> dict[str, float]:
-    """Held-out fit % per channel (MATLAB ``compare``)."""
+    """Held-out fit % per channel (MATLAB ``compare``); NaN for a channel whose held-out
+    part does not move (:meth:`~fuzzyservo.calibration.replay.Scored.still_channels`:
+    the fit divides by its spread, which is then rounding or noise)."""
     part = slice(replay.split, None)
-    return {c: fit_percent(replay.measured(c)[part], model[c][part]) for c in replay.channels}
+    still = replay.still_channels()
+    return {
+        c: math.nan if c in still else fit_percent(replay.measured(c)[part], model[c][part])
+        for c in replay.channels
+    }
 
 
 def candidate_effects(rig: Rig, effects: Sequence[str] | None = None) -> list[str]:

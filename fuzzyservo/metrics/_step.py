@@ -13,7 +13,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from fuzzyservo.metrics._types import METRIC_NAMES, Metrics, StepMetrics
+from fuzzyservo.metrics._types import METRIC_NAMES, Metrics, StepMetrics, moves
 
 if TYPE_CHECKING:
     from fuzzyservo.simulation.result import SimResult
@@ -26,6 +26,9 @@ _CHANGE_RTOL = 1e-12
 _WARMUP_ATOL = 1e-9
 # y_final: mean over this trailing fraction of the step (at least one sample).
 _FINAL_FRACTION = 0.05
+#: without a sensor resolution, the output must move by this share of the reference's
+#: range over the scored samples to count as moving
+FALLBACK_RESOLUTION_SHARE = 1e-4
 
 _WORST_CASE = (
     "rise_time_s",
@@ -48,6 +51,8 @@ def step_metrics(
     warmup_s: float = 0.0,
     settling_band: float = 0.02,
     rise_band: tuple[float, float] = (0.1, 0.9),
+    resolution: float | None = None,
+    resolution_source: str = "",
 ) -> Metrics:
     """Rise, settling, overshoot, steady-state error, saturation and error integrals per step.
 
@@ -70,6 +75,16 @@ def step_metrics(
         Settling band as a fraction of the step size ``|y_final - y_init|``.
     rise_band:
         Fractions of ``y_final - y_init`` between which the rise time is measured.
+    resolution, resolution_source:
+        The smallest change of ``y`` the sensor resolves [output unit] and what sets it
+        (e.g. an ADC's step); ``None`` or 0: :data:`FALLBACK_RESOLUTION_SHARE` of the
+        reference's range (max - min) over the scored samples and the one before them.
+
+    Motion
+        ``motion`` is ``max(y) - min(y)`` over the finite scored samples. A run with
+        ``motion < resolution`` did not move: a drift below what the sensor resolves has
+        no rise, settling or overshoot, so those are NaN in every step (``Metrics.moved``
+        is False); the errors, integrals and command metrics are computed as usual.
 
     Segments and steps
         The run is split at every sample ``k`` where ``|r[k] - r[k-1]| > 1e-12 max(1, |r|)``;
@@ -96,9 +111,10 @@ def step_metrics(
           ``iae = tau + dt/2 + O(dt^2/tau)``.
         - ``peak_command = max |u|``.
 
-        ``d == 0`` or NaN makes rise, settling and overshoot NaN. A non-finite sample of
-        ``y`` in a step makes ``y_final`` and everything computed from ``y`` NaN (no
-        exception); ``saturation_time_s`` and ``peak_command`` come from ``saturated``/``u``.
+        ``d == 0`` or NaN, or a run that did not move, makes rise, settling and overshoot
+        NaN. A non-finite sample of ``y`` in a step makes ``y_final`` and everything
+        computed from ``y`` NaN (no exception); ``saturation_time_s`` and
+        ``peak_command`` come from ``saturated``/``u``.
 
     Aggregate
         Worst case (largest value) over the steps for rise, settling, overshoot, both
@@ -130,8 +146,17 @@ def step_metrics(
     )
     changes = np.flatnonzero(jump) + 1
     bounds = [*changes.tolist(), n]
+    motion = _range(y[first_scored:])
+    if resolution is None or not resolution > 0:
+        # the level before the first scored sample too: a step right at warmup_s counts
+        resolution = FALLBACK_RESOLUTION_SHARE * _range(r[max(first_scored - 1, 0) :])
+        resolution_source = (
+            f"{100 * FALLBACK_RESOLUTION_SHARE:g} % of the reference's range "
+            "(the rig's feedback sensor declares no ADC or noise)"
+        )
+    moved = moves(motion, resolution)
     steps = [
-        _step(t, r, y, u, saturated, a, b, dt, settling_band, rise_band)
+        _step(t, r, y, u, saturated, a, b, dt, settling_band, rise_band, moved)
         for a, b in itertools.pairwise(bounds)
         if a >= first_scored
     ]
@@ -145,7 +170,19 @@ def step_metrics(
     for name in _SUMMED:
         aggregate[name] = float(lead_in[name] + sum(getattr(step, name) for step in steps))
     aggregate["command_tv"] = command_tv(u[first_scored:], dt) if u is not None else math.nan
-    return Metrics(aggregate={name: aggregate[name] for name in METRIC_NAMES}, steps=steps)
+    return Metrics(
+        aggregate={name: aggregate[name] for name in METRIC_NAMES},
+        steps=steps,
+        motion=motion,
+        resolution=float(resolution),
+        resolution_source=resolution_source,
+    )
+
+
+def _range(values: np.ndarray) -> float:
+    """``max - min`` of the finite ``values``; NaN when none is finite."""
+    finite = values[np.isfinite(values)]
+    return float(np.ptp(finite)) if finite.size else math.nan
 
 
 def command_tv(u: np.ndarray, dt: float) -> float:
@@ -157,7 +194,8 @@ def command_tv(u: np.ndarray, dt: float) -> float:
 
 
 def result_metrics(result: SimResult) -> Metrics:
-    """:func:`step_metrics` of a simulated run: output against the reference in its unit."""
+    """:func:`step_metrics` of a simulated run: output against the reference in its
+    unit, motion judged against the feedback sensor's resolution."""
     return step_metrics(
         result.t,
         result.reference_output,
@@ -165,6 +203,8 @@ def result_metrics(result: SimResult) -> Metrics:
         result.command,
         result.saturated,
         warmup_s=result.warmup_s,
+        resolution=result.resolution or None,
+        resolution_source=result.resolution_source,
     )
 
 
@@ -236,8 +276,11 @@ def _integrals(t, r, y, saturated, a: int, b: int, dt: float) -> dict[str, float
     }
 
 
-def _step(t, r, y, u, saturated, a: int, b: int, dt: float, band: float, rise_band) -> StepMetrics:
-    """Metrics of the step at sample ``a`` (reference ``r[a-1] -> r[a]``) up to sample ``b``."""
+def _step(
+    t, r, y, u, saturated, a: int, b: int, dt: float, band: float, rise_band, moved: bool
+) -> StepMetrics:
+    """Metrics of the step at sample ``a`` (reference ``r[a-1] -> r[a]``) up to sample ``b``;
+    no rise, settling or overshoot when the run did not move."""
     ts, ys = t[a:b], y[a:b]
     r0, r1 = float(r[a - 1]), float(r[a])
     y_init = float(y[a])
@@ -247,7 +290,7 @@ def _step(t, r, y, u, saturated, a: int, b: int, dt: float, band: float, rise_ba
         y_final = math.nan
     d = y_final - y_init
     rise = settling = overshoot = math.nan
-    if math.isfinite(d) and d != 0:
+    if moved and math.isfinite(d) and d != 0:
         s = math.copysign(1.0, d)
         lo, hi = rise_band
         rise = _first_crossing(ts, s * (ys - y_init), hi * abs(d)) - _first_crossing(

@@ -73,6 +73,9 @@ METRIC_UNITS: dict[str, str] = {
     "r1": "{y}",
     "y_init": "{y}",
     "y_final": "{y}",
+    # whether the output moved (Metrics.motion, Metrics.resolution)
+    "motion": "{y}",
+    "resolution": "{y}",
     # the margins a constraint may bound (analysis/margins.py)
     "gain_margin": "1",
     "delay_margin_s": "s",
@@ -134,6 +137,12 @@ class StepMetrics:
         return {f.name: _json_number(getattr(self, f.name)) for f in dataclasses.fields(self)}
 
 
+def moves(motion: float, resolution: float) -> bool:
+    """Did an output that moved ``motion`` (peak to peak) move, for a sensor resolving
+    ``resolution``? NaN counts as moved: a run that failed says so by its status."""
+    return not motion < resolution
+
+
 @dataclass(frozen=True)
 class Metrics:
     """Step metrics of a run: ``aggregate`` (one value per :data:`METRIC_NAMES`) and ``steps``.
@@ -141,14 +150,37 @@ class Metrics:
     ``steps`` lists the scored reference steps in time order; ``aggregate`` is the worst
     step for the step metrics and a sum for the integrals and the saturation time (see
     :func:`fuzzyservo.metrics.step_metrics`).
+
+    ``motion`` is the output's peak-to-peak over the scored samples, ``resolution`` the
+    smallest motion that counts (output unit) and ``resolution_source`` what set it; a
+    run with ``motion < resolution`` did not move (:attr:`moved`), and its rise time,
+    settling time and overshoot (:data:`NOT_MOVED`) are NaN.
     """
 
     aggregate: dict[str, float]
     steps: list[StepMetrics]
+    motion: float = math.nan
+    resolution: float = math.nan
+    resolution_source: str = ""
+
+    @property
+    def moved(self) -> bool:
+        """False when the output moved by less than the resolution (:func:`moves`)."""
+        return moves(self.motion, self.resolution)
 
     def to_dict(self) -> dict[str, object]:
-        """``{"metrics": {name: value}, "steps": [{...}, ...]}`` with NaN as ``None``."""
+        """``{"metrics": {name: value}, "steps": [{...}, ...], "moved": ..., "motion": ...,
+        "resolution": ..., "resolution_source": ...}`` with NaN as ``None``."""
         return {
             "metrics": {name: _json_number(self.aggregate[name]) for name in METRIC_NAMES},
             "steps": [step.to_dict() for step in self.steps],
+            "moved": self.moved,
+            "motion": _json_number(self.motion),
+            "resolution": _json_number(self.resolution),
+            "resolution_source": self.resolution_source,
         }
+
+
+#: the metrics a run that did not move leaves undefined (they measure the shape of a
+#: motion; the errors, integrals and the command stay defined)
+NOT_MOVED: tuple[str, ...] = ("rise_time_s", "settling_time_s", "overshoot_pct")

@@ -316,6 +316,8 @@ def assemble(
     fb = rig.feedback
     feedback = np.asarray(fb.read(states[:, plant.states.index(fb.signal)]))
     message = _message(status, where, prep)
+    end_stop_s = where * rig.sample_time_s if status == "end_stop" else None
+    resolution, resolution_source = fb.resolution if fb.signal == rig.output else (0.0, "")
     if status in ("ok", "end_stop"):
         # a run that finished is still unphysical if a chamber went below vapour pressure
         below = pressure_violation(prep.t, signals, plant.pressures, entrained_air(rig.params))
@@ -346,6 +348,9 @@ def assemble(
         integration_steps=steps,
         display_units=dict(rig.display_units),
         actuator_unit=plant.input[1],
+        end_stop_s=end_stop_s,
+        resolution=resolution,
+        resolution_source=resolution_source,
     )
 
 
@@ -355,7 +360,7 @@ def _message(status: str, where: int, prep: Prepared) -> str:
         return ""
     if status == "end_stop":
         lo, hi = getattr(prep.params, "stroke_limits_m", (np.nan, np.nan))
-        return f"the piston reached an end stop at t = {t:.3f} s (stroke {lo:.4g} .. {hi:.4g} m)"
+        return f"the piston hit the end stop at t = {t:.3f} s (stroke {lo:.4g} .. {hi:.4g} m)"
     if status == "diverged":
         return f"the simulation diverged at t = {t:.3f} s (non-finite state or step size collapsed)"
     return f"the integrator needed too many steps in the interval at t = {t:.3f} s"

@@ -24,6 +24,13 @@ class SimResult:
     pressure, which the model does not describe: simulation/validity.py);
     ``diverged`` or ``step_failure`` (the run stopped; samples after ``message``'s
     time are NaN).
+
+    ``end_stop_s``: when the piston first sat beyond an end stop (None if it never did);
+    kept when a later check (cavitation) sets ``status``. ``resolution``: the smallest
+    change of ``output`` the feedback sensor resolves (its ADC step, else its noise;
+    0 when it declares neither or senses another signal), ``resolution_source`` says
+    which (:attr:`fuzzyservo.rig.LinearSensor.resolution`); the step metrics are not
+    computed on motion below it.
     """
 
     rig: str
@@ -50,6 +57,9 @@ class SimResult:
     display_units: dict[str, str] = field(default_factory=dict)
     actuator_unit: str = ""  # SI unit of the plant input (``actuator``)
     measured: np.ndarray | None = None
+    end_stop_s: float | None = None
+    resolution: float = 0.0
+    resolution_source: str = ""
 
     @property
     def ok(self) -> bool:

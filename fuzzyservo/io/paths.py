@@ -12,7 +12,7 @@ from __future__ import annotations
 import re
 from pathlib import Path
 
-from fuzzyservo.errors import ConfigError
+from fuzzyservo.errors import ConfigError, excerpt
 
 _PACKAGE = Path(__file__).resolve().parent.parent
 
@@ -54,7 +54,9 @@ def find_file(name: str, folder: str, what: str, *, relative_to: Path | None = N
         if candidate.is_file():
             return candidate
     known = sorted({p.stem for base in search_dirs() for p in (base / folder).glob("*.yaml")})
-    raise ConfigError(f"no {what} named {name!r}; known: {', '.join(known) or 'none'}", file=name)
+    raise ConfigError(
+        f"no {what} named {excerpt(name)}; known: {', '.join(known) or 'none'}", file=name
+    )
 
 
 def shipped_or_path(name: str | Path, folder: str, what: str) -> str | Path:
@@ -76,7 +78,7 @@ def name_problem(name: str) -> str | None:
         return "is empty; give a short name such as my_rig"
     if _UNSAFE.search(name) or name.startswith("."):
         return (
-            f"{name!r} is not a plain name: it becomes part of output file names, so it may "
+            f"{excerpt(name)} is not a plain name: it becomes part of output file names, so it may "
             "not hold '/', '\\', ':', control characters or start with '.'; "
             "use letters, digits, '_' and '-' (e.g. my_rig)"
         )

@@ -92,9 +92,10 @@ def test_alias_bombs_and_deep_nesting_are_one_short_line(
 
 def test_a_designer_upload_of_a_bomb_is_refused_in_little_memory(tmp_path):
     """What the designer's upload calls (``Session.open_upload`` →
-    ``controller_data_from_text`` → ``parse_yaml``) on the 445-byte bomb that killed the
-    designer process, and on the others: a short ConfigError each, in a process whose
-    peak memory hardly grows (it is capped at 2 GB in case it would)."""
+    ``controller_data_from_text`` → ``parse_yaml``) on bombs of a few hundred bytes like
+    the 445-byte upload that killed the designer process, and on deep nesting: a short
+    ConfigError each, in a process whose peak memory hardly grows (capped at 2 GB in case
+    it would)."""
     controller = shipped("p_k10", "studies/controllers").read_text()
     uploads = {
         "bomb6.yaml": with_value(controller, "gain: 10", alias_bomb(6)),

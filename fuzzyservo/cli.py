@@ -63,6 +63,15 @@ def _at_least(low: int, **options: int | None) -> None:
             raise ConfigError(f"--{name.replace('_', '-')} must be >= {low}, got {value}")
 
 
+def _plant_samples(**options: int | None) -> None:
+    """Counts of sampled plants within what a run holds (limits.MAX_PLANT_SAMPLES)."""
+    from fuzzyservo.limits import plant_samples_problem
+
+    for name, value in options.items():
+        if value is not None and plant_samples_problem(value):
+            raise ConfigError(f"--{name.replace('_', '-')}: {plant_samples_problem(value)}")
+
+
 def _json(path: str | None, result) -> None:
     if path:
         write_json(path, result)
@@ -178,6 +187,7 @@ def cmd_tune(args: argparse.Namespace) -> int:
 
     _at_least(1, trials=args.trials, workers=args.workers, batch_size=args.batch_size)
     _at_least(0, check_samples=args.check_samples)
+    _plant_samples(check_samples=args.check_samples)
     if args.storage and storage_problem(args.storage):
         raise ConfigError(f"--storage: {storage_problem(args.storage)}")
     _out_file(args.json, "--json")
@@ -222,6 +232,7 @@ def cmd_robustness(args: argparse.Namespace) -> int:
     from fuzzyservo.tuning.montecarlo import plan
 
     _at_least(1, samples=args.samples, workers=args.workers)
+    _plant_samples(samples=args.samples)
     if args.gain_margin is not None and not args.gain_margin > 1:
         raise ConfigError(f"--gain-margin must be > 1, got {args.gain_margin}")
     _out_file(args.json, "--json")

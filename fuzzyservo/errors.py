@@ -6,8 +6,76 @@ Every message says what is wrong, where (file and key), the value, and the fix, 
 from __future__ import annotations
 
 import importlib
-from collections.abc import Iterable
+from collections.abc import Iterable, Iterator
 from types import ModuleType
+
+#: characters of a value (or a key path) an error message shows before it is cut
+EXCERPT = 60
+
+
+def excerpt(value: object, limit: int = EXCERPT) -> str:
+    """``repr(value)`` for an error message, cut to ``limit`` characters.
+
+    A value from a user's file may be megabytes long (or a YAML alias bomb that stands for
+    billions of items); a message shows its start, '…' and its full size, e.g.
+    ``'aaaaaaaa…' (10,000 characters)`` or ``[[1, 2], [1, 2], [1, …] (5,000 items)``. Only
+    about ``limit`` characters of the repr are ever built, whatever the value.
+    """
+    pieces, length = [], 0
+    for piece in _repr_pieces(value, limit, 0):
+        pieces.append(piece)
+        length += len(piece)
+        if length > limit:
+            return f"{''.join(pieces)[: limit - 1]}… ({_size(value)})"
+    return "".join(pieces)
+
+
+_BRACKETS = {list: ("[", "]"), tuple: ("(", ")"), set: ("{", "}"), frozenset: ("frozenset({", "})")}
+
+
+def _repr_pieces(value: object, limit: int, depth: int) -> Iterator[str]:
+    """``repr(value)`` in pieces, lazily: the caller stops once it has enough."""
+    if depth > limit:  # a value nested deeper than a message shows (or a cycle)
+        yield "…"
+    elif type(value) in (list, tuple, set, frozenset, dict) and not value:
+        yield repr(value)
+    elif type(value) in _BRACKETS:
+        opening, closing = _BRACKETS[type(value)]
+        yield opening
+        for k, item in enumerate(value):
+            yield ", " if k else ""
+            yield from _repr_pieces(item, limit, depth + 1)
+        yield "," if type(value) is tuple and len(value) == 1 else ""
+        yield closing
+    elif type(value) is dict:
+        yield "{"
+        for k, (key, item) in enumerate(value.items()):
+            yield ", " if k else ""
+            yield from _repr_pieces(key, limit, depth + 1)
+            yield ": "
+            yield from _repr_pieces(item, limit, depth + 1)
+        yield "}"
+    elif isinstance(value, str | bytes):
+        yield repr(value[: limit + 1])[: -1 if len(value) > limit else None]
+    else:
+        try:
+            yield repr(value)
+        except ValueError:  # an int of more than 4,300 digits has no repr
+            yield "<a whole number too long to write>"
+
+
+def _size(value: object) -> str:
+    """The full size of a value whose repr was cut, in words."""
+    if isinstance(value, str):
+        return f"{len(value):,} characters"
+    if isinstance(value, bytes):
+        return f"{len(value):,} bytes"
+    if isinstance(value, list | tuple | set | frozenset | dict):
+        return f"{len(value):,} item{'' if len(value) == 1 else 's'}"
+    try:
+        return f"{len(repr(value)):,} characters"
+    except ValueError:
+        return f"{value.bit_length():,} bits" if isinstance(value, int) else "cut"
 
 
 class FuzzyservoError(Exception):
@@ -31,7 +99,9 @@ class ConfigError(FuzzyservoError, ValueError):
         self.file = file
         self.key = key
         self.detail = message
-        where = ": ".join(part for part in (file, key) if part)
+        # a key path is the file's own text: an unknown key may be megabytes long
+        shown = key if key is None or len(key) <= 2 * EXCERPT else f"{key[: 2 * EXCERPT - 1]}…"
+        where = ": ".join(part for part in (file, shown) if part)
         super().__init__(f"{where}: {message}" if where else message)
 
 

@@ -118,6 +118,9 @@ _NAMED: dict[str, Unit] = {
     "pct": _u(1e-2),
 }
 
+#: characters of a unit expression (the longest in use has about 20)
+MAX_UNIT_CHARS = 100
+
 _TOKEN_WITH_POWER = re.compile(r"\b([A-Za-z]+)([23])\b")
 
 
@@ -167,6 +170,11 @@ def parse_unit(text: str) -> Unit:
     expr = str(text).strip()
     if expr in _NAMED:
         return _NAMED[expr]
+    if len(expr) > MAX_UNIT_CHARS:  # Python's parser would run out of stack on a long one
+        raise ValueError(
+            f"cannot read a unit of {len(expr):,} characters (at most {MAX_UNIT_CHARS}): write "
+            "it like 'l/(min*sqrt(bar))' or 'm^3/s'"
+        )
     expr = expr.replace("^", "**").replace("·", "*").replace("%", "pct")
     expr = expr.replace("²", "**2").replace("³", "**3")
     expr = _TOKEN_WITH_POWER.sub(lambda m: f"{m.group(1)}**{m.group(2)}", expr)

@@ -164,6 +164,25 @@ def valve_csv(rows: int = 120, header: str = "p_s_bar,u_c_V,p_a_bar,p_b_bar,q_a_
     return make
 
 
+def alias_bomb(levels: int) -> str:
+    """A YAML flow value of ``levels`` anchors, each nine aliases of the one before: a
+    "billion laughs" (9**levels strings once expanded) in a few hundred bytes."""
+    items = ['&a0 ["lol", "lol", "lol", "lol", "lol", "lol", "lol", "lol", "lol"]']
+    items += [f"&a{k} [{', '.join([f'*a{k - 1}'] * 9)}]" for k in range(1, levels)]
+    return f"[{', '.join(items)}]"
+
+
+def nested(depth: int) -> str:
+    """A YAML flow value nested ``depth`` lists deep."""
+    return "[" * depth + "]" * depth
+
+
+def with_value(text: str, line: str, value: str) -> str:
+    """``text`` with the line ``line`` (``key: value``) given ``value`` instead."""
+    key = line.split(":")[0]
+    return _replace(f"\n{line}\n", f"\n{key}: {value}\n", "\n" + text)[1:]
+
+
 def _replace(old: str, new: str, text: str) -> str:
     assert old in text, old
     return text.replace(old, new, 1)
@@ -326,6 +345,31 @@ def _cases() -> list[Case]:
             needs=("--fis",),
         )
     )
+    for lut, controller_name, most in (
+        ("1000000000", "fpi_ehs160", "256"),
+        ("65537", "flc1_translated", "65,536"),
+    ):
+        add(
+            Case(
+                f"cli export --lut {lut} ({controller_name})",
+                ("export", controller_name, "--c", "{work}/c", "--lut", lut),
+                needs=("--lut", most),
+            )
+        )
+    add(
+        Case(
+            "cli robustness --samples 1e9",
+            ("robustness", DINCA, "p_k10", "--samples", "1000000000"),
+            needs=("--samples", "100,000"),
+        )
+    )
+    add(
+        Case(
+            "cli tune --check-samples 1e9",
+            ("tune", "dinca_robust", "--check-samples", "1000000000", "--trials", "1"),
+            needs=("--check-samples", "100,000"),
+        )
+    )
     add(Case("cli unknown option", ("simulate", DINCA, "p_k10", "--bogus"), needs=("--bogus",)))
     add(Case("cli --trials not a number", ("tune", "--trials", "many"), needs=("--trials",)))
 
@@ -476,6 +520,21 @@ def _cases() -> list[Case]:
             ("sample_period",),
         ),
         ("YAML alias", "a: &x [1]\nb: *x\n" + base, ("a",)),
+        (
+            "YAML alias bomb",
+            with_value(base, "name: dinca_cylinder", alias_bomb(9)),
+            ("line 8", "aliases", "10,000"),
+        ),
+        (
+            "YAML nested 20,000 deep",
+            with_value(base, "name: dinca_cylinder", nested(20_000)),
+            ("line 8", "deeper than 100"),
+        ),
+        (
+            "unit of 100,000 characters",
+            rig(**{cyl + "piston_mass": {"value": 1, "unit": "(" * 50_000 + "kg" + ")" * 50_000}}),
+            ("piston_mass", "100,002 characters"),
+        ),
     ]
     for label, text, needs in rigs:
         add(Case(f"rig {label}", SIM, {"rig.yaml": text}, needs))
@@ -517,6 +576,15 @@ def _cases() -> list[Case]:
             ("form", "twice"),
         ),
         ("fuzzy name with a path", controller("flc1_translated", name="../../evil"), ("name",)),
+        ("alias bomb", with_value(ctrl, "gain: 10", alias_bomb(9)), ("line 5", "aliases")),
+        ("nested 20,000 deep", with_value(ctrl, "gain: 10", nested(20_000)), ("deeper than 100",)),
+        ("gain as 100,000 characters", controller(gain="g" * 100_000), ("gain", "100,000")),
+        ("fuzzy points 1e9", controller("flc1_translated", points=10**9), ("points", "5,000")),
+        (
+            "fuzzy sample_points 1e9",
+            controller("flc1_translated", semantics="matlab", sample_points=10**9),
+            ("sample_points", "100,000"),
+        ),
     ]
     for label, text, needs in controllers:
         add(Case(f"controller {label}", SIMC, {"c.yaml": text}, needs))
@@ -525,6 +593,12 @@ def _cases() -> list[Case]:
         ("name climbing out", fis.replace("Name='tipper'", "Name='../../evil'"), ("Name",)),
         ("garbage", "this is not a fis file\n", ("x.fis",)),
         ("no rules", fis.split("[Rules]")[0], ("Rules",)),
+        ("points=1000000000", "% fuzzyservo: points=1000000000\n" + fis, ("points", "5,000")),
+        (
+            "Range nested 100,000 deep",
+            fis.replace("Range=[0 10]", f"Range=[{'(' * 100_000}0{')' * 100_000} 10]", 1),
+            ("Range", "200,001 characters"),
+        ),
     ]
     add(
         Case(
@@ -557,6 +631,13 @@ def _cases() -> list[Case]:
         ),
         ("mysql storage", study(storage="mysql://u@localhost/db"), ("storage",), ()),
         ("duplicate key", study() + "trials: 5\n", ("trials", "twice"), ()),
+        ("alias bomb", with_value(study(), "name: dinca_flc", alias_bomb(9)), ("aliases",), ()),
+        (
+            "nested 20,000 deep",
+            with_value(study(), "name: dinca_flc", nested(20_000)),
+            ("deeper than 100",),
+            (),
+        ),
         ("trials 0", study(trials=0), ("trials",), ()),
         ("unknown sampler", study(sampler="grid"), ("sampler",), ()),
         ("no parameters", study(parameters={}), ("parameters",), ()),

@@ -16,13 +16,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 from pathlib import Path
 
+from fuzzyservo.atomic import shown_path
 from fuzzyservo.errors import ConfigError
-
-
-def excerpt_text(text: str, limit: int = 80) -> str:
-    """``text`` cut to ``limit`` characters for a message (a page may send any length)."""
-    return text if len(text) <= limit else f"{text[: limit - 1]}… ({len(text)} characters)"
-
 
 CONTROLLER_SUFFIXES = (".yaml", ".yml", ".fis")
 #: the folders of a source (the working folder, the shipped files) the designer reads
@@ -95,7 +90,7 @@ class Folders:
             raise ConfigError(
                 f"too long for a file name ({len(text)} characters); give a name of at most "
                 f"{MAX_NAME} characters per folder and {MAX_PATH} in all",
-                file=excerpt_text(text),
+                file=shown_path(text),
             )
         try:
             given = Path(text).expanduser()
@@ -110,7 +105,7 @@ class Folders:
             raise ConfigError(
                 f"not a usable file name ({getattr(exc, 'strerror', None) or exc}); give a "
                 "shorter name inside the designer's folders",
-                file=excerpt_text(text),
+                file=shown_path(text),
             ) from None
         allowed = (self.output,) if write else self.roots
         if not any(path.is_relative_to(root) for root in allowed):
@@ -118,7 +113,7 @@ class Folders:
             raise ConfigError(
                 f"outside the designer's folders; the designer {'writes' if write else 'reads'} "
                 f"only inside {where}",
-                file=excerpt_text(text),
+                file=shown_path(text),
             )
         return path
 
@@ -142,22 +137,22 @@ class Folders:
             raise ConfigError(
                 "not a storage URL; give sqlite:///path/to/study.db or a URL the designer "
                 "was started with (--storage)",
-                file=excerpt_text(text),
+                file=shown_path(text),
             ) from None
         if parsed.get_backend_name() != "sqlite":
             if text in (*self.storages, *named):
                 return text, None
             raise ConfigError(
                 "a database server the designer was not started with; restart it with "
-                f"--storage {excerpt_text(text)} to open it from the page",
-                file=excerpt_text(text),
+                f"--storage {shown_path(text)} to open it from the page",
+                file=shown_path(text),
             )
         database = parsed.database or ""
         if parsed.query or not database or database == ":memory:" or database.startswith("file:"):
             raise ConfigError(
                 "give a SQLite file as sqlite:///path/to/study.db (no query, no memory or "
                 "file: URI database)",
-                file=excerpt_text(text),
+                file=shown_path(text),
             )
         path = self.resolve(database)
         if not path.is_file():
@@ -170,10 +165,10 @@ class Folders:
         if path.suffix.lower() not in CONTROLLER_SUFFIXES:
             raise ConfigError(
                 f"a controller file ends in {', '.join(CONTROLLER_SUFFIXES)}; rename it",
-                file=excerpt_text(str(name)),
+                file=shown_path(str(name)),
             )
         if not write and not path.is_file():
-            raise ConfigError("file not found; check the name", file=excerpt_text(str(name)))
+            raise ConfigError("file not found; check the name", file=shown_path(str(name)))
         return path
 
     def controller_files(self) -> list[str]:

@@ -2,7 +2,11 @@
 
 :class:`Node` wraps a parsed mapping with the file and the dotted key path so that
 each problem becomes one :class:`~fuzzyservo.errors.ConfigError` line naming file,
-key, value and fix.
+key, value and fix. Every YAML file the package reads goes through :func:`parse_yaml`,
+whose loader refuses a key given twice, nesting deeper than
+:data:`~fuzzyservo.limits.MAX_YAML_DEPTH` and aliases that expand the document past
+:data:`~fuzzyservo.limits.YAML_ALIAS_FACTOR` times its size (a "billion laughs"), each
+before anything is built; values are echoed in messages as short excerpts.
 """
 
 from __future__ import annotations
@@ -15,7 +19,8 @@ from typing import Any, NoReturn
 
 import yaml
 
-from fuzzyservo.errors import ConfigError
+from fuzzyservo.errors import ConfigError, excerpt
+from fuzzyservo.limits import MAX_YAML_DEPTH, YAML_ALIAS_FACTOR, YAML_ALIAS_FLOOR
 from fuzzyservo.units import Unit, parse_unit, to_si
 
 # ``interval`` ([lo, hi], 95 %, in the value's unit) and ``at_bound`` are written by
@@ -51,11 +56,19 @@ def parse_yaml(text: str, file: str) -> dict[str, Any]:
         data = yaml.load(text, Loader=_StrictLoader)  # a SafeLoader subclass
     except _DuplicateKey as exc:
         raise ConfigError(str(exc), file=file, key=exc.key) from None
+    except _TooLarge as exc:
+        where = f"line {exc.mark.line + 1}, column {exc.mark.column + 1}: "
+        raise ConfigError(where + exc.message, file=file) from None
     except yaml.YAMLError as exc:
         mark = getattr(exc, "problem_mark", None)
         where = f"line {mark.line + 1}, column {mark.column + 1}: " if mark else ""
         problem = getattr(exc, "problem", None) or str(exc).splitlines()[0]
         raise ConfigError(f"{where}not valid YAML ({problem}); fix the syntax", file=file) from None
+    except RecursionError:  # a chain of merge keys (<<: *a) the depth limit does not see
+        raise ConfigError(
+            "nested too deeply to read (a long chain of '<<: *name' merges?); flatten it",
+            file=file,
+        ) from None
     if not isinstance(data, dict):
         raise ConfigError(
             f"the top level must be a mapping (key: value lines), got {_describe(data)}; "
@@ -74,8 +87,87 @@ class _DuplicateKey(yaml.YAMLError):
         )
 
 
+class _TooLarge(yaml.YAMLError):
+    """A document past a stated limit (nesting, alias expansion), found at ``mark``."""
+
+    def __init__(self, message: str, mark: yaml.Mark):
+        self.message = message
+        self.mark = mark
+        super().__init__(message)
+
+
 class _StrictLoader(yaml.SafeLoader):
-    """``yaml.SafeLoader`` that refuses a key given twice in one mapping (PyYAML keeps the last)."""
+    """``yaml.SafeLoader`` that refuses a key given twice in one mapping (PyYAML keeps the
+    last), nesting deeper than ``MAX_YAML_DEPTH`` and aliases that expand the document
+    past ``YAML_ALIAS_FACTOR`` times the nodes written in it (at least
+    ``YAML_ALIAS_FLOOR``), all while composing, before any value is built; a scalar
+    Python cannot build (a date with month 13, a 5,000-digit integer) is a YAML error at
+    its line."""
+
+    # -- composing: sizes counted as the node graph is built --------------------------
+    def compose_document(self) -> yaml.Node:
+        self._depth = 0  # collections open around the node being composed
+        self._written = 0  # nodes written in the text
+        self._expanded = 0  # nodes with each alias counted as the node it names
+        self._sizes: dict[yaml.Node, int] = {}  # a finished node -> its expanded size
+        self._aliases: list[tuple[int, yaml.Mark]] = []  # expanded count after each alias
+        node = super().compose_document()
+        limit = max(YAML_ALIAS_FLOOR, YAML_ALIAS_FACTOR * self._written)
+        if self._expanded > limit:
+            mark = next(mark for count, mark in self._aliases if count > limit)
+            raise _TooLarge(
+                f"the aliases (*name) up to here expand the file past {limit:,} nodes "
+                f"({YAML_ALIAS_FACTOR} times the {self._written:,} written in it, at least "
+                f"{YAML_ALIAS_FLOOR:,}); write the repeated parts out or alias fewer of them",
+                mark,
+            )
+        self._sizes, self._aliases = {}, []
+        return node
+
+    def compose_node(self, parent: yaml.Node | None, index: Any) -> yaml.Node:
+        event = self.peek_event()
+        if isinstance(event, yaml.AliasEvent):
+            node = super().compose_node(parent, index)  # the node it names (or an error)
+            size = self._sizes.get(node)
+            if size is None:  # named while still open: a loop
+                raise _TooLarge(
+                    f"alias {excerpt('*' + event.anchor)} is inside the block it names, "
+                    "which would contain itself without end; remove the alias",
+                    event.start_mark,
+                )
+            self._expanded += size
+            self._aliases.append((self._expanded, event.start_mark))
+            return node
+        if isinstance(event, yaml.CollectionStartEvent) and self._depth >= MAX_YAML_DEPTH:
+            raise _TooLarge(
+                f"nested deeper than {MAX_YAML_DEPTH} levels (a fuzzyservo file needs fewer "
+                "than 10); check for unclosed brackets or flatten the structure",
+                event.start_mark,
+            )
+        before = self._expanded
+        self._written += 1
+        self._expanded += 1
+        self._depth += 1
+        try:
+            node = super().compose_node(parent, index)
+        finally:
+            self._depth -= 1
+        self._sizes[node] = self._expanded - before
+        return node
+
+    # -- constructing ---------------------------------------------------------------
+    def construct_object(self, node: yaml.Node, deep: bool = False) -> Any:
+        try:
+            return super().construct_object(node, deep=deep)
+        except (ValueError, OverflowError) as exc:
+            kind = node.tag.rsplit(":", 1)[-1]
+            reason = str(exc).split(";")[0]
+            raise yaml.constructor.ConstructorError(
+                None,
+                None,
+                f"cannot read {excerpt(node.value)} (YAML {kind}): {reason}",
+                node.start_mark,
+            ) from None
 
     def construct_mapping(self, node: yaml.MappingNode, deep: bool = False) -> dict:
         seen: dict[Any, int] = {}
@@ -97,7 +189,7 @@ def _describe(value: Any) -> str:
     """A value as a person wrote it in YAML: ``null`` for None, type and repr otherwise."""
     if value is None:
         return "nothing (null)"
-    return f"{type(value).__name__} {value!r}"
+    return f"{type(value).__name__} {excerpt(value)}"
 
 
 def _unit_fix(message: str) -> str:
@@ -213,12 +305,13 @@ class Node:
                 value = float(value)
             except ValueError:
                 self.fail(
-                    f"must be a number, got text {value!r}; {fix} (a unit goes under 'unit:')",
+                    f"must be a number, got text {excerpt(value)}; {fix} (a unit goes under 'unit:')",
                     key=key,
                 )
         if isinstance(value, dict) and "value" in value:
             self.fail(
-                f"must be a plain number (this key takes no unit), got {value!r}; {fix}", key=key
+                f"must be a plain number (this key takes no unit), got {excerpt(value)}; {fix}",
+                key=key,
             )
         if isinstance(value, bool) or not isinstance(value, int | float):
             self.fail(f"must be a number, got {_describe(value)}; {fix}", key=key)
@@ -227,7 +320,7 @@ class Node:
         except OverflowError:
             number = math.inf
         if not math.isfinite(number):
-            self.fail(f"must be finite, got {value!r}; {fix}", key=key)
+            self.fail(f"must be finite, got {excerpt(value)}; {fix}", key=key)
         return number
 
     def quantity(self, key: str, si_unit: str, default: float | None = None) -> float:
@@ -253,7 +346,7 @@ class Node:
             self.fail(_unit_fix(str(exc)), key=key)
         except (ArithmeticError, RecursionError):
             # fractions and float powers overflow or divide by zero on e.g. 'm**(1/0)'
-            self.fail(_unit_fix(f"cannot read unit {text!r}"), key=key)
+            self.fail(_unit_fix(f"cannot read unit {excerpt(text)}"), key=key)
 
     def convert(self, value: float, unit: str, si_unit: str, key: str = "unit") -> float:
         """``value`` given in ``unit`` as a number in ``si_unit``; a wrong unit fails at ``key``."""

@@ -24,7 +24,7 @@ from pathlib import Path
 from fuzzyservo.atomic import write_text
 from fuzzyservo.controllers.base import Controller
 from fuzzyservo.controllers.classical import PI, PID_FORMS, PIDF, OpenLoop, P
-from fuzzyservo.errors import ConfigError
+from fuzzyservo.errors import ConfigError, excerpt
 from fuzzyservo.io._yaml import Node, parse_yaml, read_yaml
 from fuzzyservo.io.fuzzy import KEYS, fuzzy_from_node
 
@@ -67,7 +67,9 @@ def controller_from_data(data: dict, file: str) -> Controller:
         root.fail(f"missing key 'kind'; add one of {sorted(_KINDS)}")
     kind = root.str("kind")
     if kind not in _KINDS:
-        root.fail(f"unknown controller kind {kind!r}; choose one of {sorted(_KINDS)}", key="kind")
+        root.fail(
+            f"unknown controller kind {excerpt(kind)}; choose one of {sorted(_KINDS)}", key="kind"
+        )
     for key in root.data:
         other = [k for k, keys in _KINDS.items() if key in keys and key not in _KINDS[kind]]
         if other:
@@ -79,7 +81,7 @@ def controller_from_data(data: dict, file: str) -> Controller:
         lo_hi = root.numbers("output_limits")
         if len(lo_hi) != 2 or not lo_hi[0] < lo_hi[1]:
             root.fail(
-                f"must be [u_min, u_max] with u_min < u_max (V), got {lo_hi}; "
+                f"must be [u_min, u_max] with u_min < u_max (V), got {excerpt(lo_hi)}; "
                 "write it like [-10, 10]",
                 key="output_limits",
             )
@@ -100,7 +102,9 @@ def controller_from_data(data: dict, file: str) -> Controller:
         gains["filter_time_s"] = _gain(root, "filter_time", unknowns, default=0.0)
         form = root.str("form", default="parallel")
         if form not in PID_FORMS:
-            root.fail(f"unknown PID form {form!r}; choose one of {list(PID_FORMS)}", key="form")
+            root.fail(
+                f"unknown PID form {excerpt(form)}; choose one of {list(PID_FORMS)}", key="form"
+            )
         gains["form"] = form
         if not any(gains[k] or any(u[0] == k for u in unknowns) for k in ("kp", "ki", "kd")):
             root.fail("kp, ki and kd are all zero; give at least one gain", key="kp")
@@ -155,7 +159,7 @@ def _gain(
     bounds = node.numbers("fit")
     if len(bounds) != 2 or not bounds[0] < bounds[1]:
         node.fail(
-            f"must be [lower, upper] with lower < upper, got {bounds}; give the range the "
+            f"must be [lower, upper] with lower < upper, got {excerpt(bounds)}; give the range the "
             "gain may take",
             key="fit",
         )
@@ -268,6 +272,6 @@ def _plain(value, key: str):
             )
         return number
     raise ValueError(
-        f"{key or 'value'}: cannot write {type(value).__name__} {value!r} to a controller "
+        f"{key or 'value'}: cannot write {type(value).__name__} {excerpt(value)} to a controller "
         "file; give numbers, text, lists or mappings"
     )

@@ -19,7 +19,7 @@ import numpy as np
 from fuzzyservo.atomic import atomic_write
 from fuzzyservo.controllers.fuzzy.controller import FuzzyController
 from fuzzyservo.controllers.fuzzy.system import FuzzySystem
-from fuzzyservo.errors import ConfigError
+from fuzzyservo.errors import ConfigError, excerpt
 from fuzzyservo.results import Result
 
 __all__ = [
@@ -52,7 +52,7 @@ class FuzzyEvaluation(Result):
         s, out = self.system, []
         if self.ignored:
             out.append(
-                f"note: column(s) {list(self.ignored)} are not inputs of {s.name!r}; ignored"
+                f"note: column(s) {list(self.ignored)} are not inputs of {excerpt(s.name)}; ignored"
             )
         if self.silent:
             fallback = "the middle of its range" if s.semantics == "matlab" else "NaN"
@@ -158,7 +158,7 @@ def read_input_table(path: str | Path, names: list[str]) -> tuple[np.ndarray, li
                 value = math.nan
             if not math.isfinite(value):
                 raise ConfigError(
-                    f"row {r}: {text!r} is not a finite number; give a number for every input",
+                    f"row {r}: {excerpt(text)} is not a finite number; give a number for every input",
                     file=file,
                     key=name,
                 )

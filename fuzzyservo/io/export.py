@@ -19,7 +19,8 @@ from typing import Any
 from fuzzyservo.atomic import write_files, write_text
 from fuzzyservo.controllers.fuzzy.controller import FuzzyController
 from fuzzyservo.controllers.fuzzy.system import FuzzySystem
-from fuzzyservo.errors import ConfigError
+from fuzzyservo.errors import ConfigError, excerpt
+from fuzzyservo.limits import lut_problem
 from fuzzyservo.results import Result
 
 __all__ = [
@@ -82,8 +83,6 @@ def export_file(
         )
     if (lut is not None and not (c_dir or st)) or (real == "float" and not c_dir):
         raise ConfigError("--lut shapes the code of --c DIR or --st FILE, --float that of --c")
-    if lut is not None and lut < 2:
-        raise ConfigError(f"--lut needs at least 2 points per input, got {lut}")
     if not (math.isfinite(sample_time_s) and sample_time_s > 0):
         raise ConfigError(f"--sample-time must be > 0 s, got {sample_time_s}")
     if fmi not in (2, 3):
@@ -118,7 +117,7 @@ def _fcl_names(system: FuzzySystem) -> tuple[FuzzySystem, list[str]]:
             terms.append(dataclasses.replace(t, name=name))
         if any(n > 1 for n in seen.values()):
             notes.append(f"note: FCL refers to terms by name; repeated term names of "
-                         f"{v.name!r} written with _2, _3 … suffixes")  # fmt: skip
+                         f"{excerpt(v.name)} written with _2, _3 … suffixes")  # fmt: skip
         variables.append(dataclasses.replace(v, terms=tuple(terms)))
     n = len(system.inputs)
     renamed = dataclasses.replace(system, inputs=tuple(variables[:n]), output=variables[n],
@@ -149,6 +148,10 @@ def export(
     from fuzzyservo.io.fis import law_text, write_fis
 
     system = controller.system if isinstance(controller, FuzzyController) else controller
+    if lut is not None and isinstance(controller, FuzzyController):
+        problem = lut_problem(lut, len(system.inputs))
+        if problem:
+            raise ConfigError(f"--lut: {problem}")
     name, lines, notes, paths = system.name, [], [], []
     law = law_text(controller) if isinstance(controller, FuzzyController) else ""
     if isinstance(controller, FuzzyController):
@@ -158,7 +161,7 @@ def export(
                          f"control law ({law}) is in a fuzzyservo comment that fuzzyservo "
                          "reads back")  # fmt: skip
     elif lut is not None:
-        raise ConfigError(f"{name!r} is an inference system, not a controller: --lut tables "
+        raise ConfigError(f"{excerpt(name)} is an inference system, not a controller: --lut tables "
                           "a controller's map; export it without --lut")  # fmt: skip
     if fis:
         paths.append(write_fis(system, fis, law))

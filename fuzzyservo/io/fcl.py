@@ -63,9 +63,10 @@ from fuzzyservo.controllers.fuzzy.system import (
     term_code,
     term_index,
 )
-from fuzzyservo.errors import ConfigError
+from fuzzyservo.errors import ConfigError, excerpt
 from fuzzyservo.io.fis import LAW_KEYS, controller_from_law
 from fuzzyservo.io.fis import number_text as _num
+from fuzzyservo.limits import MAX_POINTS, MAX_SAMPLE_POINTS, points_problem
 
 __all__ = [
     "controller_from_fcl", "fcl_text", "parse_fcl", "read_fcl", "read_fcl_law", "write_fcl",
@@ -164,11 +165,15 @@ def parse_fcl(text: str, file: str = "<fcl text>", points: int = 201) -> FuzzySy
         elif word in ("FUZZIFY", "DEFUZZIFY"):
             parts = st.split()
             if len(parts) != 2:
-                _fail(file, number, f"write '{word} <variable>', got {st!r}")
+                _fail(file, number, f"write '{word} <variable>', got {excerpt(st)}")
             var = parts[1]
             if var not in (inputs if word == "FUZZIFY" else outputs):
                 where = "VAR_INPUT" if word == "FUZZIFY" else "VAR_OUTPUT"
-                _fail(file, number, f"{word} {var}: {var!r} is not declared in {where}; declare it")
+                _fail(
+                    file,
+                    number,
+                    f"{word} {var}: {excerpt(var)} is not declared in {where}; declare it",
+                )
             section = (word, var)
             terms.setdefault(var, [])
         elif word in ("END_FUZZIFY", "END_DEFUZZIFY", "END_RULEBLOCK", "END_FUNCTION_BLOCK"):
@@ -183,14 +188,14 @@ def parse_fcl(text: str, file: str = "<fcl text>", points: int = 201) -> FuzzySy
         elif word == "RANGE" and section:
             m = re.match(r"^RANGE\s*:=\s*\(\s*(\S+)\s*\.\.\s*(\S+)\s*\)$", st, flags=re.I)
             if not m:
-                _fail(file, number, f"write RANGE := (low .. high), got {st!r}")
+                _fail(file, number, f"write RANGE := (low .. high), got {excerpt(st)}")
             ranges[section[1]] = (_float(file, number, m[1]), _float(file, number, m[2]))
         elif section and section[0] == "RULEBLOCK" and word == "RULE":
             rule_texts.append((number, st))
         elif section and word in ("AND", "OR", "ACT", "ACCU", "METHOD", "DEFAULT"):
             m = re.match(r"^(\w+)\s*:=?\s*(\S+)$", st)
             if not m:
-                _fail(file, number, f"write {word} : <method>, got {st!r}")
+                _fail(file, number, f"write {word} : <method>, got {excerpt(st)}")
             key, value = word, m[2].upper()
             if key == "DEFAULT":
                 continue  # the no-rule value: the semantics decide it (mid-range or NaN)
@@ -199,7 +204,7 @@ def parse_fcl(text: str, file: str = "<fcl text>", points: int = 201) -> FuzzySy
                 _fail(file, number, f"unsupported {key} {value} (supported: {', '.join(table)})")
             methods[key] = table[value]
         else:
-            _fail(file, number, f"cannot read {st!r} here; see IEC 61131-7 (FCL)")
+            _fail(file, number, f"cannot read {excerpt(st)} here; see IEC 61131-7 (FCL)")
     if not seen_block:
         _fail(file, 1, "no FUNCTION_BLOCK; is this an FCL file?")
     if not inputs or not outputs:
@@ -209,21 +214,22 @@ def parse_fcl(text: str, file: str = "<fcl text>", points: int = 201) -> FuzzySy
 
     def variable(var: str, default_points: int) -> Variable:
         if var not in ranges:
-            _fail(file, 1, f"variable {var!r} has no RANGE := (low .. high); add it")
+            _fail(file, 1, f"variable {excerpt(var)} has no RANGE := (low .. high); add it")
         if var not in terms or not terms[var]:
             if var in inputs:
                 terms.setdefault(var, [])
             else:
-                _fail(file, 1, f"output {var!r} has no terms; add a DEFUZZIFY block")
+                _fail(file, 1, f"output {excerpt(var)} has no terms; add a DEFUZZIFY block")
         try:
             return Variable(var, *ranges[var], tuple(terms[var]), default_points)
         except ValueError as exc:
             _fail(file, 1, str(exc))
 
-    def count(key: str, default: int) -> int:
+    def count(key: str, default: int, most: int = MAX_POINTS) -> int:
         value = settings.get(key, str(default))
-        if not value.isdigit() or int(value) < 3:
-            _fail(file, 1, f"fuzzyservo setting {key}={value!r} must be a whole number >= 3")
+        problem = points_problem(value, default, most)
+        if problem:
+            _fail(file, 1, f"fuzzyservo setting {key} {problem}")
         return int(value)
 
     pts = count("points", points)
@@ -233,8 +239,9 @@ def parse_fcl(text: str, file: str = "<fcl text>", points: int = 201) -> FuzzySy
     rules = tuple(_rule(file, number, st, in_vars, out_vars) for number, st in rule_texts)
     semantics = settings.get("semantics", "skfuzzy")
     if semantics not in SEMANTICS:
-        _fail(file, 1, f"semantics must be one of {list(SEMANTICS)}, got {semantics!r}")
+        _fail(file, 1, f"semantics must be one of {list(SEMANTICS)}, got {excerpt(semantics)}")
     defuzz = methods.get("METHOD", "wtaver" if sugeno else "centroid")
+    sample_points = count("sample_points", MATLAB_SAMPLE_POINTS, MAX_SAMPLE_POINTS)
     try:
         return FuzzySystem(
             name=name,
@@ -249,7 +256,7 @@ def parse_fcl(text: str, file: str = "<fcl text>", points: int = 201) -> FuzzySy
             defuzzification=defuzz,
             type="sugeno" if sugeno else "mamdani",
             semantics=semantics,
-            sample_points=count("sample_points", MATLAB_SAMPLE_POINTS),
+            sample_points=sample_points,
         )
     except ValueError as exc:
         _fail(file, 1, str(exc))
@@ -259,7 +266,7 @@ def _float(file: str, line: int, text: str) -> float:
     try:
         return float(text)
     except ValueError:
-        _fail(file, line, f"{text!r} is not a number")
+        _fail(file, line, f"{excerpt(text)} is not a number")
 
 
 def _term(file: str, line: int, st: str) -> Term:
@@ -268,7 +275,7 @@ def _term(file: str, line: int, st: str) -> Term:
         _fail(
             file,
             line,
-            f"write TERM name := (x, y) (x, y) … or TERM name := shape p1 p2 …; got {st!r}",
+            f"write TERM name := (x, y) (x, y) … or TERM name := shape p1 p2 …; got {excerpt(st)}",
         )
     name, spec = m[1], m[2].strip()
     try:
@@ -287,7 +294,7 @@ def _term(file: str, line: int, st: str) -> Term:
             _fail(
                 file,
                 line,
-                f"term {name}: points {list(zip(xs, ys, strict=True))} are not a triangle "
+                f"term {name}: points {excerpt(list(zip(xs, ys, strict=True)))} are not a triangle "
                 "(0 1 0), trapezoid (0 1 1 0) or shoulder; general point lists are not supported",
             )
         parts = spec.split()
@@ -298,9 +305,11 @@ def _term(file: str, line: int, st: str) -> Term:
             _fail(
                 file,
                 line,
-                f"term {name}: unknown shape {shape!r} (known: {', '.join(SHAPES)}, linear)",
+                f"term {name}: unknown shape {excerpt(shape)} (known: {', '.join(SHAPES)}, linear)",
             )
         return Term(name, shape, tuple(float(p) for p in parts[1:]))
+    except ConfigError:
+        raise
     except ValueError as exc:
         _fail(file, line, f"term {name}: {exc}")
 
@@ -314,7 +323,11 @@ _RULE = re.compile(
 def _rule(file: str, line: int, st: str, inputs: list[Variable], outputs: list[Variable]) -> Rule:
     m = _RULE.match(st)
     if not m:
-        _fail(file, line, f"write RULE n : IF x IS a AND y IS b THEN u IS c [WITH w]; got {st!r}")
+        _fail(
+            file,
+            line,
+            f"write RULE n : IF x IS a AND y IS b THEN u IS c [WITH w]; got {excerpt(st)}",
+        )
     ante = m["ante"].strip()
     conns = {c.upper() for c in re.findall(r"\s(AND|OR)\s", f" {ante} ", flags=re.I)}
     if len(conns) > 1:
@@ -349,15 +362,17 @@ def _clause(file: str, line: int, text: str, variables: list[Variable]) -> tuple
     m = re.match(r"^(\w+)\s+IS\s+(NOT\s+)?(\w+)$", text.strip(), flags=re.I)
     if not m:
         _fail(
-            file, line, f"cannot read {text!r}; write 'variable IS term' or 'variable IS NOT term'"
+            file,
+            line,
+            f"cannot read {excerpt(text)}; write 'variable IS term' or 'variable IS NOT term'",
         )
     names = [v.name for v in variables]
     if m[1] not in names:
-        _fail(file, line, f"{m[1]!r} is not one of {names}")
+        _fail(file, line, f"{excerpt(m[1])} is not one of {names}")
     k = names.index(m[1])
     terms = [t.name for t in variables[k].terms]
     if m[3] not in terms:
-        _fail(file, line, f"{m[1]} has no term {m[3]!r}; its terms are {terms}")
+        _fail(file, line, f"{m[1]} has no term {excerpt(m[3])}; its terms are {terms}")
     t = terms.index(m[3])
     return k, term_code(t, negated=bool(m[2]))
 
@@ -392,7 +407,7 @@ def controller_from_fcl(path: str | Path) -> FuzzyController:
 def _name(name: str, what: str) -> str:
     if not _IDENT.match(name) or name.upper() in _KEYWORDS:
         raise ValueError(
-            f"{what} {name!r} is not an FCL identifier (letters, digits, _; not a keyword); rename it"
+            f"{what} {excerpt(name)} is not an FCL identifier (letters, digits, _; not a keyword); rename it"
         )
     return name
 
@@ -417,7 +432,7 @@ def fcl_text(system: FuzzySystem, law: str = "") -> str:
         names = [t.name for t in v.terms]
         if len(set(names)) != len(names):
             raise ValueError(
-                f"variable {v.name!r}: FCL refers to terms by name; make {names} unique"
+                f"variable {excerpt(v.name)}: FCL refers to terms by name; make {names} unique"
             )
         for t in v.terms:
             _name(t.name, "term name")

@@ -78,7 +78,8 @@ from fuzzyservo.controllers.fuzzy.system import (
     from_matlab,
     to_matlab,
 )
-from fuzzyservo.errors import ConfigError, FileWarning
+from fuzzyservo.errors import ConfigError, FileWarning, excerpt
+from fuzzyservo.limits import MAX_POINTS, MAX_SAMPLE_POINTS, points_problem
 
 __all__ = [
     "controller_from_fis", "controller_from_law", "fis_text", "law_text", "parse_fis",
@@ -118,6 +119,10 @@ _RULE = re.compile(
 _RULE_HINT = "write it like '1 2, 3 (1) : 1' (input MF numbers, output MF, (weight) : 1 AND / 2 OR)"
 
 
+#: characters of an arithmetic expression in a number's place (``-pi/4``)
+_MAX_EXPRESSION = 100
+
+
 # --------------------------------------------------------------------------- parsing
 def _number(text: str) -> float:
     """A number, or an arithmetic expression of numbers and ``pi`` (MATLAB's readfis
@@ -126,6 +131,8 @@ def _number(text: str) -> float:
         return float(text)
     except ValueError:
         pass
+    if len(text) > _MAX_EXPRESSION:  # the parser would recurse (or run out of memory) on it
+        raise ValueError(text)
     import ast
     import operator
 
@@ -201,7 +208,7 @@ class _Reader:
                 continue
             if current is None:
                 self.fail(
-                    f"text before the first section: {line!r}; start the file with [System]",
+                    f"text before the first section: {excerpt(line)}; start the file with [System]",
                     line=number,
                 )
             if current.name == "Rules":
@@ -211,7 +218,7 @@ class _Reader:
             key, value = key.strip(), value.strip()
             if not eq or not key:
                 self.fail(
-                    f"cannot read {line!r}; write Key=value (e.g. Range=[-1 1])",
+                    f"cannot read {excerpt(line)}; write Key=value (e.g. Range=[-1 1])",
                     f"[{current.name}]",
                     number,
                 )
@@ -250,18 +257,19 @@ class _Reader:
             key, eq, value = item.partition("=")
             if not eq or key not in ("semantics", "sample_points", "points", *LAW_KEYS):
                 self.fail(
-                    f"cannot read {item!r} in a '{_TAG}' line; write semantics=skfuzzy|matlab, "
+                    f"cannot read {excerpt(item)} in a '{_TAG}' line; write semantics=skfuzzy|matlab, "
                     f"sample_points=N, points=N or the control law ({', '.join(LAW_KEYS)})",
                     line=number,
                 )
             self.settings[prefix + key] = (value, number)
 
-    def setting_int(self, key: str, default: int) -> int:
+    def setting_int(self, key: str, default: int, most: int = MAX_POINTS) -> int:
         if key not in self.settings:
             return default
         value, line = self.settings[key]
-        if not (value.isdigit() and int(value) >= 3):
-            self.fail(f"{key} must be a whole number >= 3, got {value!r}; fix it", line=line)
+        problem = points_problem(value, default, most)
+        if problem:
+            self.fail(f"{key} {problem}", line=line)
         return int(value)
 
     def _check_section_name(self, name: str, number: int) -> None:
@@ -284,7 +292,7 @@ class _Reader:
         v = entry.value
         if len(v) < 2 or v[0] != "'" or v[-1] != "'" or "'" in v[1:-1]:
             self.fail(
-                f"expected text in single quotes, got {v!r}; write it like {key}='name'",
+                f"expected text in single quotes, got {excerpt(v)}; write it like {key}='name'",
                 f"[{section.name}].{key}",
                 entry.number,
             )
@@ -298,7 +306,7 @@ class _Reader:
             value = math.nan
         if not (math.isfinite(value) and value == int(value) and value >= 0):
             self.fail(
-                f"expected a whole number, got {entry.value!r}; write it like {key}=2",
+                f"expected a whole number, got {excerpt(entry.value)}; write it like {key}=2",
                 f"[{section.name}].{key}",
                 entry.number,
             )
@@ -311,9 +319,9 @@ class _Reader:
             try:
                 x = _number(p)
             except ValueError:
-                self.fail(f"{p!r} is not a number; {example}", where, line)
+                self.fail(f"{excerpt(p)} is not a number; {example}", where, line)
             if not math.isfinite(x):
-                self.fail(f"numbers must be finite, got {p!r}; {example}", where, line)
+                self.fail(f"numbers must be finite, got {excerpt(p)}; {example}", where, line)
             values.append(x)
         return tuple(values)
 
@@ -322,7 +330,9 @@ class _Reader:
         where = f"[{section.name}].{key}"
         v = entry.value
         if not (v.startswith("[") and v.endswith("]")):
-            self.fail(f"expected numbers in brackets, got {v!r}; {example}", where, entry.number)
+            self.fail(
+                f"expected numbers in brackets, got {excerpt(v)}; {example}", where, entry.number
+            )
         return self.numbers(v[1:-1], where, entry.number, example)
 
     def method(self, system: _Section, key: str, sugeno: bool = False) -> str:
@@ -336,7 +346,7 @@ class _Reader:
             return allowed[0]
         if value.lower() not in allowed:
             self.fail(
-                f"unsupported {key} {value!r} (supported: {', '.join(allowed)}); "
+                f"unsupported {key} {excerpt(value)} (supported: {', '.join(allowed)}); "
                 f"choose one of them",
                 f"[System].{key}",
                 system.entries[key].number,
@@ -371,7 +381,7 @@ def _variable(
     for key, entry in section.entries.items():
         if key not in ("Name", "Range", "NumMFs") and not _MF_KEY.match(key):
             reader.fail(
-                f"unknown key {key!r} (known: {', '.join(_VARIABLE_KEYS)}); remove it",
+                f"unknown key {excerpt(key)} (known: {', '.join(_VARIABLE_KEYS)}); remove it",
                 f"{where}.{key}",
                 entry.number,
             )
@@ -383,7 +393,9 @@ def _variable(
     line = section.entries["Range"].number
     if len(lo_hi) != 2:
         reader.fail(
-            f"needs two numbers [low high], got {list(lo_hi)}; {example}", f"{where}.Range", line
+            f"needs two numbers [low high], got {excerpt(list(lo_hi))}; {example}",
+            f"{where}.Range",
+            line,
         )
     if not (lo_hi[0] < lo_hi[1] or (sugeno and section.name.startswith("Output"))):
         reader.fail(
@@ -413,7 +425,7 @@ def _term(reader: _Reader, section: _Section, key: str, sugeno_output: bool) -> 
     m = _MF.match(entry.value)
     if not m:
         reader.fail(
-            f"cannot read membership function {entry.value!r}; write it like "
+            f"cannot read membership function {excerpt(entry.value)}; write it like "
             f"{key}='NB':'trimf',[-1 -0.5 0]",
             where,
             entry.number,
@@ -422,13 +434,15 @@ def _term(reader: _Reader, section: _Section, key: str, sugeno_output: bool) -> 
     allowed = SUGENO_SHAPES if sugeno_output else tuple(SHAPES)
     if shape not in allowed:
         if shape in FUZZYLITE_SHAPES:
-            problem = f"{shape!r} is a fuzzylite shape that MATLAB has no function for"
+            problem = f"{excerpt(shape)} is a fuzzylite shape that MATLAB has no function for"
         elif sugeno_output and shape in SHAPES:
-            problem = f"a Sugeno output term is 'constant' or 'linear', not {shape!r}"
+            problem = f"a Sugeno output term is 'constant' or 'linear', not {excerpt(shape)}"
         elif shape in SUGENO_SHAPES:
-            problem = f"{shape!r} is a Sugeno output term, here in a Mamdani system or an input"
+            problem = (
+                f"{excerpt(shape)} is a Sugeno output term, here in a Mamdani system or an input"
+            )
         else:
-            problem = f"unsupported membership function {shape!r}"
+            problem = f"unsupported membership function {excerpt(shape)}"
         reader.fail(
             f"{problem} (supported: {', '.join(allowed)}); replace it with one of them",
             where,
@@ -440,7 +454,7 @@ def _term(reader: _Reader, section: _Section, key: str, sugeno_output: bool) -> 
     need = SHAPES.get(shape, 1)
     if len(params) < need or (shape == "constant" and len(params) != 1):
         reader.fail(
-            f"{shape} takes {need} parameters, got {len(params)} {list(params)}; give {need}",
+            f"{shape} takes {need} parameters, got {len(params)} {excerpt(list(params))}; give {need}",
             where,
             entry.number,
         )
@@ -456,7 +470,7 @@ def _indices(reader: _Reader, text: str, line: _Line) -> list[int]:
         x = float(v)
         if x != int(x):
             reader.fail(
-                f"rule {line.value!r}: MF number {v} is not a whole number; {_RULE_HINT}",
+                f"rule {excerpt(line.value)}: MF number {v} is not a whole number; {_RULE_HINT}",
                 "[Rules]",
                 line.number,
             )
@@ -470,19 +484,19 @@ def _rule(
     where = "[Rules]"
     m = _RULE.match(line.value)
     if not m:
-        reader.fail(f"cannot read rule {line.value!r}; {_RULE_HINT}", where, line.number)
+        reader.fail(f"cannot read rule {excerpt(line.value)}; {_RULE_HINT}", where, line.number)
     ante = _indices(reader, m["ante"], line)
     cons = _indices(reader, m["cons"], line)
     if len(ante) != len(inputs):
         reader.fail(
-            f"rule {line.value!r} gives {len(ante)} input MF number(s) for {len(inputs)} "
+            f"rule {excerpt(line.value)} gives {len(ante)} input MF number(s) for {len(inputs)} "
             f"input(s); {_RULE_HINT}",
             where,
             line.number,
         )
     if len(cons) != len(outputs):
         reader.fail(
-            f"rule {line.value!r} gives {len(cons)} output MF number(s) for {len(outputs)} "
+            f"rule {excerpt(line.value)} gives {len(cons)} output MF number(s) for {len(outputs)} "
             f"output(s); give one output MF number per output (0: none)",
             where,
             line.number,
@@ -491,21 +505,21 @@ def _rule(
         for var, v in zip(variables, values, strict=True):
             if abs(v) > len(var.terms):
                 reader.fail(
-                    f"rule {line.value!r} refers to MF{abs(v)} of {kind} {var.name!r}, which "
+                    f"rule {excerpt(line.value)} refers to MF{abs(v)} of {kind} {excerpt(var.name)}, which "
                     f"has {len(var.terms)}; use 1..{len(var.terms)} (0 for none)",
                     where,
                     line.number,
                 )
     if all(v == 0 for v in ante):
         reader.fail(
-            f"rule {line.value!r} has no condition on any input; give an input MF number or "
+            f"rule {excerpt(line.value)} has no condition on any input; give an input MF number or "
             "delete the rule",
             where,
             line.number,
         )
     if sugeno and any(c < 0 for c in cons):
         reader.fail(
-            f"rule {line.value!r}: a negated output MF has no meaning in a Sugeno system; "
+            f"rule {excerpt(line.value)}: a negated output MF has no meaning in a Sugeno system; "
             "use an output MF number",
             where,
             line.number,
@@ -517,7 +531,7 @@ def _rule(
         weight = math.nan
     if not 0.0 <= weight <= 1.0:
         reader.fail(
-            f"rule {line.value!r}: weight must be a number in [0, 1], got {weight_text!r}; "
+            f"rule {excerpt(line.value)}: weight must be a number in [0, 1], got {excerpt(weight_text)}; "
             "write it like (1) or (0.5)",
             where,
             line.number,
@@ -525,7 +539,7 @@ def _rule(
     conn = float(m["conn"])
     if conn not in (1, 2):
         reader.fail(
-            f"rule {line.value!r}: connective must be 1 (AND) or 2 (OR), got {m['conn']}; fix it",
+            f"rule {excerpt(line.value)}: connective must be 1 (AND) or 2 (OR), got {m['conn']}; fix it",
             where,
             line.number,
         )
@@ -577,7 +591,7 @@ def _parse(text: str, file: str, points: int) -> tuple[FuzzySystem, dict[str, st
     for key, entry in system.entries.items():
         if key not in _SYSTEM_KEYS:
             reader.fail(
-                f"unknown key {key!r} (known: {', '.join(_SYSTEM_KEYS)}); remove it",
+                f"unknown key {excerpt(key)} (known: {', '.join(_SYSTEM_KEYS)}); remove it",
                 f"[System].{key}",
                 entry.number,
             )
@@ -586,7 +600,7 @@ def _parse(text: str, file: str, points: int) -> tuple[FuzzySystem, dict[str, st
     fis_type = reader.text(system, "Type").strip().lower()
     if fis_type not in ("mamdani", "sugeno"):
         reader.fail(
-            f"unsupported FIS type {fis_type!r} (supported: mamdani, sugeno — type-1 systems; "
+            f"unsupported FIS type {excerpt(fis_type)} (supported: mamdani, sugeno — type-1 systems; "
             f"{'type-2 systems' if 'type2' in fis_type else 'this type'} cannot be read); "
             "convert it to a type-1 Mamdani or Sugeno system",
             "[System].Type",
@@ -643,8 +657,11 @@ def _parse(text: str, file: str, points: int) -> tuple[FuzzySystem, dict[str, st
     if "semantics" in reader.settings:
         semantics, line = reader.settings["semantics"]
         if semantics not in SEMANTICS:
-            reader.fail(f"semantics must be one of {list(SEMANTICS)}, got {semantics!r}", line=line)
+            reader.fail(
+                f"semantics must be one of {list(SEMANTICS)}, got {excerpt(semantics)}", line=line
+            )
     law = {k: v for k, (v, _) in reader.settings.items() if k in LAW_KEYS}
+    sample_points = reader.setting_int("sample_points", MATLAB_SAMPLE_POINTS, MAX_SAMPLE_POINTS)
     try:
         return FuzzySystem(
             name=name,
@@ -654,7 +671,7 @@ def _parse(text: str, file: str, points: int) -> tuple[FuzzySystem, dict[str, st
             rules=rules,
             type=fis_type,
             semantics=semantics,
-            sample_points=reader.setting_int("sample_points", MATLAB_SAMPLE_POINTS),
+            sample_points=sample_points,
             **methods,
         ), law
     except ValueError as exc:
@@ -735,7 +752,7 @@ def controller_from_law(
             settings[k] = float(text)
         except ValueError:
             raise ConfigError(
-                f"control law {k}={text!r} is not a number; write it like {k}=1.5",
+                f"control law {k}={excerpt(text)} is not a number; write it like {k}=1.5",
                 file=str(path), key="fuzzyservo control law",
             ) from None  # fmt: skip
     settings.setdefault("form", "p" if len(system.inputs) == 1 else "pd")
@@ -761,7 +778,7 @@ def number_text(x: float) -> str:
 def _quoted(name: str, what: str) -> str:
     if "'" in name or "\n" in name or "\r" in name:
         raise ValueError(
-            f"{what} {name!r} cannot be written to a .fis file (names are quoted with ' and "
+            f"{what} {excerpt(name)} cannot be written to a .fis file (names are quoted with ' and "
             "on one line); rename it"
         )
     return f"'{name}'"

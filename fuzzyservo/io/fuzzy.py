@@ -56,8 +56,9 @@ from fuzzyservo.controllers.fuzzy.system import (
     term_code,
     term_index,
 )
-from fuzzyservo.errors import ConfigError
+from fuzzyservo.errors import ConfigError, excerpt
 from fuzzyservo.io._yaml import Node
+from fuzzyservo.limits import MAX_SAMPLE_POINTS, points_problem
 
 KEYS = (
     "form", "input", "rate", "output", "rules", "methods", "points", "gains", "semantics",
@@ -79,15 +80,17 @@ def fuzzy_from_node(
     """Build the controller described by a ``kind: fuzzy`` file (already checked for top-level keys)."""
     form = root.str("form", default="p")
     if form not in FORMS:
-        root.fail(f"unknown form {form!r}; choose one of {list(FORMS)}", key="form")
-    points = int(root.number("points", default=201))
-    if points < 3:
-        root.fail(f"must be >= 3, got {points}", key="points")
+        root.fail(f"unknown form {excerpt(form)}; choose one of {list(FORMS)}", key="form")
+    points = root.number("points", default=201)
+    problem = points_problem(points)
+    if problem:
+        root.fail(problem, key="points")
+    points = int(points)
     two_inputs = form == "pd" or root.has("rate")
     inputs = [_variable(root.child("input"), "e", points)]
     if two_inputs:
         if not root.has("rate"):
-            root.fail(f"form {form!r} needs a 'rate' input (the error rate); add it")
+            root.fail(f"form {excerpt(form)} needs a 'rate' input (the error rate); add it")
         inputs.append(_variable(root.child("rate"), "de", points))
     elif form == "pd":
         root.fail("form 'pd' needs a 'rate' input; add it")
@@ -99,16 +102,18 @@ def fuzzy_from_node(
     for key, allowed in _METHODS.items():
         value = methods.str(key, default=allowed[0])
         if value not in allowed:
-            methods.fail(f"unknown method {value!r}; choose one of {list(allowed)}", key=key)
+            methods.fail(f"unknown method {excerpt(value)}; choose one of {list(allowed)}", key=key)
         chosen[key] = value
     semantics = root.str("semantics", default="skfuzzy")
     if semantics not in SEMANTICS:
         root.fail(
-            f"unknown semantics {semantics!r}; choose one of {list(SEMANTICS)}", key="semantics"
+            f"unknown semantics {excerpt(semantics)}; choose one of {list(SEMANTICS)}",
+            key="semantics",
         )
     sample_points = root.number("sample_points", default=MATLAB_SAMPLE_POINTS)
-    if not (sample_points == int(sample_points) and sample_points >= 3):
-        root.fail(f"must be a whole number >= 3, got {sample_points}", key="sample_points")
+    problem = points_problem(sample_points, MATLAB_SAMPLE_POINTS, MAX_SAMPLE_POINTS)
+    if problem:
+        root.fail(problem, key="sample_points")
     gains = root.child("gains", default={})
     gains.only(("input", "rate", "output"))
     gain_values = {k: gains.number(k, default=1.0) for k in ("input", "rate", "output")}
@@ -146,7 +151,7 @@ def _variable(node: Node, default_name: str, points: int) -> SevenTermDesign | V
     lo_hi = node.numbers("range")
     if len(lo_hi) != 2 or not lo_hi[0] < lo_hi[1]:
         node.fail(
-            f"must be [low, high] with low < high, got {lo_hi}; a range of zero width has no terms",
+            f"must be [low, high] with low < high, got {excerpt(lo_hi)}; a range of zero width has no terms",
             key="range",
         )
     low, high = lo_hi
@@ -160,7 +165,7 @@ def _variable(node: Node, default_name: str, points: int) -> SevenTermDesign | V
     increments = node.numbers("increments", default=list(UNIFORM_INCREMENTS))
     if len(increments) != 8 or not all(d > 0 for d in increments):
         node.fail(
-            f"needs 8 positive numbers (left shoulder, 6 gaps between NB..PB, right shoulder), got {increments}",
+            f"needs 8 positive numbers (left shoulder, 6 gaps between NB..PB, right shoulder), got {excerpt(increments)}",
             key="increments",
         )
     reshape = node.number("reshape", default=1.0)
@@ -187,14 +192,14 @@ def _explicit(node: Node, name: str, low: float, high: float, points: int) -> Va
         key = str(term_name)
         if not (isinstance(spec, list) and len(spec) == 2 and isinstance(spec[1], list)):
             node.fail(
-                f"write a term as [shape, [parameters]], e.g. [trimf, [-1, 0, 1]]; got {spec!r}",
+                f"write a term as [shape, [parameters]], e.g. [trimf, [-1, 0, 1]]; got {excerpt(spec)}",
                 key=key,
             )
         shape, params = spec
         if shape not in SHAPES:
-            node.fail(f"unknown shape {shape!r}; choose one of {sorted(SHAPES)}", key=key)
+            node.fail(f"unknown shape {excerpt(shape)}; choose one of {sorted(SHAPES)}", key=key)
         if not all(isinstance(p, int | float) and not isinstance(p, bool) for p in params):
-            node.fail(f"parameters must be numbers, got {params!r}", key=key)
+            node.fail(f"parameters must be numbers, got {excerpt(params)}", key=key)
         try:
             terms.append(Term(key, shape, tuple(float(p) for p in params)))
         except ValueError as exc:
@@ -248,13 +253,13 @@ def _rules(root: Node, inputs: list[Variable], output: Variable) -> tuple[Rule, 
         m = _RULE.match(str(line))
         if not m:
             root.fail(
-                f"cannot read rule {line!r}; write it like 'NB -> NB' or 'NS and PS -> Z 0.5'",
+                f"cannot read rule {excerpt(line)}; write it like 'NB -> NB' or 'NS and PS -> Z 0.5'",
                 key=where,
             )
         names = [m["a"]] + ([m["b"]] if m["b"] else [])
         if len(names) != len(inputs):
             root.fail(
-                f"rule {line!r} names {len(names)} input term(s) for {len(inputs)} input(s)",
+                f"rule {excerpt(line)} names {len(names)} input term(s) for {len(inputs)} input(s)",
                 key=where,
             )
         antecedent = []
@@ -284,7 +289,7 @@ def _term_index(root: Node, var: Variable, term: str, where: str) -> int:
         return var.index(term)
     except KeyError:
         root.fail(
-            f"{var.name!r} has no term {term!r}; its terms are {[t.name for t in var.terms]}",
+            f"{excerpt(var.name)} has no term {excerpt(term)}; its terms are {[t.name for t in var.terms]}",
             key=where,
         )
     raise ConfigError("unreachable")  # pragma: no cover

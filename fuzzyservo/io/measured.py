@@ -18,6 +18,7 @@ which is also the row a spreadsheet shows.
 from __future__ import annotations
 
 import csv
+import math
 import re
 from array import array
 from collections.abc import Callable, Iterable, Mapping, Sequence
@@ -28,12 +29,12 @@ from typing import TYPE_CHECKING, NoReturn
 import numpy as np
 
 from fuzzyservo.atomic import atomic_write
-from fuzzyservo.errors import DataError
+from fuzzyservo.errors import DataError, excerpt
 from fuzzyservo.measured import ColumnScaling, Measured
 
 if TYPE_CHECKING:
     from fuzzyservo.rig import MeasuredFormat
-from fuzzyservo.limits import period_problem
+from fuzzyservo.limits import MAX_RECORD_SAMPLES, period_problem, record_problem
 from fuzzyservo.units import parse_unit, to_si
 
 __all__ = [
@@ -98,7 +99,7 @@ class _Column:
 
     def label(self, kind: str) -> str:
         mapped = f" (mapped to {self.spec})" if self.spec != self.name else ""
-        return f"{kind} {self.name!r}{mapped}"
+        return f"{kind} {excerpt(self.name)}{mapped}"
 
 
 def _known_units() -> str:
@@ -107,7 +108,9 @@ def _known_units() -> str:
 
 def _parse_name(file: str, kind: str, name: str, spec: str) -> _Column:
     """Split ``<signal>_<unit>`` at the longest known unit suffix."""
-    where = f"{file}: {kind} {name!r}" + (f" (mapped to {spec!r})" if spec != name else "")
+    where = f"{file}: {kind} {excerpt(name)}" + (
+        f" (mapped to {excerpt(spec)})" if spec != name else ""
+    )
     for suffix in _BY_LENGTH:
         if spec.endswith("_" + suffix):
             signal = spec[: -len(suffix) - 1]
@@ -127,12 +130,12 @@ def _parse_name(file: str, kind: str, name: str, spec: str) -> _Column:
                 "e.g. y_cm or p1_bar"
             )
         raise DataError(
-            f"{where}: unknown unit {unit!r}; convert the values to a known unit "
+            f"{where}: unknown unit {excerpt(unit)}; convert the values to a known unit "
             f"({_known_units()}) and rename it, e.g. {head}_{_BY_LENGTH[-1]}"
         )
     if signal == "t" and parse_unit(UNIT_SUFFIXES[suffix][0]).dims != _TIME_DIMS:
         raise DataError(
-            f"{where}: signal 't' is time but unit {suffix!r} is not a time unit; give time in "
+            f"{where}: signal 't' is time but unit {excerpt(suffix)} is not a time unit; give time in "
             "s or ms, or rename the signal (e.g. tau_N_m for a torque)"
         )
     return _Column(name=name, spec=spec, signal=signal, suffix=suffix)
@@ -145,7 +148,7 @@ def _columns(
     missing = [k for k in mapping if k not in names]
     if missing:
         raise DataError(
-            f"{file}: the rig file's measured: columns names {kind} {missing[0]!r}, which the "
+            f"{file}: the rig file's measured: columns names {kind} {excerpt(missing[0])}, which the "
             "file does not have; "
             f"use one of: {', '.join(names)}"
         )
@@ -155,8 +158,8 @@ def _columns(
         col = _parse_name(file, kind, name, mapping.get(name, name))
         if col.signal in seen:
             raise DataError(
-                f"{file}: {col.label(kind)}: signal {col.signal!r} is also given by "
-                f"{kind} {seen[col.signal]!r}; keep one of them or rename a signal"
+                f"{file}: {col.label(kind)}: signal {excerpt(col.signal)} is also given by "
+                f"{kind} {excerpt(seen[col.signal])}; keep one of them or rename a signal"
             )
         seen[col.signal] = name
         columns.append(col)
@@ -177,7 +180,7 @@ def _check_required(
                 "or give measured: sample_period in the rig file to build time as n*T"
             )
         raise DataError(
-            f"{file}: required signal {signal!r} missing (found {found}); add a "
+            f"{file}: required signal {excerpt(signal)} missing (found {found}); add a "
             f"{signal}_<unit> {kind} or map one {_MAP}"
         )
 
@@ -375,6 +378,10 @@ def _read_csv(
                     row = [float(c) for c in cells]
                 except ValueError:
                     _bad_cell(file, kind, columns, cells, reader, first_row=not lines)
+                if len(lines) == MAX_RECORD_SAMPLES:  # this row is one too many
+                    raise DataError(
+                        f"{file}: row {reader.line_num}: {record_problem(len(lines) + 1)}"
+                    )
                 for column, value in zip(values, row, strict=True):
                     column.append(value)
                 lines.append(reader.line_num)
@@ -410,7 +417,7 @@ def _dropped(file: str, header: list[str], drop: Iterable[str]) -> set[int]:
     for name in drop:
         if name not in header:
             raise DataError(
-                f"{file}: measured: drop names column {name!r}, which the file does not have; "
+                f"{file}: measured: drop names column {excerpt(name)}, which the file does not have; "
                 f"use one of: {', '.join(header)} (if lines stand above the header, skip them "
                 "with measured: skip_lines)"
             )
@@ -427,7 +434,7 @@ def _check_header(file: str, header: list[str]) -> None:
                 f"{file}: column {j + 1} has no name; name it <signal>_<unit> (e.g. y_cm)"
             )
         if name in header[:j]:
-            raise DataError(f"{file}: column {name!r} appears twice; rename or delete one")
+            raise DataError(f"{file}: column {excerpt(name)} appears twice; rename or delete one")
 
 
 def _bad_cell(
@@ -453,7 +460,7 @@ def _bad_cell(
                 f"{file}: {where}: empty cell at row {line}; fill the gap or delete the row"
             )
         raise DataError(
-            f"{file}: {where}: {cell!r} at row {line} is not a number; write a plain number "
+            f"{file}: {where}: {excerpt(cell)} at row {line} is not a number; write a plain number "
             "(decimal point '.', no units or thousands separators) or delete the row"
             + (
                 f", or leave a text column out with measured: drop: [{col.name}]"
@@ -471,7 +478,23 @@ def _read_mat_vectors(p: Path, file: str) -> dict[str, np.ndarray]:
     import scipy.io  # only .mat files need scipy.io
 
     try:
+        # the headers first: a compressed variable may unpack to gigabytes
+        for name, shape, kind in scipy.io.whosmat(p):
+            if name.startswith("__"):
+                continue
+            if kind in ("cell", "struct", "object", "function", "opaque"):
+                raise DataError(
+                    f"{file}: variable {excerpt(name)} is a MATLAB {kind}, not real numbers; "
+                    "save each signal as a numeric vector"
+                )
+            if record_problem(math.prod(shape)):
+                raise DataError(
+                    f"{file}: variable {excerpt(name)} has {math.prod(shape):,} values, "
+                    f"{record_problem(math.prod(shape))}"
+                )
         data = scipy.io.loadmat(p)
+    except DataError:
+        raise
     except Exception as exc:  # scipy raises many types for files it cannot read
         raise DataError(
             f"{file}: cannot read it as a MATLAB file ({type(exc).__name__}: {exc}); "
@@ -484,12 +507,12 @@ def _read_mat_vectors(p: Path, file: str) -> dict[str, np.ndarray]:
         x = np.asarray(value)
         if x.dtype.kind not in "biuf":
             raise DataError(
-                f"{file}: variable {name!r} holds {x.dtype} data, not real numbers; "
+                f"{file}: variable {excerpt(name)} holds {x.dtype} data, not real numbers; "
                 "save each signal as a numeric vector"
             )
         if sum(d > 1 for d in x.shape) > 1:
             raise DataError(
-                f"{file}: variable {name!r} is a {'x'.join(map(str, x.shape))} matrix; "
+                f"{file}: variable {excerpt(name)} is a {'x'.join(map(str, x.shape))} matrix; "
                 "save each signal as its own vector"
             )
         vectors[name] = x.astype(np.float64).ravel()
@@ -569,7 +592,7 @@ def read_measured(
             if col.values.size != columns[0].values.size:
                 raise DataError(
                     f"{file}: {col.label(kind)}: {col.values.size} samples but "
-                    f"{columns[0].name!r} has {columns[0].values.size}; save vectors of one length"
+                    f"{excerpt(columns[0].name)} has {columns[0].values.size}; save vectors of one length"
                 )
     else:
         kind = "column"
@@ -595,7 +618,7 @@ def _scale(
     for name in scaling:
         if name not in names:
             raise DataError(
-                f"{file}: the rig file's measured: columns scales {kind} {name!r}, which the "
+                f"{file}: the rig file's measured: columns scales {kind} {excerpt(name)}, which the "
                 f"file does not have (or which is dropped); use one of: {', '.join(sorted(names))}"
             )
     for col in columns:

@@ -17,7 +17,7 @@ import tempfile
 from pathlib import Path
 
 from fuzzyservo.atomic import NAME_MAX_BYTES, file_error, shown_path
-from fuzzyservo.errors import ConfigError, did_you_mean
+from fuzzyservo.errors import ConfigError, did_you_mean, excerpt
 
 _PACKAGE = Path(__file__).resolve().parent.parent
 
@@ -63,7 +63,7 @@ def find_file(name: str, folder: str, what: str, *, relative_to: Path | None = N
             return candidate
     known = sorted({p.stem for base in search_dirs() for p in (base / folder).glob("*.yaml")})
     raise ConfigError(
-        f"no {what} named {name!r}; {did_you_mean(name, known)}known: {', '.join(known) or 'none'}",
+        f"no {what} named {excerpt(name)}; {did_you_mean(name, known)}known: {', '.join(known) or 'none'}",
         file=name,
     )
 
@@ -87,7 +87,7 @@ def name_problem(name: str) -> str | None:
         return "is empty; give a short name such as my_rig"
     if _UNSAFE.search(name) or name.startswith("."):
         return (
-            f"{name!r} is not a plain name: it becomes part of output file names, so it may "
+            f"{excerpt(name)} is not a plain name: it becomes part of output file names, so it may "
             "not hold '/', '\\', ':', control characters or start with '.'; "
             "use letters, digits, '_' and '-' (e.g. my_rig)"
         )

@@ -46,7 +46,7 @@ from fuzzyservo.analysis.reproduction import (
     run_reproduction,
 )
 from fuzzyservo.atomic import write_text
-from fuzzyservo.errors import ConfigError
+from fuzzyservo.errors import ConfigError, excerpt
 from fuzzyservo.io._yaml import Node, read_yaml
 from fuzzyservo.io.controllers import load_controller
 from fuzzyservo.io.jsonfile import write_json
@@ -97,7 +97,7 @@ def _variant_data(node: Node) -> tuple[dict[str, Any], str]:
     data = read_yaml(path)
     for inst, comp in node.child("components", default={}).data.items():
         if inst not in data["plant"]["components"]:
-            node.fail(f"{path.name} has no component {inst!r}", key="components")
+            node.fail(f"{path.name} has no component {excerpt(inst)}", key="components")
         data["plant"]["components"][inst] = comp
     effects = node.child("effects", default={}).data
     if effects:
@@ -177,7 +177,9 @@ def _number(value: Any) -> float | str:
 def _items(root: Node, key: str) -> list[Node]:
     raw = root.data.get(key, [])
     if not isinstance(raw, list):
-        root.fail(f"must be a list of mappings (lines starting with '- '), got {raw!r}", key=key)
+        root.fail(
+            f"must be a list of mappings (lines starting with '- '), got {excerpt(raw)}", key=key
+        )
     return [Node(item, root.file, f"{key}[{i}]") for i, item in enumerate(raw)]
 
 
@@ -201,7 +203,9 @@ def _bounds(node: Node) -> tuple[float | None, float | None] | None:
         return None
     raw = node.data["bounds"]
     if not (isinstance(raw, list) and len(raw) == 2):
-        node.fail(f"must be [lower, upper] (null for an open end), got {raw!r}", key="bounds")
+        node.fail(
+            f"must be [lower, upper] (null for an open end), got {excerpt(raw)}", key="bounds"
+        )
     return tuple(None if v is None else node._as_number(v, "bounds") for v in raw)  # type: ignore[return-value]
 
 

@@ -37,7 +37,7 @@ from typing import Any
 import numpy as np
 
 from fuzzyservo.atomic import write_text
-from fuzzyservo.errors import ConfigError, DataError
+from fuzzyservo.errors import ConfigError, DataError, excerpt
 from fuzzyservo.io._yaml import Node, read_yaml
 from fuzzyservo.io.measured import ColumnScaling
 from fuzzyservo.io.paths import name_problem, shipped_or_path
@@ -88,7 +88,7 @@ def rig_from_data(
     plants = plants or {}
     if plant_node.has("type") and plant_node.data.get("type") not in plants:
         plant_node.fail(
-            f"{plant_node.data.get('type')!r}: hand-written plant types are gone; compose "
+            f"{excerpt(plant_node.data.get('type'))}: hand-written plant types are gone; compose "
             "the plant from components under 'plant.components' (e.g. rigs/dinca_cylinder.yaml)",
             key="type",
         )
@@ -132,7 +132,9 @@ def rig_from_data(
     out.only(("signal", "display_unit"))
     output = out.str("signal")
     if output not in plant.signals:
-        out.fail(f"unknown signal {output!r}; choose one of {list(plant.signals)}", key="signal")
+        out.fail(
+            f"unknown signal {excerpt(output)}; choose one of {list(plant.signals)}", key="signal"
+        )
     display_units: dict[str, str] = {}
     if out.has("display_unit"):
         unit = out.str("display_unit")
@@ -210,7 +212,7 @@ def _composition(node: Node, unknowns: dict[str, tuple[float, float]]) -> tuple[
         type_name = child.str("type")
         if type_name not in types:
             child.fail(
-                f"unknown component type {type_name!r}; choose one of {sorted(types)}",
+                f"unknown component type {excerpt(type_name)}; choose one of {sorted(types)}",
                 key="type",
             )
         parts.append((str(name), type_name))
@@ -261,7 +263,7 @@ def _quantity(
     bounds = Node(raw, node.file, node.path(key)).numbers("fit")
     if len(bounds) != 2 or not bounds[0] < bounds[1]:
         node.fail(
-            f"must be [lower, upper] with lower < upper (in {unit}), got {bounds}; "
+            f"must be [lower, upper] with lower < upper (in {unit}), got {excerpt(bounds)}; "
             "give the range the value may take",
             key=f"{key}.fit",
         )
@@ -294,7 +296,7 @@ def _effects(
         )
     for name in node.data:
         if name not in LIBRARY:
-            node.fail(f"unknown effect {name!r}; choose one of {sorted(LIBRARY)}", key=name)
+            node.fail(f"unknown effect {excerpt(name)}; choose one of {sorted(LIBRARY)}", key=name)
         refusal = plant.refusal(name)
         if refusal:
             node.fail(refusal, key=name)
@@ -360,7 +362,7 @@ def _measured(node: Node) -> MeasuredFormat:
         node.fail(period_problem(period), key="sample_period")
     resample = node.data.get("resample", False)
     if not isinstance(resample, bool):
-        node.fail(f"must be true or false, got {resample!r}", key="resample")
+        node.fail(f"must be true or false, got {excerpt(resample)}", key="resample")
     return MeasuredFormat(
         columns=columns,
         sample_period_s=period,
@@ -377,7 +379,7 @@ def _text_list(node: Node, key: str) -> list[str]:
         return []
     raw = node.data[key]
     if not isinstance(raw, list) or not raw or not all(isinstance(v, str) and v for v in raw):
-        node.fail(f"must be a list of column names, like [t, r, y, u], got {raw!r}", key=key)
+        node.fail(f"must be a list of column names, like [t, r, y, u], got {excerpt(raw)}", key=key)
     return list(raw)
 
 
@@ -400,7 +402,7 @@ def _column_scaling(node: Node) -> tuple[str, ColumnScaling]:
     )
     if suffix is None or spec == "_" + suffix:
         node.fail(
-            f"{spec!r} names no signal and unit; write <signal>_<unit>, e.g. y_mm or load_N",
+            f"{excerpt(spec)} names no signal and unit; write <signal>_<unit>, e.g. y_mm or load_N",
             key="as",
         )
     target = UNIT_SUFFIXES[suffix][0]  # unit expression of the mapped column
@@ -423,7 +425,7 @@ def _column_scaling(node: Node) -> tuple[str, ColumnScaling]:
         unit = scale_node.unit(scale_node.str("unit"))
         if tuple(a + b for a, b in zip(unit.dims, raw.dims, strict=True)) != target_unit.dims:
             node.fail(
-                f"unit {scale_node.str('unit')!r} does not turn {raw_unit} into {target}; "
+                f"unit {excerpt(scale_node.str('unit'))} does not turn {raw_unit} into {target}; "
                 f"give the scale in {target}/{raw_unit} (or set from: to the raw unit)",
                 key="scale.unit",
             )
@@ -563,7 +565,7 @@ def _sensor(node: Node, plant: PlantModel, *, feedback: bool = True) -> LinearSe
     if signal not in readable:
         what = "state" if feedback else "signal"
         node.fail(
-            f"unknown {what} {signal!r}; {'the feedback sensor reads' if feedback else 'sensors read'} "
+            f"unknown {what} {excerpt(signal)}; {'the feedback sensor reads' if feedback else 'sensors read'} "
             f"one of {list(dict.fromkeys(readable))}",
             key="signal",
         )
@@ -671,7 +673,9 @@ def _scenario(
     initial = _initial(plant, node.child("initial", default={}))
     noise = node.data.get("noise", True)
     if not isinstance(noise, bool):
-        node.fail(f"must be true or false (sensor noise on or off), got {noise!r}", key="noise")
+        node.fail(
+            f"must be true or false (sensor noise on or off), got {excerpt(noise)}", key="noise"
+        )
     return Scenario(
         name=name,
         duration_s=duration,
@@ -697,8 +701,8 @@ def _reference(node: Node, plant: PlantModel, feedback: LinearSensor) -> Signal:
             node, sensed_unit, lambda s: Affine(s, gain=feedback.slope, offset=feedback.offset)
         )
     node.fail(
-        f"unit {unit!r} is neither the feedback unit ({feedback.unit}) nor that of "
-        f"{feedback.signal!r} ({sensed_unit}); give the reference in one of them",
+        f"unit {excerpt(unit)} is neither the feedback unit ({feedback.unit}) nor that of "
+        f"{excerpt(feedback.signal)} ({sensed_unit}); give the reference in one of them",
         key="unit",
     )
 
@@ -732,7 +736,9 @@ _SIGNAL_KEYS = {
 def _signal(node: Node, si_unit: str, wrap) -> Signal:
     kind = node.str("type")
     if kind not in _SIGNAL_KEYS:
-        node.fail(f"unknown signal type {kind!r}; choose one of {sorted(_SIGNAL_KEYS)}", key="type")
+        node.fail(
+            f"unknown signal type {excerpt(kind)}; choose one of {sorted(_SIGNAL_KEYS)}", key="type"
+        )
     node.only(("type", "unit", *_SIGNAL_KEYS[kind]))
     scale = node.convert(1.0, node.str("unit", default=si_unit), si_unit)
     # read every number first: ConfigErrors from the reads keep their own key
@@ -896,9 +902,11 @@ def _fitted(node: Node, key: str) -> FittedInterval:
         and all(np.isfinite(pair))
         and pair[0] <= pair[1]
     ):
-        node.fail(f"must be [low, high], two finite numbers in order, got {pair!r}", key="interval")
+        node.fail(
+            f"must be [low, high], two finite numbers in order, got {excerpt(pair)}", key="interval"
+        )
     at_bound = node.data.get("at_bound", False)
     if not isinstance(at_bound, bool):
-        node.fail(f"must be true or false, got {at_bound!r}", key="at_bound")
+        node.fail(f"must be true or false, got {excerpt(at_bound)}", key="at_bound")
     unit = node.data.get("unit", "")
     return FittedInterval(key, float(pair[0]), float(pair[1]), str(unit or ""), at_bound)

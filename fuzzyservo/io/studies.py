@@ -50,11 +50,12 @@ import re
 from pathlib import Path
 from typing import Any
 
-from fuzzyservo.errors import ConfigError, did_you_mean
+from fuzzyservo.errors import ConfigError, did_you_mean, excerpt
 from fuzzyservo.io._yaml import Node, read_yaml
 from fuzzyservo.io.controllers import load_controller
 from fuzzyservo.io.paths import find_file
 from fuzzyservo.io.rigs import load_rig
+from fuzzyservo.limits import plant_samples_problem
 from fuzzyservo.metrics import METRIC_NAMES
 from fuzzyservo.tuning.spec import (
     AGGREGATES,
@@ -136,7 +137,7 @@ def load_study(path: str | Path) -> Study:
             root.fail(str(exc), key=f"constraints[{n}]")
         if c.metric not in (*METRIC_NAMES, *MARGIN_METRICS):
             root.fail(
-                f"unknown metric {c.metric!r}; "
+                f"unknown metric {excerpt(c.metric)}; "
                 f"{did_you_mean(c.metric, (*METRIC_NAMES, *MARGIN_METRICS))}choose one of "
                 f"{', '.join((*METRIC_NAMES, *MARGIN_METRICS))}",
                 key=f"constraints[{n}]",
@@ -144,15 +145,18 @@ def load_study(path: str | Path) -> Study:
         constraints.append(c)
     sampler = root.str("sampler", default=AUTO)
     if sampler not in (AUTO, *SAMPLERS):
-        root.fail(f"unknown sampler {sampler!r}; choose one of {[AUTO, *SAMPLERS]}", key="sampler")
+        root.fail(
+            f"unknown sampler {excerpt(sampler)}; choose one of {[AUTO, *SAMPLERS]}", key="sampler"
+        )
     aggregate = root.str("aggregate", default="worst")
     if aggregate not in AGGREGATES:
         root.fail(
-            f"unknown aggregate {aggregate!r}; choose one of {list(AGGREGATES)}", key="aggregate"
+            f"unknown aggregate {excerpt(aggregate)}; choose one of {list(AGGREGATES)}",
+            key="aggregate",
         )
     seed = root.data.get("seed", 0)
     if seed is not None and (isinstance(seed, bool) or not isinstance(seed, int)):
-        root.fail(f"must be an integer or null, got {seed!r}", key="seed")
+        root.fail(f"must be an integer or null, got {excerpt(seed)}", key="seed")
     trials = root.number("trials", default=100)
     if trials < 1 or trials != int(trials):
         root.fail(f"must be a whole number >= 1, got {trials}", key="trials")
@@ -177,7 +181,8 @@ def load_study(path: str | Path) -> Study:
         isinstance(patience, bool) or not isinstance(patience, int) or patience < 1
     ):
         root.fail(
-            f"must be a whole number of trials >= 1 or null, got {patience!r}", key="patience"
+            f"must be a whole number of trials >= 1 or null, got {excerpt(patience)}",
+            key="patience",
         )
     warm = root.data.get("warm_start", [])
     if isinstance(warm, str):
@@ -240,7 +245,7 @@ def split_path(path: str) -> list[str | int]:
     rebuilt = "".join(f"[{p}]" if isinstance(p, int) else f".{p}" for p in parts).lstrip(".")
     if not parts or rebuilt != path:
         raise ValueError(
-            f"cannot read parameter path {path!r}; write it like 'input.reshape' or 'input.increments[3]'"
+            f"cannot read parameter path {excerpt(path)}; write it like 'input.reshape' or 'input.increments[3]'"
         )
     return parts
 
@@ -319,7 +324,7 @@ def _uncertainty(node: Node, rig: Any, scenarios: tuple[str, ...]) -> Any:
             )
         pair = d.data[given[0]]
         if not (isinstance(pair, list) and len(pair) == 2):
-            d.fail(f"must be a list of two numbers, got {pair!r}", key=given[0])
+            d.fail(f"must be a list of two numbers, got {excerpt(pair)}", key=given[0])
         nums = [_num(d, given[0], v) for v in pair]
         effect, field_name, si = _target(pnode, target, rig, by_key)
         if effect and d.has("unit"):
@@ -339,21 +344,25 @@ def _uncertainty(node: Node, rig: Any, scenarios: tuple[str, ...]) -> Any:
     aggregate = node.str("aggregate", default="worst")
     if aggregate not in SAMPLE_AGGREGATES:
         node.fail(
-            f"unknown {aggregate!r}; choose one of {list(SAMPLE_AGGREGATES)}", key="aggregate"
+            f"unknown {excerpt(aggregate)}; choose one of {list(SAMPLE_AGGREGATES)}",
+            key="aggregate",
         )
     seed = node.data.get("seed", 0)
     if isinstance(seed, bool) or not isinstance(seed, int):
-        node.fail(f"must be an integer, got {seed!r}", key="seed")
+        node.fail(f"must be an integer, got {excerpt(seed)}", key="seed")
     noise = node.data.get("noise", True)
     if not isinstance(noise, bool):
         node.fail("must be true or false", key="noise")
     samples = node.number("samples", default=8)
     if samples < 1 or samples != int(samples):
         node.fail(f"must be a whole number >= 1, got {samples}", key="samples")
+    if plant_samples_problem(int(samples)):
+        node.fail(plant_samples_problem(int(samples)), key="samples")
     margin_scenario = node.str("margin_scenario", default=scenarios[0])
     if margin_scenario not in rig.scenarios:
-        node.fail(f"unknown scenario {margin_scenario!r}; {did_you_mean(margin_scenario, rig.scenarios)}"
-                  f"the rig has {', '.join(rig.scenarios)}", key="margin_scenario")  # fmt: skip
+        node.fail(f"unknown scenario {excerpt(margin_scenario)}; "
+                  f"{did_you_mean(margin_scenario, rig.scenarios)}the rig has {', '.join(rig.scenarios)}",
+                  key="margin_scenario")  # fmt: skip
     try:
         u = Uncertainty(
             parameters=tuple(dists), samples=int(samples), seed=seed, noise=noise,
@@ -397,12 +406,12 @@ def _target(pnode: Node, target: str, rig: Any, by_key: dict) -> tuple[str, str,
         effect, _, key = target.partition(".")
         if effect not in LIBRARY or key not in {p.key for p in LIBRARY[effect].params}:
             pnode.fail(
-                f"unknown effect parameter {target!r}; effects: {', '.join(sorted(LIBRARY))}",
+                f"unknown effect parameter {excerpt(target)}; effects: {', '.join(sorted(LIBRARY))}",
                 key=target,
             )
         return effect, "", ""
     pnode.fail(
-        f"unknown rig parameter {target!r}; give a plant parameter of "
+        f"unknown rig parameter {excerpt(target)}; give a plant parameter of "
         f"{rig.name} ({', '.join(sorted(by_key))}), effect.parameter or io_delay",
         key=target,
     )
@@ -444,7 +453,7 @@ def _calibrated(node: Node, rig: Any, by_key: dict, given: set[str]) -> list[Any
 
 def _num(node: Node, key: str, value: Any) -> float:
     if isinstance(value, bool) or not isinstance(value, int | float) or not math.isfinite(value):
-        node.fail(f"must hold two finite numbers, got {value!r}", key=key)
+        node.fail(f"must hold two finite numbers, got {excerpt(value)}", key=key)
     return float(value)
 
 
@@ -455,7 +464,7 @@ def _check_storage(root: Node, storage: str) -> None:
 
     if storage.startswith("sqlite"):
         root.fail(
-            f"{storage!r}: a study file does not choose where SQLite files go (the output "
+            f"{excerpt(storage)}: a study file does not choose where SQLite files go (the output "
             "folder holds it by default); delete the key, or pass --storage sqlite:///PATH",
             key="storage",
         )
@@ -473,7 +482,7 @@ def _objective(node: Node) -> Objective:
         )
     normalize = node.str("normalize", default="none")
     if normalize not in ("none", "baseline"):
-        node.fail(f"must be 'none' or 'baseline', got {normalize!r}", key="normalize")
+        node.fail(f"must be 'none' or 'baseline', got {excerpt(normalize)}", key="normalize")
     if node.has("metric"):
         weights = {node.str("metric"): 1.0}
         pareto: tuple[str, ...] = ()
@@ -491,5 +500,5 @@ def _objective(node: Node) -> Objective:
         weights = {}
     for m in (*weights, *pareto):
         if m not in METRIC_NAMES:
-            node.fail(f"unknown metric {m!r}; choose one of {', '.join(METRIC_NAMES)}")
+            node.fail(f"unknown metric {excerpt(m)}; choose one of {', '.join(METRIC_NAMES)}")
     return Objective(weights=weights, pareto=pareto, normalize=normalize)

@@ -36,7 +36,7 @@ from fuzzyservo.components.valves import (
     NN_W1,
     NN_W2,
 )
-from fuzzyservo.errors import DataError
+from fuzzyservo.errors import DataError, excerpt
 from fuzzyservo.results import Result
 
 if TYPE_CHECKING:
@@ -70,7 +70,7 @@ def _header_factors(header: list[str], file: str) -> list[float]:
         unit = name[len(column) + 1 :] if name.startswith(column + "_") else None
         if unit not in _UNITS[column]:
             raise DataError(
-                f"{file}: column {name!r} is not {column} with a known unit "
+                f"{file}: column {excerpt(name)} is not {column} with a known unit "
                 f"({', '.join(column + '_' + u for u in _UNITS[column])}); "
                 f"write the header as: {expected}"
             )
@@ -108,7 +108,7 @@ def read_valve_csv(path: str | Path) -> np.ndarray:
                 value = math.nan
             if not math.isfinite(value):
                 raise DataError(
-                    f"{file}: line {line}, column {rows[0][j].strip()}: {cell.strip()!r} is not a "
+                    f"{file}: line {line}, column {rows[0][j].strip()}: {excerpt(cell.strip())} is not a "
                     "finite number; fix or delete the row"
                 )
             data[i, j] = value * factors[j]
@@ -186,7 +186,8 @@ def read_valve_network(path: str | Path) -> ValveNetwork:
         payload = json.loads(Path(path).read_text(encoding="utf-8"))
     except FileNotFoundError:
         raise DataError(f"{file}: file not found; run `fuzzyservo fit-valve` to write it") from None
-    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError, RecursionError) as exc:
+        # RecursionError: nested deeper than the JSON parser goes
         raise DataError(f"{file}: not a readable JSON file ({exc}); rewrite it") from None
     if not isinstance(payload, dict) or payload.get("format") != FORMAT:
         raise DataError(

@@ -24,6 +24,8 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from fuzzyservo.limits import plant_samples_problem
+
 if TYPE_CHECKING:
     from fuzzyservo.rig import Rig
 
@@ -145,6 +147,8 @@ class Uncertainty:
 
     def draw(self, n: int, seed: int | None = None) -> list[Sample]:
         """``n`` samples from ``seed`` (default: the study's): the same every call."""
+        if plant_samples_problem(n):
+            raise ValueError(f"samples: {plant_samples_problem(n)}")
         seed = self.seed if seed is None else seed
         rng = np.random.default_rng(seed)
         columns = {d.target: d.draw(rng, n) for d in self.parameters}

@@ -28,12 +28,15 @@ from __future__ import annotations
 
 import itertools
 import math
+from collections.abc import Iterator
 from dataclasses import dataclass, field
 
 import numpy as np
 
 from fuzzyservo._jit import njit
 from fuzzyservo.controllers.fuzzy.shapes import MF_SHAPES, PIECEWISE_LINEAR, SUGENO_SHAPES, mf_array
+from fuzzyservo.errors import excerpt
+from fuzzyservo.limits import MAX_SAMPLE_POINTS, points_problem
 
 #: number of parameters each membership-function shape reads (MATLAB names)
 SHAPES = MF_SHAPES
@@ -86,32 +89,38 @@ class Term:
     def __post_init__(self) -> None:
         if self.shape not in SHAPES and self.shape not in SUGENO_SHAPES:
             raise ValueError(
-                f"term {self.name!r}: unknown shape {self.shape!r}; use one of "
+                f"term {excerpt(self.name)}: unknown shape {self.shape!r}; use one of "
                 f"{sorted(SHAPES)} (Sugeno outputs: {list(SUGENO_SHAPES)})"
             )
         need = SHAPES.get(self.shape, 1)
         if len(self.params) < need or (self.shape == "constant" and len(self.params) != 1):
             raise ValueError(
-                f"term {self.name!r}: {self.shape} takes {need} parameters, got {len(self.params)}"
+                f"term {excerpt(self.name)}: {self.shape} takes {need} parameters, got {len(self.params)}"
             )
         if not all(math.isfinite(p) for p in self.params):
             raise ValueError(
-                f"term {self.name!r}: parameters must be finite, got {list(self.params)}"
+                f"term {excerpt(self.name)}: parameters must be finite, got {excerpt(list(self.params))}"
             )
         p = self.params[:need]
         if self.shape in ("trimf", "trapmf") and any(b < a for a, b in itertools.pairwise(p)):
             raise ValueError(
-                f"term {self.name!r}: {self.shape} breakpoints must be in order, got {list(self.params)}; sort them"
+                f"term {excerpt(self.name)}: {self.shape} breakpoints must be in order, got {excerpt(list(self.params))}; sort them"
             )
         if self.shape == "trimf" and self.params[0] == self.params[2]:
-            raise ValueError(f"term {self.name!r}: trimf of zero width {list(self.params)}")
+            raise ValueError(
+                f"term {excerpt(self.name)}: trimf of zero width {excerpt(list(self.params))}"
+            )
         if self.shape == "gaussmf" and not self.params[0] > 0:
-            raise ValueError(f"term {self.name!r}: gaussmf sigma must be > 0, got {self.params[0]}")
+            raise ValueError(
+                f"term {excerpt(self.name)}: gaussmf sigma must be > 0, got {self.params[0]}"
+            )
         if self.shape == "gauss2mf" and not (p[0] > 0 and p[2] > 0):
-            raise ValueError(f"term {self.name!r}: gauss2mf sigmas must be > 0, got {list(p)}")
+            raise ValueError(
+                f"term {excerpt(self.name)}: gauss2mf sigmas must be > 0, got {excerpt(list(p))}"
+            )
         if self.shape == "gbellmf" and not (self.params[0] != 0 and self.params[1] > 0):
             raise ValueError(
-                f"term {self.name!r}: gbellmf needs a != 0 and b > 0, got {list(self.params)}"
+                f"term {excerpt(self.name)}: gbellmf needs a != 0 and b > 0, got {excerpt(list(self.params))}"
             )
 
     @property
@@ -147,8 +156,8 @@ class Variable:
             )
         # term names may repeat (MATLAB refers to terms by number: its juggler.fis names all
         # nine output terms 'out1mf'); formats that refer by name check uniqueness
-        if self.points < 3:
-            raise ValueError(f"variable {self.name!r}: points must be >= 3, got {self.points}")
+        if points_problem(self.points):
+            raise ValueError(f"variable {excerpt(self.name)}: points {points_problem(self.points)}")
 
     def universe(self) -> np.ndarray:
         """Evenly spaced samples plus every breakpoint inside the range (sorted, unique)."""
@@ -169,6 +178,9 @@ class Variable:
         u = self.universe()
         return u, np.array([membership(t.shape, t.params, u) for t in self.terms])
 
+
+#: grid points the coverage check evaluates at once (8 bytes per rule and term each)
+_COVERAGE_BLOCK = 1 << 16
 
 #: the term code of "no condition on this input" / "nothing about this output"
 NO_TERM = -1
@@ -273,8 +285,9 @@ class FuzzySystem:
                 )
         if not self.inputs:
             raise ValueError("a system needs at least one input")
-        if self.sample_points < 3:
-            raise ValueError(f"sample_points must be >= 3, got {self.sample_points}")
+        problem = points_problem(self.sample_points, MATLAB_SAMPLE_POINTS, MAX_SAMPLE_POINTS)
+        if problem:
+            raise ValueError(f"sample_points {problem}")
         n_in = len(self.inputs)
         for var in self.outputs:
             for t in var.terms:
@@ -323,20 +336,30 @@ class FuzzySystem:
 
     def uncovered_inputs(self) -> np.ndarray:
         """Input points (on the universes' grid) where no rule fires; empty when covered."""
+        return np.concatenate(list(self._uncovered()))
+
+    def _uncovered(self) -> Iterator[np.ndarray]:
+        """The uncovered grid points, a block of at most ``_COVERAGE_BLOCK`` grid points
+        at a time (two inputs of n points make n² of them)."""
         grids = [v.universe() for v in self.inputs]
-        mesh = np.meshgrid(*grids, indexing="ij")
-        pts = np.column_stack([m.ravel() for m in mesh])
-        firing = reference_firing(self, pts)
-        return pts[firing.max(axis=1) <= 0.0]
+        shape = tuple(g.size for g in grids)
+        total = math.prod(shape)
+        for start in range(0, total, _COVERAGE_BLOCK):
+            index = np.unravel_index(np.arange(start, min(start + _COVERAGE_BLOCK, total)), shape)
+            pts = np.column_stack([g[i] for g, i in zip(grids, index, strict=True)])
+            yield pts[reference_firing(self, pts).max(axis=1) <= 0.0]
 
     def check_coverage(self) -> None:
         """Raise ``ValueError`` when an input point fires no rule (no output would exist)."""
-        holes = self.uncovered_inputs()
-        if holes.size:
+        count, first = 0, None
+        for holes in self._uncovered():
+            count += len(holes)
+            first = holes[0] if first is None and len(holes) else first
+        if count:
             names = [v.name for v in self.inputs]
-            where = ", ".join(f"{n}={v:.4g}" for n, v in zip(names, holes[0], strict=True))
+            where = ", ".join(f"{n}={v:.4g}" for n, v in zip(names, first, strict=True))
             raise ValueError(
-                f"the rule base leaves {len(holes)} input point(s) uncovered (e.g. {where}): "
+                f"the rule base leaves {count} input point(s) uncovered (e.g. {where}): "
                 f"no rule fires there; add a rule or widen a membership function"
             )
 

@@ -370,3 +370,19 @@ def test_a_failed_write_is_one_line_and_leaves_the_session(session):
     with pytest.raises(ConfigError, match="cannot write"):
         session.save_yaml("taken.yaml")
     assert session.save_yaml("free.yaml").is_file()
+
+
+def test_an_alias_bomb_or_deep_upload_is_one_line_and_the_session_goes_on(session):
+    """What killed the designer process (a 445-byte upload) is now a refused edit: the
+    page shows the line and keeps the last good controller."""
+    levels = ['a0: &a0 ["x", "x", "x", "x", "x", "x", "x", "x", "x", "x"]']
+    levels += [f"a{k}: &a{k} [{', '.join([f'*a{k - 1}'] * 10)}]" for k in range(1, 9)]
+    bomb = "kind: fuzzy\n" + "\n".join(levels) + "\n"
+    deep = "kind: fuzzy\nx: " + "[" * 20_000 + "]" * 20_000 + "\n"
+    before = session.controller
+    for text in (bomb, deep):
+        with pytest.raises(ConfigError) as caught:
+            session.open_upload("bomb.yaml", text.encode())
+        assert len(str(caught.value)) < 400
+        assert session.controller is before
+    assert session.run().result.status == "ok"

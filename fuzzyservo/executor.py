@@ -81,6 +81,7 @@ class LocalProcesses:
 
     def __init__(self, workers: int):
         self.workers = workers
+        self._procs: dict[int, Any] = {}  # pid -> process of this pool
         self._pool = self._start()
 
     def _start(self):
@@ -129,6 +130,9 @@ class LocalProcesses:
 
         futures = {self._pool.submit(fn, item): k for k, item in enumerate(items)
                    if k not in results}  # fmt: skip
+        # the workers, as submitting started them: a broken pool may drop a dead one from
+        # its own list before we ask for its exit code
+        self._procs.update((getattr(self._pool, "_processes", None) or {}).items())
         try:
             for future in as_completed(futures):
                 results[futures[future]] = future.result()
@@ -142,7 +146,8 @@ class LocalProcesses:
 
     def _end_pool(self) -> list[int | None]:
         """Shut the pool down without waiting, end and reap its processes; their exit codes."""
-        procs = list((getattr(self._pool, "_processes", None) or {}).values())
+        procs = {**self._procs, **(getattr(self._pool, "_processes", None) or {})}.values()
+        self._procs = {}
         self._pool.shutdown(wait=False, cancel_futures=True)
         for proc in procs:
             if proc.is_alive():

@@ -62,15 +62,16 @@ if not os.environ.get("NUMBA_CACHE_DIR"):
 
 
 def cache_is_cold() -> bool:
-    """True when no compiled closed loop is cached yet: the next run compiles first (about a
-    minute on a small machine), so the command line can say so instead of staying silent.
+    """True when no compiled closed loop is cached yet: the next run compiles first (minutes
+    on a small machine), so the command line can say so instead of staying silent.
     (Loading a rig compiles and caches a few small kernels; they do not count.)"""
     folder = numba.config.CACHE_DIR
     return not folder or not any(Path(folder).rglob("*.closed_loop-*.nbi"))
 
 
-#: seconds each long kernel takes to compile on a 2-core machine (measured on the closed loop of
-#: dinca_cylinder, numba 0.68); the estimate until this machine has compiled them once
+#: the long kernels, with seconds each took to compile on one 2-core machine (the closed loop of
+#: dinca_cylinder, numba 0.68): an estimate for code that plans work, never printed as a promise
+#: (another machine may take several times as long); this machine's own times replace it
 TYPICAL_COMPILE_S = {"plant_signals": 4.0, "closed_loop": 45.0, "signal_table": 3.0}
 _TIMES_FILE = "compile_seconds.json"
 
@@ -87,15 +88,21 @@ def _times_path() -> Path | None:
     )
 
 
-def compile_estimates() -> dict[str, float]:
-    """Seconds each long kernel takes to compile: this machine's last times, else
-    :data:`TYPICAL_COMPILE_S`."""
+def measured_compile_seconds() -> dict[str, float]:
+    """Seconds each long kernel took to compile the last time this machine compiled it (the
+    kernels of :data:`TYPICAL_COMPILE_S` only; empty before the first compile)."""
     path = _times_path()
     try:
         known = json.loads(path.read_text(encoding="utf-8"))
-        return {k: float(known.get(k, v)) for k, v in TYPICAL_COMPILE_S.items()}
+        return {k: float(known[k]) for k in TYPICAL_COMPILE_S if k in known}
     except (OSError, ValueError, TypeError, AttributeError):
-        return dict(TYPICAL_COMPILE_S)
+        return {}
+
+
+def compile_estimates() -> dict[str, float]:
+    """Seconds each long kernel takes to compile: this machine's last times, else
+    :data:`TYPICAL_COMPILE_S`."""
+    return {**TYPICAL_COMPILE_S, **measured_compile_seconds()}
 
 
 def _record_compile_time(name: str, seconds: float) -> None:
@@ -103,7 +110,7 @@ def _record_compile_time(name: str, seconds: float) -> None:
     if path is None or name not in TYPICAL_COMPILE_S:
         return
     try:
-        known = {**compile_estimates(), name: round(seconds, 1)}
+        known = {**measured_compile_seconds(), name: round(seconds, 1)}
         tmp = path.with_suffix(f".{os.getpid()}.tmp")
         tmp.write_text(json.dumps(known), encoding="utf-8")
         os.replace(tmp, path)
@@ -252,4 +259,11 @@ def bind_plant(binding: str) -> ModuleType:
     return module
 
 
-__all__ = ["bind_plant", "cache_is_cold", "compile_estimates", "njit", "watch_compiles"]
+__all__ = [
+    "bind_plant",
+    "cache_is_cold",
+    "compile_estimates",
+    "measured_compile_seconds",
+    "njit",
+    "watch_compiles",
+]

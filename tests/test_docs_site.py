@@ -87,3 +87,66 @@ def test_every_figure_is_made_by_the_script_and_shown():
     for png in sorted((DOCS / "img").glob("*.png")):
         assert png.stem in made, f"{png.name} is not made by docs/gen_figures.py"
         assert f"img/{png.name})" in shown, f"{png.name} is shown on no page"
+
+
+#: what a reference page must not say: it states what holds now; history is in CHANGELOG.md
+NOTEBOOK = {
+    "a date": re.compile(r"\b20\d\d-\d\d-\d\d\b"),
+    "an issue number": re.compile(r"\bissues? #?\d+", re.IGNORECASE),
+    "'tonight'": re.compile(r"\btonight\b", re.IGNORECASE),
+    "'this session'": re.compile(r"\bthis session", re.IGNORECASE),
+    # 7 to 40 hex digits with a letter and a digit among them (not a word, not a number)
+    "a commit hash": re.compile(r"\b(?=[0-9a-f]*[a-f])(?=[0-9a-f]*[0-9])[0-9a-f]{7,40}\b"),
+}
+SNIPPET = re.compile(r'^\s*--8<--\s+"([^"]+)"\s*$', re.MULTILINE)
+
+
+def _as_rendered(page: Path) -> str:
+    """The page's text with the repository files it includes (pymdownx snippets) put in."""
+    return SNIPPET.sub(lambda m: (ROOT / m.group(1)).read_text(encoding="utf-8"),
+                       page.read_text(encoding="utf-8"))  # fmt: skip
+
+
+def test_pages_state_what_holds_now_without_dates_issues_sessions_or_commits():
+    """No page of docs/ (with the files it includes) nor the README names a date, an issue,
+    a session, 'tonight' or a commit; the changelog page (CHANGELOG.md) is where history is."""
+    pages = [ROOT / "README.md", *sorted(DOCS.glob("**/*.md"))]
+    found = []
+    for page in pages:
+        if page.name == "changelog.md":
+            continue
+        for number, line in enumerate(_as_rendered(page).splitlines(), 1):
+            found += [
+                f"{page.relative_to(ROOT)}:{number}: {what}: {line.strip()[:100]}"
+                for what, pattern in NOTEBOOK.items()
+                if pattern.search(line)
+            ]
+    assert not found, "\n".join(found)
+
+
+def test_the_rule_catches_what_it_is_for():
+    lines = {
+        "measured on 2026-11-25": "a date",
+        "before issue 28": "an issue number",
+        "after this session's issues": "'this session'",
+        "16.2 s tonight": "'tonight'",
+        "main at 2e3c8ca": "a commit hash",
+    }
+    for line, what in lines.items():
+        assert NOTEBOOK[what].search(line), line
+    clean = "a 1e-12 leakage, 10000 inputs, the effect of a facade, 1.4027173, 0x1F"
+    assert not any(p.search(clean) for p in NOTEBOOK.values())
+
+
+def test_calibration_page_is_a_reference_not_a_notebook():
+    lines = (DOCS / "calibration.md").read_text(encoding="utf-8").splitlines()
+    assert len(lines) <= 250, f"docs/calibration.md has {len(lines)} lines (at most 250)"
+
+
+def test_metrics_table_covers_every_metric():
+    from fuzzyservo.metrics import METRIC_NAMES
+
+    text = _load("hooks").metrics_markdown()
+    for name in METRIC_NAMES:
+        assert f"| `{name}` |" in text, name
+    assert "<!-- generated: metrics -->" in (DOCS / "getting-started.md").read_text()

@@ -60,3 +60,39 @@ def test_lines_per_kernel_with_an_estimate_scaled_by_the_kernels_done(capsys):
         "compiling kernel 2/2 closed_loop: about 60 s (60 s left in all)",
         "compiled closed_loop in 55 s",
     ]
+
+
+def test_no_duration_is_promised_before_this_machine_has_compiled(capsys):
+    """Before the first compile on a machine the lines count the time taken, and promise none."""
+    lines = _KernelLines({"plant_signals": None, "closed_loop": None})
+    lines.start("plant_signals")
+    lines.end("plant_signals", 20.0)
+    lines.start("closed_loop")
+    lines.end("closed_loop", 95.0)
+    assert capsys.readouterr().err.splitlines() == [
+        "compiling kernel 1/2 plant_signals",
+        "compiled plant_signals in 20 s",
+        "compiling kernel 2/2 closed_loop",
+        "compiled closed_loop in 95 s",
+    ]
+
+
+def test_the_first_line_states_a_duration_only_from_this_machine(cache_in_tmp, monkeypatch, capsys):
+    import json
+
+    import fuzzyservo.progress as progress
+    from fuzzyservo import _jit
+
+    monkeypatch.setattr(_jit, "cache_is_cold", lambda: True)
+    monkeypatch.setattr(_jit, "watch_compiles", lambda start, end: lambda: None)
+    monkeypatch.setattr(progress, "_watching", False)
+    progress.note_compiling()
+    first = capsys.readouterr().err.splitlines()[0]
+    assert "a few minutes on a small machine" in first and "about" not in first, first
+    (cache_in_tmp / "compile_seconds.json").write_text(
+        json.dumps({"plant_signals": 3.0, "closed_loop": 100.0, "signal_table": 4.0})
+    )
+    monkeypatch.setattr(progress, "_watching", False)
+    progress.note_compiling()
+    first = capsys.readouterr().err.splitlines()[0]
+    assert "about 107 s, as the last time on this machine" in first, first

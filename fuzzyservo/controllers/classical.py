@@ -1,7 +1,7 @@
 """Classical controllers: open loop, P, PI and PIDF (PID with a filtered derivative, in
 the parallel, PI-D and I-PD forms), each with output limits and anti-windup.
 
-Each controller passes its state explicitly: ``init() -> state`` and
+Each controller passes its state explicitly: ``init(sample_time_s) -> state`` and
 ``step(state, r, y) -> (u, state)`` in Python, and the same arithmetic as a compiled
 kernel ``*_step(cp, cs, r, y) -> u`` (``cs`` updated in place) for the fast loop.
 The error is ``e = r − y`` in the rig's feedback unit (volts on both seed rigs).

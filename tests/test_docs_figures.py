@@ -251,10 +251,18 @@ def test_readme_main_job_figures_are_the_main_jobs(tmp_path, capsys):
     from fuzzyservo.cli import main
 
     assert main(["tune", "--out", str(tmp_path / "out")]) == 0
-    capsys.readouterr()
+    printed = capsys.readouterr().out.splitlines()
     summary = json.loads((tmp_path / "out" / "summary.json").read_text())
     readme = page("README.md")
     excerpt = re.search(r"## What the main job prints.*?```text\n(.*?)```", readme, re.S).group(1)
+    # every line of the excerpt is printed as it stands, but the progress bar (on stderr),
+    # the storage path and the times, which are this machine's
+    timed = ("dinca_robust: ", "storage: ", "report: ", "the command took ")
+    for line in excerpt.splitlines():
+        if not line.startswith(timed):
+            assert line in printed, line
+    worse = [ln.split()[0] for ln in printed if ln.endswith(" worse") and "[" in ln]
+    assert worse == ["rise_time_s", "ise"], worse
     best, baseline = summary["best"]["objective"], summary["baseline"]["objective"]
     assert f"{best:.4g}" in excerpt and f"{baseline:.4g}" in excerpt, (best, baseline)
     prose = " ".join(readme[readme.index("The metrics are the worst") :].split()[:60])
@@ -268,6 +276,7 @@ def test_readme_main_job_figures_are_the_main_jobs(tmp_path, capsys):
     assert "gain margin of 2 on every sample where P K=10 fails on all" in prose
     assert rows["dinca_robust_best"]["gain_margin_holds"] == rows["dinca_robust_best"]["samples"]
     assert rows["p_k10"]["gain_margin_holds"] == 0
+    assert "Two rows are worse, rise time and ISE" in " ".join(readme.split())
 
 
 # ------------------------------------------------------------------ docs/samplers.md

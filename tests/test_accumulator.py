@@ -74,6 +74,7 @@ def test_charges_above_and_discharges_below_its_gas_pressure_and_stops_when_empt
     assert _signals(rig, {"p_s": p_s + 1e5})["q_supply"] > rest["q_supply"]
 
 
+@pytest.mark.slow
 def test_holds_up_the_supply_pressure_during_a_fast_step(rig, tmp_path) -> None:
     data = yaml.safe_load((DATA / "rigs" / f"{RIG}.yaml").read_text(encoding="utf-8"))
     del data["plant"]["components"]["accumulator"]

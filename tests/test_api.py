@@ -73,6 +73,7 @@ def _lift_in_code():
     )  # fmt: skip
 
 
+@pytest.mark.slow
 def test_a_rig_built_in_code_runs_like_its_file(tmp_path: Path) -> None:
     from fuzzyservo import P, compare, load_rig, simulate
 

@@ -111,6 +111,7 @@ def _names(summary: dict) -> list[str]:
     return [e["name"] for e in summary["effects_added"]]
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("effect", list(DINCA_EFFECTS))
 def test_dinca_names_the_undeclared_effect_first(tmp_path: Path, effect: str) -> None:
     data = dinca_csv(tmp_path / f"{effect}.csv", {effect: DINCA_EFFECTS[effect]})
@@ -140,6 +141,7 @@ def test_dinca_names_the_undeclared_effect_first(tmp_path: Path, effect: str) ->
     assert code == 0
 
 
+@pytest.mark.slow
 def test_dinca_without_an_effect_is_none(tmp_path: Path) -> None:
     data = dinca_csv(tmp_path / "none.csv", {})
     summary = calibrate_json(tmp_path, str(old_loop(tmp_path)), data, "p_k10")
@@ -149,6 +151,7 @@ def test_dinca_without_an_effect_is_none(tmp_path: Path) -> None:
     assert summary["cost_val"]["declared"] < 1.2
 
 
+@pytest.mark.slow
 def test_dinca_two_effects_are_both_found(tmp_path: Path) -> None:
     effects = {
         "coulomb_friction": DINCA_EFFECTS["coulomb_friction"],
@@ -170,6 +173,7 @@ MOTOR_EFFECTS = {
 }
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("effect", list(MOTOR_EFFECTS))
 def test_ehs160_names_the_undeclared_effect_first(tmp_path: Path, effect: str) -> None:
     data = motor_csv(tmp_path / f"{effect}.csv", {effect: MOTOR_EFFECTS[effect]})

@@ -21,6 +21,7 @@ needs_faster = pytest.mark.skipif(
 )
 
 
+@pytest.mark.slow
 @needs_faster
 def test_faster_calibration_is_the_whole_command(tmp_path: Path, monkeypatch) -> None:
     monkeypatch.chdir(tmp_path)  # the default output folder goes here

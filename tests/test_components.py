@@ -106,6 +106,7 @@ def _minimal(actuator: str, extra: tuple[tuple[str, str], ...] = ()) -> tuple:
     )
 
 
+@pytest.mark.slow
 def test_every_registered_component_type_is_reachable() -> None:
     """Each component type composes into a plant that the compiled loop simulates."""
     types = registry()
@@ -196,6 +197,7 @@ def test_rig_file_errors_name_the_component_key(tmp_path: Path) -> None:
         load_rig(bad)
 
 
+@pytest.mark.slow
 def test_calibrate_the_lift_on_its_own_synthetic_data(tmp_path: Path, lift, p4) -> None:
     """Data from the lift with 130 kg instead of 100 and 200 N of Coulomb friction; the rig
     file marks the mass unknown. ``fuzzyservo calibrate`` fits both."""

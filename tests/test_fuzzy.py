@@ -37,6 +37,7 @@ def _pd(points: int = 101) -> FuzzyController:
     )
 
 
+@pytest.mark.slow
 def test_compiled_evaluator_matches_skfuzzy_at_10000_inputs():
     """The issue's bar: within 1e-6 of the output span at 10 000 random inputs, a sixth of
     them outside the input range (clipped, as the evaluator's docstring says)."""
@@ -150,6 +151,7 @@ def _design(k: int, points: int = 51) -> FuzzyController:
     return FuzzyController(FuzzySystem("m", (e,), u, identity_rules()), name=f"m{k}")
 
 
+@pytest.mark.slow
 def test_building_1000_controllers_does_not_grow_memory():
     """What a study does: build, compile and run a new controller per trial. After a
     warm-up of 100, a further 1000 must not hold more than 1 MB more."""

@@ -69,6 +69,7 @@ def test_spring_load_equilibrium_at_rest(rig, y):
     )
 
 
+@pytest.mark.slow
 def test_closed_loop_settles_on_the_spring_balance(runs, rig):
     """After the last step the pressures carry the spring (Coulomb 0.8 N and the viscous term
     at the creeping speed are the only other forces: tolerance 1 N of the 109 N spring force)."""

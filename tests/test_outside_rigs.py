@@ -21,6 +21,7 @@ def _needs(path):
     )
 
 
+@pytest.mark.slow
 @_needs(FESTO)
 def test_festo_record_reads_and_replays_in_closed_loop():
     rig = rig_named("festo_hanging_load")
@@ -41,6 +42,7 @@ def test_festo_record_reads_and_replays_in_closed_loop():
     assert fit_table(replay, model)["y"] > 80  # the declared guesses already track
 
 
+@pytest.mark.slow
 @_needs(FASTER)
 def test_faster_record_replays_under_its_force_loop():
     rig = rig_named("faster_rig")

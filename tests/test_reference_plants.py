@@ -59,6 +59,7 @@ def _plant_only(rig):
     return dataclasses.replace(ideal_sensor(rig), io_delay_s=0.0)
 
 
+@pytest.mark.slow
 def test_seed002_reproduces_the_open_centre_cylinder() -> None:
     # the plants as these tolerances were measured: exact readings (an ADC code flipped by
     # the two kernels' rounding would part them) and no I/O delay (its 20 ms make the loop
@@ -75,6 +76,7 @@ def test_seed002_reproduces_the_open_centre_cylinder() -> None:
     assert set(hand.plant.effects) <= set(composed.plant.effects)  # every effect, and more
 
 
+@pytest.mark.slow
 def test_seed003_reproduces_the_hydroprax_bench() -> None:
     hand, composed = reference_rig("hydroprax_pdcv"), rig_named("hydroprax_pdcv")
     pi = controller_named("pi_hydroprax")

@@ -339,15 +339,18 @@ def _interrupt_and_resume(tmp_path: Path, sig: signal.Signals, tag: str) -> None
     )
 
 
+@pytest.mark.slow
 def test_resume_after_sigkill_keeps_completed_trials(tmp_path):
     _interrupt_and_resume(tmp_path, signal.SIGKILL, "kill")
 
 
+@pytest.mark.slow
 def test_resume_after_ctrl_c(tmp_path):
     _interrupt_and_resume(tmp_path, signal.SIGINT, "sigint")
 
 
 # --------------------------------------------------------------------------- reproducibility
+@pytest.mark.slow
 def test_same_seed_one_worker_gives_same_best(tmp_path):
     study, _ = study_copy(tmp_path, "seed")
     trials = 15

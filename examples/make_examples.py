@@ -2,8 +2,13 @@
 
     python examples/make_examples.py [--out FOLDER]     (default: this script's folder)
 
-Nothing here is measured: every file is a run of the shipped rigs, so it can be shipped
-and regenerated bit for bit (seeded noise).
+Nothing here is measured: every file is a run of the shipped rigs (seeded noise), and
+regenerates to the bit whatever code numba, numpy and OpenBLAS pick for the CPU. Only
+glibc's exp, pow and tanh differ by CPU (their versions for CPUs without FMA are a last
+bit apart now and then), and the friction run is a stick-slip record, where a last bit
+moves where the piston sticks by up to one step of the 16-bit position converter: on
+such a CPU it regenerates to what its loop resolves (``tests/test_examples.py`` states
+the tolerances).
 
 ``run_dinca_friction.csv``
     A "measured" run for ``fuzzyservo calibrate``: seed 002's rig

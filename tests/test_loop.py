@@ -6,6 +6,9 @@ from __future__ import annotations
 
 import dataclasses
 import itertools
+import os
+import subprocess
+import sys
 
 import numpy as np
 import pytest
@@ -153,6 +156,26 @@ def test_transformed_stages_take_the_step_of_the_tableau() -> None:
     assert status == 0 and taken == 1
     # the finite-difference J differs from _A by rounding (~1e-5 in its entries)
     np.testing.assert_allclose(x, x0 + _loop._B @ k, rtol=0.0, atol=1e-6)
+
+
+def test_the_transformed_coefficients_do_not_depend_on_the_cpu() -> None:
+    """The loop's coefficients (A·Γ⁻¹ .. (b − b̂)·Γ⁻¹) are the same to the bit whichever
+    kernels OpenBLAS picks for the CPU. They were np.linalg.inv and @, and OpenBLAS's
+    AVX-512 and AVX2 kernels gave coefficients one ULP apart: a stick-slip record moved
+    by 14 µm and 0.5 bar between machines (tests/test_examples.py). The SSE kernels
+    forced here run on any x86-64; numpy with another BLAS ignores the variable."""
+    names = ("_A_U", "_C_U", "_M_U", "_E_U")
+    code = (
+        "from fuzzyservo.simulation import _loop; "
+        f"print(repr([getattr(_loop, n).tolist() for n in {names!r}]))"
+    )
+    here = repr([getattr(_loop, n).tolist() for n in names])
+    for core in ("Nehalem", "Sandybridge"):
+        env = {**os.environ, "OPENBLAS_CORETYPE": core}
+        out = subprocess.run(
+            [sys.executable, "-c", code], capture_output=True, text=True, check=True, env=env
+        )
+        assert out.stdout.strip() == here, core
 
 
 # ------------------------------------------------------------------ controller kinds

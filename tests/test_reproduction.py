@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import json
 import math
+import re
 from pathlib import Path
 
 import pytest
@@ -172,14 +173,68 @@ def test_entrained_air_bulk_modulus():
         EntrainedAir(air_fraction=1.5)
 
 
+# The page prints three significant digits: a value a last bit away on another CPU may
+# round the other way, one unit of its last digit. And where a piston held by dry
+# friction stops moves with the last bits of the run (a stick-slip run: glibc's exp, pow
+# and tanh are a last bit apart on CPUs without FMA), so two cells of the friction runs
+# differ by more. At rest the chambers' force imbalance is whatever the friction holds:
+# |imbalance| <= the friction force (measured 0.03-1.6 N at 20-50 N). The stationary error
+# moves by less than one step of the 16-bit position converter (15.8 µm): measured
+# 0.0115-0.0137 mm at 20 N and 0.0063-0.0084 mm at 50 N.
+_FRICTION_ROW = re.compile(r"\| dry friction (\d+) N")
+_NUMBER = re.compile(r"-?\d+(?:\.\d+)?(?:e[-+]?\d+)?")
+
+
+def _same_to_the_last_digit(old: str, new: str) -> bool:
+    """The same text, and each number within one unit of its third significant digit."""
+    if _NUMBER.split(old) != _NUMBER.split(new):
+        return False
+    for a, b in zip(_NUMBER.findall(old), _NUMBER.findall(new), strict=True):
+        x, y = float(a), float(b)
+        size = max(abs(x), abs(y))
+        if x != y and abs(x - y) > 1.01 * 10 ** (math.floor(math.log10(size)) - 2):
+            return False
+    return True
+
+
+def _assert_the_same_page(stored: str, made: str) -> None:
+    """``made`` is ``stored`` (docs/reproduction.md) to the last printed digit, but for the
+    cells a friction run leaves open (above): there, each force imbalance within the
+    friction force, each stationary error within one converter step of the stored one."""
+    stale = (
+        "docs/reproduction.md is stale; regenerate it with "
+        "`fuzzyservo reproduce --markdown docs/reproduction.md`"
+    )
+    fb = rig_named("dinca_cylinder").feedback
+    step_mm = fb.adc_step / fb.slope * 1e3
+    old_lines, new_lines = stored.splitlines(), made.splitlines()
+    assert len(old_lines) == len(new_lines), stale
+    header: list[str] = []
+    for old, new in zip(old_lines, new_lines, strict=True):
+        if old.startswith("| rig variant |"):
+            header = [name.strip() for name in old.split("|")]
+        if old == new:
+            continue
+        friction = _FRICTION_ROW.match(old)
+        old_cells, new_cells = old.split("|"), new.split("|")
+        if not friction or len(old_cells) != len(header):
+            assert _same_to_the_last_digit(old, new), (stale, old, new)
+            continue
+        assert len(new_cells) == len(header), (stale, old, new)
+        for name, a, b in zip(header, old_cells, new_cells, strict=True):
+            if name == "s002_rest_imbalance":
+                assert abs(float(b)) <= float(friction[1]), (stale, old, new)
+            elif name == "s002_flc1_sse":
+                assert abs(float(b) - float(a)) < step_mm, (stale, old, new)
+            else:
+                assert _same_to_the_last_digit(a, b), (stale, old, new)
+
+
 @pytest.mark.slow  # every seed with its sensitivity: about 30 s, and compiles seed 003's other valves
 def test_docs_reproduction_md_is_the_commands_markdown():
     """docs/reproduction.md is generated: `fuzzyservo reproduce --markdown docs/reproduction.md`."""
     result = reproduce()
-    assert DOCS.read_text(encoding="utf-8") == result.to_markdown(), (
-        "docs/reproduction.md is stale; regenerate it with "
-        "`fuzzyservo reproduce --markdown docs/reproduction.md`"
-    )
+    _assert_the_same_page(DOCS.read_text(encoding="utf-8"), result.to_markdown())
     rows = [r for r in result.rows if r["status"] != STATUS_VALIDITY]
     assert len(rows) >= 20 and all(_consistent(r) for r in rows)
     for seed in SEEDS:

@@ -33,6 +33,7 @@ from __future__ import annotations
 import math
 from collections.abc import Callable
 from dataclasses import dataclass
+from fractions import Fraction
 from typing import Any, NamedTuple
 
 import numpy as np
@@ -74,16 +75,44 @@ _B = np.array(
     [2.4212380706095346e-1, -1.2232505839045147, 1.5452602553351020, 4.3586652150845900e-1]
 )
 _B_EMBEDDED = np.array([3.7810903145819369e-1, -9.6042292212423178e-2, 0.5, 2.1793326075422950e-1])
-_E = _B - _B_EMBEDDED
-# The same method in transformed variables u_i = Σ_j γ_ij·k_j (Hairer & Wanner, Solving
-# ODEs II, §IV.7, eq. 7.25): the stages need no product J·Σγ_ij·k_j, so a step costs
-# one LU and four solves, and no matrix-vector product.
-_GAMMA_FULL = _G + _GAMMA * np.eye(_STAGES)
-_GAMMA_INV = np.linalg.inv(_GAMMA_FULL)
-_A_U = _A @ _GAMMA_INV  # stage states x + Σ_j a_ij·u_j
-_C_U = -np.tril(_GAMMA_INV, -1)  # stage right-hand sides f + Σ_j c_ij·u_j / h
-_M_U = _B @ _GAMMA_INV  # the order-3 solution x + Σ_i m_i·u_i
-_E_U = _E @ _GAMMA_INV  # its difference from the embedded order-2 solution
+
+
+def _transformed() -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """The method in transformed variables u_i = Σ_j γ_ij·k_j (Hairer & Wanner, Solving
+    ODEs II, §IV.7, eq. 7.25): the stages need no product J·Σγ_ij·k_j, so a step costs
+    one LU and four solves, and no matrix-vector product. Returns (A·Γ⁻¹, −(strictly
+    lower part of Γ⁻¹), b·Γ⁻¹, (b − b̂)·Γ⁻¹) with Γ = G + γ·I.
+
+    Computed exactly in rationals from the tableau's binary values and rounded once, so
+    every machine gets the same coefficients to the bit. ``np.linalg.inv`` and ``@`` go
+    through OpenBLAS, whose kernels depend on the CPU: its AVX-512 and AVX2 kernels gave
+    coefficients one ULP apart, which moved a stick-slip run's stop positions by up to
+    14 µm (examples/run_dinca_friction.csv)."""
+    n = _STAGES
+    a, g, b, bh = (np.asarray(m).tolist() for m in (_A, _G, _B, _B_EMBEDDED))
+    gam = [
+        [Fraction(g[i][j]) + (Fraction(_GAMMA) if i == j else 0) for j in range(n)]
+        for i in range(n)
+    ]
+    inv = [[Fraction(0)] * n for _ in range(n)]  # Γ is lower triangular: forward substitution
+    for j in range(n):
+        for i in range(j, n):
+            rest = sum((gam[i][k] * inv[k][j] for k in range(j, i)), Fraction(0))
+            inv[i][j] = (Fraction(int(i == j)) - rest) / gam[i][i]
+
+    def times_inv(row: list[Fraction]) -> list[float]:
+        return [float(sum((row[k] * inv[k][j] for k in range(n)), Fraction(0))) for j in range(n)]
+
+    a_u = np.array([times_inv([Fraction(v) for v in row]) for row in a])
+    c_u = np.array([[-float(inv[i][j]) if j < i else 0.0 for j in range(n)] for i in range(n)])
+    m_u = np.array(times_inv([Fraction(v) for v in b]))
+    e_u = np.array(times_inv([Fraction(v) - Fraction(w) for v, w in zip(b, bh, strict=True)]))
+    return a_u, c_u, m_u, e_u
+
+
+# stage states x + Σ_j a_ij·u_j; stage right-hand sides f + Σ_j c_ij·u_j / h; the order-3
+# solution x + Σ_i m_i·u_i; its difference from the embedded order-2 solution
+_A_U, _C_U, _M_U, _E_U = _transformed()
 _MAX_STEPS_PER_INTERVAL = 200_000
 
 

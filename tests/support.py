@@ -7,6 +7,14 @@ conftest), so ``python -m pytest`` works from any folder and against an installe
 
 from __future__ import annotations
 
+import os
+import re
+import socket
+import subprocess
+import sys
+import time
+from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
 
 from fuzzyservo.io.controllers import load_controller
@@ -45,3 +53,39 @@ def ideal_sensor(rig):
 
     fb = dataclasses.replace(rig.feedback, noise_std=0.0, adc_bits=0, adc_lower=0.0, adc_upper=0.0)
     return dataclasses.replace(rig, feedback=fb)
+
+
+def free_port() -> int:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+@contextmanager
+def designer_process(work: Path, out: Path, timeout_s: float = 180) -> Iterator[str]:
+    """``fuzzyservo designer`` as a user starts it, in the working folder ``work``, writing
+    to ``out``; yields the address it printed (with its token) and stops it after."""
+    import pytest
+
+    log = work / "designer.log"
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join(
+        p for p in (str(TESTS.parent), os.environ.get("PYTHONPATH")) if p)}  # fmt: skip
+    with open(log, "w") as sink:
+        proc = subprocess.Popen(
+            [sys.executable, "-m", "fuzzyservo", "designer", "--port", str(free_port()),
+             "--out", str(out)],
+            cwd=work, env=env, stdout=sink, stderr=subprocess.STDOUT,
+        )  # fmt: skip
+    try:
+        deadline = time.monotonic() + timeout_s
+        while "designer on" not in log.read_text():  # printed once the server listens
+            if proc.poll() is not None or time.monotonic() > deadline:
+                pytest.fail(f"the designer did not start:\n{log.read_text()}")
+            time.sleep(0.2)
+        yield re.search(r"designer on (\S+)", log.read_text()).group(1)
+    finally:
+        proc.terminate()
+        try:
+            proc.wait(timeout=10)
+        except subprocess.TimeoutExpired:
+            proc.kill()

@@ -18,11 +18,7 @@ from __future__ import annotations
 
 import json
 import os
-import re
-import socket
 import statistics
-import subprocess
-import sys
 import time
 from pathlib import Path
 
@@ -39,7 +35,7 @@ ARGS = [
     "--no-first-run",
 ]
 ROOT = Path(__file__).resolve().parent.parent
-from support import DATA  # noqa: E402
+from support import DATA, designer_process  # noqa: E402
 
 CHANGES = 20
 STUDY_TRIALS = 6
@@ -47,12 +43,6 @@ STUDY_TRIALS = 6
 pytestmark = pytest.mark.skipif(
     not CHROMIUM.is_file(), reason=f"no Chromium at {CHROMIUM} (apt-get install chromium)"
 )
-
-
-def _free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
 
 
 @pytest.fixture(scope="module")
@@ -70,45 +60,8 @@ def server(tmp_path_factory):
     work = tmp_path_factory.mktemp("designer_work")
     out = work / "out" / "designer"
     out.mkdir(parents=True)
-    log = work / "designer.log"
-    port = _free_port()
-    with open(log, "w") as sink:
-        proc = subprocess.Popen(
-            [
-                sys.executable,
-                "-m",
-                "fuzzyservo",
-                "designer",
-                "--port",
-                str(port),
-                "--out",
-                str(out),
-            ],
-            cwd=work,
-            env={
-                **os.environ,
-                "PYTHONPATH": os.pathsep.join(
-                    p for p in (str(ROOT), os.environ.get("PYTHONPATH")) if p
-                ),
-            },
-            stdout=sink,
-            stderr=subprocess.STDOUT,
-            text=True,
-        )
-    deadline = time.monotonic() + 120
-    while "designer on" not in log.read_text():  # printed once the server listens
-        if proc.poll() is not None or time.monotonic() > deadline:
-            proc.kill()
-            pytest.fail(f"the designer did not start:\n{log.read_text()}")
-        time.sleep(0.2)
-    # the address with this launch's token, as the command printed it
-    url = re.search(r"designer on (\S+)", log.read_text()).group(1)
-    yield url, out
-    proc.terminate()
-    try:
-        proc.wait(timeout=10)
-    except subprocess.TimeoutExpired:
-        proc.kill()
+    with designer_process(work, out) as url:
+        yield url, out
 
 
 @pytest.fixture(scope="module")

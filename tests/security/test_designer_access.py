@@ -13,16 +13,13 @@ from __future__ import annotations
 
 import http.client
 import os
-import re
-import socket
-import subprocess
 import sys
 import time
 from pathlib import Path
 from urllib.parse import parse_qs, urlsplit
 
 import pytest
-from support import DATA
+from support import DATA, designer_process, free_port
 
 from fuzzyservo.designer.files import Folders
 from fuzzyservo.designer.guard import Guard
@@ -94,40 +91,15 @@ def test_every_launch_has_its_own_token():
 
 
 # --------------------------------------------------------------------------- the live server
-def _free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
 
 
 @pytest.fixture(scope="module")
 def designer(tmp_path_factory):
     """``fuzzyservo designer`` as the user starts it; yields (port, token)."""
     work = tmp_path_factory.mktemp("designer_security")
-    log = work / "designer.log"
-    port = _free_port()
-    env = {**os.environ, "PYTHONPATH": os.pathsep.join(
-        p for p in (str(ROOT), os.environ.get("PYTHONPATH")) if p)}  # fmt: skip
-    with open(log, "w") as sink:
-        proc = subprocess.Popen(
-            [sys.executable, "-m", "fuzzyservo", "designer", "--port", str(port),
-             "--out", str(work / "out")],
-            cwd=work, env=env, stdout=sink, stderr=subprocess.STDOUT,
-        )  # fmt: skip
-    deadline = time.monotonic() + 180
-    while "designer on" not in log.read_text():
-        if proc.poll() is not None or time.monotonic() > deadline:
-            proc.kill()
-            pytest.fail(f"the designer did not start:\n{log.read_text()}")
-        time.sleep(0.2)
-    url = re.search(r"designer on (\S+)", log.read_text()).group(1)
-    token = parse_qs(urlsplit(url).query)["token"][0]
-    yield port, token
-    proc.terminate()
-    try:
-        proc.wait(timeout=10)
-    except subprocess.TimeoutExpired:
-        proc.kill()
+    with designer_process(work, work / "out") as url:
+        port = urlsplit(url).port
+        yield port, parse_qs(urlsplit(url).query)["token"][0]
 
 
 def _request(port: int, path: str, headers: dict[str, str], method: str = "GET"):
@@ -191,7 +163,7 @@ def test_the_dashboard_refuses_foreign_pages_and_keeps_the_study(tmp_path):
     url = f"sqlite:///{tmp_path / 'study.db'}"
     study = optuna.create_study(study_name="kept", storage=url)
     study.optimize(lambda t: t.suggest_float("x", 0, 1), n_trials=3)
-    link = start_dashboard(url, Guard.make(_free_port(), "127.0.0.1"))
+    link = start_dashboard(url, Guard.make(free_port(), "127.0.0.1"))
     port = urlsplit(link).port  # the next free one when this process runs another dashboard
     token = parse_qs(urlsplit(link).query)["token"][0]
     cookie = {"Cookie": f"fuzzyservo_token_{port}={token}"}

@@ -151,10 +151,11 @@ def _assert_the_stribeck_law(summary: dict) -> None:
     ``stribeck_friction`` with a running level near 0: the same law in two rounds (the
     plant adds the two Coulomb levels). Which of the two a run gives depends on the last
     bits of the record and of its replays (a stick-slip record: where the piston sticks
-    moves with them), so it differs between CPUs. Over ten runs (the record's stiction
-    force changed by 1-4 ULP; the record, its replays or both with glibc's exp/pow/tanh
-    without FMA) eight named Stribeck's law (running 201-205 N, breakaway 285-296 N) and
-    two named Coulomb's first (running 209-210 N, breakaway 335 N). Held to 10 % on the
+    moves with them), so it may differ between CPUs. Over twenty runs (the record's
+    stiction force changed by 1-4 ULP, or glibc's exp/pow/tanh without FMA; ten of them
+    with loop coefficients a ULP off, as OpenBLAS gave them) eighteen named Stribeck's law
+    (running 201-207 N, breakaway 283-296 N) and two, both with the coefficients a ULP off,
+    Coulomb's first (running 209-210 N, breakaway 335 N). Held to 10 % on the
     running level and 20 % at breakaway, which a law without stiction (breakaway =
     running, -33 %) fails. The Stribeck velocity trades off against the stiction force
     and is not checked."""

@@ -30,6 +30,7 @@ from bokeh.plotting import figure
 from matplotlib.colors import to_hex
 from tornado.web import RequestHandler
 
+from fuzzyservo.atomic import shown_path
 from fuzzyservo.designer.files import Folders
 from fuzzyservo.designer.guard import LOOPBACK, Guard, GuardedWSGI, Verdict
 from fuzzyservo.designer.session import Session, StudyView, metrics_rows
@@ -830,7 +831,7 @@ class Designer:
                 self._say(str(exc), error=True)
                 self.rebuild_soft()
             except OSError as exc:  # a full disk, a name too long, a folder where a file goes
-                where = f"{_cut(exc.filename)}: " if exc.filename else ""
+                where = f"{shown_path(exc.filename)}: " if exc.filename else ""
                 self._say(f"{where}{exc.strerror or exc}; nothing was changed", error=True)
                 self.rebuild_soft()
 
@@ -890,8 +891,7 @@ def _breakpoint_frame(var):
     return frame[["term", "shape", "a", "b", "c", "d"]]
 
 
-def _cut(value: object, limit: int = 80) -> str:
-    text = str(value)
+def _cut(text: str, limit: int) -> str:
     return text if len(text) <= limit else f"{text[: limit - 1]}…"
 
 

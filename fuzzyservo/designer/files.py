@@ -13,18 +13,18 @@ command line (``--storage``) or a study file named.
 
 from __future__ import annotations
 
+import os
 from dataclasses import dataclass
 from pathlib import Path
 
-from fuzzyservo.atomic import shown_path
+from fuzzyservo.atomic import NAME_MAX_BYTES, shown_path
 from fuzzyservo.errors import ConfigError
 
 CONTROLLER_SUFFIXES = (".yaml", ".yml", ".fis")
 #: the folders of a source (the working folder, the shipped files) the designer reads
 READ_FOLDERS = ("rigs", "studies")
-#: the longest name the page may give: per folder or file (bytes, as file systems count),
-#: and in all (characters)
-MAX_NAME = 255
+#: the longest name the page may give, in all (characters); per folder or file name the
+#: file system's limit (:data:`fuzzyservo.atomic.NAME_MAX_BYTES`)
 MAX_PATH = 1024
 
 
@@ -86,10 +86,11 @@ class Folders:
         text = str(name).strip()
         if not text:
             raise ConfigError("no file name given; type one, e.g. my_controller.yaml")
-        if len(text) > MAX_PATH or any(len(part.encode()) > MAX_NAME for part in Path(text).parts):
+        parts = Path(text).parts
+        if len(text) > MAX_PATH or any(len(os.fsencode(p)) > NAME_MAX_BYTES for p in parts):
             raise ConfigError(
                 f"too long for a file name ({len(text)} characters); give a name of at most "
-                f"{MAX_NAME} characters per folder and {MAX_PATH} in all",
+                f"{NAME_MAX_BYTES} bytes per folder and {MAX_PATH} characters in all",
                 file=shown_path(text),
             )
         try:

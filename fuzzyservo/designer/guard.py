@@ -42,12 +42,21 @@ REFUSED_ORIGIN = (
 REFUSED_TOKEN = "forbidden: no valid token; open the address `fuzzyservo designer` printed (it ends in ?token=...)"
 
 
-def host_name(value: str) -> str:
-    """``value`` (a host name, ``name:port`` or ``[v6]``) as the lower-case name alone."""
-    text = value.strip().lower()
-    if text.startswith("[") and "]" in text:
-        return text[: text.index("]") + 1]
-    return text.rsplit(":", 1)[0] if text.count(":") == 1 else text
+def split_authority(value: str) -> tuple[str | None, int | None]:
+    """``value`` (``name``, ``name:port``, ``[v6]:port`` or a bare IPv6 address) as its
+    lower-case host name (IPv6 in brackets, as a ``Host`` header writes it) and its port;
+    ``(None, None)`` when it is none of these."""
+    text = value.strip()
+    if text.count(":") > 1 and not text.startswith("["):  # a bare IPv6 address
+        text = f"[{text}]"
+    try:
+        parts = urlsplit(f"//{text}")
+        name, port = parts.hostname, parts.port
+    except ValueError:
+        return None, None
+    if not name:
+        return None, None
+    return (f"[{name}]" if ":" in name else name).lower(), port
 
 
 @dataclass(frozen=True)
@@ -72,9 +81,8 @@ class Guard:
     def make(cls, port: int, bound: str, allow_hosts: Iterable[str] = ()) -> Guard:
         """A guard with a fresh random token; ``bound`` is the address the server listens on
         (``0.0.0.0`` and ``::`` name no host a browser sends, so they add none)."""
-        names = {*LOOPBACK, *(host_name(h) for h in allow_hosts if h.strip())}
-        if bound not in ("0.0.0.0", "::", ""):
-            names.add(f"[{bound}]" if ":" in bound and not bound.startswith("[") else bound.lower())
+        given = [*allow_hosts, *([] if bound in ("0.0.0.0", "::", "") else [bound])]
+        names = {*LOOPBACK, *(split_authority(h)[0] for h in given)} - {None}
         return cls(port, frozenset(names), secrets.token_urlsafe(24))
 
     def with_port(self, port: int) -> Guard:
@@ -97,15 +105,8 @@ class Guard:
         """``host:port`` names an allowed host on this server's port."""
         if not authority:
             return False
-        try:
-            parts = urlsplit(f"//{authority.strip()}")
-            port, name = parts.port, parts.hostname
-        except ValueError:
-            return False
-        if name is None or port != self.port:
-            return False
-        name = f"[{name}]" if ":" in name else name
-        return name.lower() in self.hosts
+        name, port = split_authority(authority)
+        return port == self.port and name in self.hosts
 
     def allowed_origin(self, origin: str | None) -> bool:
         """No ``Origin`` (not a script's request) or one of ours (``http://host:port``)."""

@@ -12,8 +12,6 @@ from __future__ import annotations
 import copy
 import math
 import time
-from collections.abc import Iterator
-from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -330,8 +328,7 @@ class Session:
         path = self.folders.controller_path(name, write=True)
         if path.suffix.lower() == ".fis":
             raise ConfigError("use 'Save .fis' for a .fis file", file=name)
-        with _writing(path):
-            return write_controller_file(self.data, path)
+        return write_controller_file(self.data, path)
 
     def save_fis(self, name: str) -> Path:
         """Write the inference system as a MATLAB .fis file inside the output folder."""
@@ -340,9 +337,7 @@ class Session:
         path = self.folders.controller_path(name, write=True)
         if path.suffix.lower() != ".fis":
             raise ConfigError("a .fis file name ends in .fis", file=name)
-        with _writing(path):
-            path.parent.mkdir(parents=True, exist_ok=True)
-            return write_fis(self.controller.system, path)
+        return write_fis(self.controller.system, path)
 
     def yaml_text(self) -> str:
         from fuzzyservo.io.controllers import controller_yaml
@@ -440,18 +435,6 @@ class Session:
 
 
 # ---------------------------------------------------------------------- helpers
-@contextmanager
-def _writing(path: Path) -> Iterator[None]:
-    """A failed write (a full disk, no permission, a folder in the way) as one line."""
-    try:
-        yield
-    except OSError as exc:
-        raise ConfigError(
-            f"cannot write the file ({exc.strerror or exc}); free space or choose another name",
-            file=str(path),
-        ) from None
-
-
 def build(data: dict[str, Any], source: str) -> FuzzyController:
     """The fuzzy controller a mapping describes (checked as a file would be).
 

@@ -24,7 +24,7 @@ from support import DATA, designer_process, free_port
 from fuzzyservo.designer.files import Folders
 from fuzzyservo.designer.guard import Guard
 from fuzzyservo.designer.session import Session
-from fuzzyservo.errors import ConfigError
+from fuzzyservo.errors import ConfigError, FileError
 
 ROOT = Path(__file__).resolve().parents[2]
 RIG = DATA / "rigs" / "dinca_cylinder.yaml"
@@ -83,6 +83,16 @@ def test_local_hosts_with_the_token_pass(guard, host):
     other = guard.with_port(5007)
     assert guard.check(host, None, "/", "", _cookie(other)).action == "refuse"
     assert "HttpOnly" in guard.set_cookie() and "SameSite=Strict" in guard.set_cookie()
+
+
+def test_allowed_names_are_read_like_the_host_header():
+    """An ``--allow-host`` or bound address given with a port, in capitals or as a bare
+    IPv6 address is the name a ``Host`` header carries."""
+    g = Guard.make(5006, "FD00::7", allow_hosts=("Rig-PC.lab:80", "fe80::1", " "))
+    assert {"rig-pc.lab", "[fe80::1]", "[fd00::7]"} <= g.hosts
+    for host in ("rig-pc.lab:5006", "[fe80::1]:5006", "[FD00::7]:5006"):
+        assert g.allowed_authority(host), host
+    assert not g.allowed_authority("fe80::1:5006")  # a bare v6 with a port is no Host header
 
 
 def test_every_launch_has_its_own_token():
@@ -339,7 +349,7 @@ def test_a_name_too_long_to_save_is_one_line_and_writes_nothing(session, name):
 def test_a_failed_write_is_one_line_and_leaves_the_session(session):
     """A folder where the file goes (the same failure as a full disk or no permission)."""
     (session.folders.output / "taken.yaml").mkdir(parents=True)
-    with pytest.raises(ConfigError, match="cannot write"):
+    with pytest.raises(FileError, match="cannot write"):
         session.save_yaml("taken.yaml")
     assert session.save_yaml("free.yaml").is_file()
 

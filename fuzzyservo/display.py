@@ -187,8 +187,9 @@ def change_text(before: float | None, after: float | None) -> str:
         # e.g. an overshoot of 1e-13 % (rounding noise) against a real one: no ratio to show
         return "worse (from 0)" if a > b else "n/a"
     pct = 100.0 * (a - b) / abs(b)
-    word = "same" if abs(pct) < 0.05 else "better" if a < b else "worse"
-    return f"{pct:+.1f} % {word}" if word != "same" else "same"
+    if abs(pct) < 0.05:  # prints as +0.0 %
+        return "same"
+    return f"{pct:+.1f} % {'better' if a < b else 'worse'}"
 
 
 def metrics_table(

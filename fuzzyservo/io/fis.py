@@ -168,6 +168,7 @@ class _Section:
     number: int
     entries: dict[str, _Line] = field(default_factory=dict)
     lines: list[_Line] = field(default_factory=list)  # [Rules]
+    mfs: int = 0  # MF lines read so far (MATLAB numbers them by their place)
 
 
 class _Reader:
@@ -239,7 +240,8 @@ class _Reader:
         """MATLAB reads a variable's MF lines in order: the k-th is MF k whatever its key
         says. A key that names another number (``MF2`` given twice, a gap) is read as
         MATLAB reads it, with a warning naming the line."""
-        k = 1 + sum(1 for name in section.entries if _MF_KEY.match(name))
+        section.mfs += 1
+        k = section.mfs
         if key != f"MF{k}":
             warnings.warn(
                 f"{self.file}: [{section.name}].{key} (line {number}): read as MF{k}, the "

@@ -658,7 +658,7 @@ def _metrics_table(
 ) -> list[str]:
     """Baseline and best side by side in display units; the ``n/a`` ones explained under it."""
     lines = [
-        "Lower is better for every metric; change is the best against the baseline.",
+        f"{LOWER_IS_BETTER.capitalize()}; change is the best against the baseline.",
         "",
         f"| metric | baseline ({base_name}) | best | change |",
         "|---|---:|---:|---:|",

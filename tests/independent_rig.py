@@ -85,6 +85,19 @@ ORIFICE_P_LAM = 0.3e5  # laminar transition of the "orifice" mismatch [Pa]
 FLOW_GAIN_ERROR = 1.05  # the "flow_gain" mismatch
 
 
+BENCH = "adc+orifice+flow_gain"  # the bench-level mismatches together (a sensor filter aside)
+
+
+def mismatch_kinds(mismatch: str | None) -> frozenset[str]:
+    """The kinds of ``mismatch``: one of :data:`MISMATCHES`, several joined by ``+``
+    (e.g. :data:`BENCH`), or None."""
+    kinds = frozenset(mismatch.split("+")) if mismatch else frozenset()
+    unknown = kinds - set(MISMATCHES)
+    if unknown:
+        raise ValueError(f"mismatch must be made of {MISMATCHES}, but got {mismatch!r}")
+    return kinds
+
+
 def _sqrt_flow(k: float, dp: float, p_lam: float = P_LAM) -> float:
     return k * dp / math.sqrt(math.sqrt(dp * dp + p_lam * p_lam))
 
@@ -99,19 +112,18 @@ class _Plant:
     line-node pressures, supply-node pressure)."""
 
     def __init__(self, effect: str | None, params: dict[str, float], mismatch: str | None = None):
-        if mismatch is not None and mismatch not in MISMATCHES:
-            raise ValueError(f"mismatch must be one of {MISMATCHES}, but got {mismatch!r}")
+        kinds = mismatch_kinds(mismatch)
         self.effect = effect
         self.p = params
         self.e = params["e"] if effect == "bulk_modulus" else E_OIL
-        self.mismatch = mismatch
-        self.p_lam = ORIFICE_P_LAM if mismatch == "orifice" else P_LAM
-        self.b_slot = B_SLOT * (FLOW_GAIN_ERROR if mismatch == "flow_gain" else 1.0)
+        self.mismatch = kinds
+        self.p_lam = ORIFICE_P_LAM if "orifice" in kinds else P_LAM
+        self.b_slot = B_SLOT * (FLOW_GAIN_ERROR if "flow_gain" in kinds else 1.0)
 
     def sensed(self, x: np.ndarray) -> float:
         """The position the sensor gives (read by the loop and logged) [m]."""
-        y = x[-1] if self.mismatch == "sensor_filter" else x[0]
-        if self.mismatch == "adc":
+        y = x[-1] if "sensor_filter" in self.mismatch else x[0]
+        if "adc" in self.mismatch:
             y = ADC_CODE_M * math.floor(y / ADC_CODE_M + 0.5)
         return y
 
@@ -125,7 +137,7 @@ class _Plant:
             x += [P30, P40]
         elif self.effect == "supply_droop":
             x.append(P_S)
-        if self.mismatch == "sensor_filter":
+        if "sensor_filter" in self.mismatch:
             x.append(0.0)
         return np.array(x)
 
@@ -201,7 +213,7 @@ class _Plant:
         # reference density, so the displacement flow carries the compression (1 + p/E)
         dx[4] = self.e / v3 * (qa3 - q_leak - S3 * v * (1.0 + p3 / self.e))
         dx[5] = self.e / v4 * (qb4 + q_leak + S4 * v * (1.0 + p4 / self.e))
-        if self.mismatch == "sensor_filter":
+        if "sensor_filter" in self.mismatch:
             dx[-1] = (y - x[-1]) / SENSOR_TAU_S
         return dx
 
@@ -246,7 +258,7 @@ def independent_draws(
     i_prev = I_BIAS
     for k in range(n):
         rows[k] = x[:6]
-        rows[k, 0] = x[-1] if mismatch == "sensor_filter" else x[0]
+        rows[k, 0] = x[-1] if "sensor_filter" in mismatch_kinds(mismatch) else x[0]
         ref = _reference(t[k])
         u = K_P * (ref - (FB_OFFSET + FB_GAIN * plant.sensed(x)))
         u = min(max(u, -10.0), 10.0)
@@ -276,7 +288,9 @@ def _record(t, rows, refs, currents, noise, seed, mismatch, effect) -> Measured:
     units = {"ref": "m", "i": "A"}
     for name, sigma in noise.items():
         signals[name] = rows[:, names[name]] + rng.normal(0.0, sigma, n)
-        if name == "y" and mismatch == "adc":  # the logger reads the noisy sensor's codes
+        if name == "y" and "adc" in mismatch_kinds(
+            mismatch
+        ):  # the logger reads the noisy sensor's codes
             signals[name] = ADC_CODE_M * np.floor(signals[name] / ADC_CODE_M + 0.5)
         units[name] = "m" if name == "y" else "Pa"
     return Measured(

@@ -21,10 +21,10 @@ from test_calibration import NOISE, old_loop
 
 from fuzzyservo.calibration.decision import held_out_evidence, threshold
 from fuzzyservo.calibration.detection import false_positive_rate
-from fuzzyservo.calibration.null import MIN_SHARE
 from fuzzyservo.calibration.replay import make_replay
 from fuzzyservo.calibration.residuals import noise_floor, quantisation_step
 from fuzzyservo.calibration.search import calibrate, fit
+from fuzzyservo.calibration.significance import SIZE_FLOOR
 from fuzzyservo.calibration.synthetic import synthetic_run
 from fuzzyservo.io.rigs import load_rig
 
@@ -160,8 +160,7 @@ def test_leakage_and_null_shift_are_ambiguous_and_the_suggested_experiment_separ
     """On position alone, a leakage a little above its detection limit and a valve null
     shift leave the same residual under the pulses: calibration says so and proposes an
     experiment; run on that experiment, the leakage is named and no longer tied with the
-    shift. (At 3e-14 the leakage moves the position by 23 % of the residual level, below
-    null.MIN_SHARE: since issue 28 it is reported as negligible, not added.)"""
+    shift."""
     ctl = controller_named("p_k10")
     leak = {"internal_leakage": {"coefficient": 5e-14}}
     data = synthetic_run(rig, ctl, "pulses", leak, {"y": NOISE["y"]}, seed=7)
@@ -264,9 +263,9 @@ def test_a_slow_residual_raises_the_threshold_above_bonferroni(rig) -> None:
 
 def test_a_negligible_effect_is_reported_not_added(rig, tmp_path) -> None:
     """A 3 N Coulomb friction on the seed-002 cylinder (0.06 % of its 4.9 kN stall
-    force): significant on these five channels (z ≈ 8), but it moves the outputs by
-    about a fifth of the residual level, below MIN_SHARE: negligible, with its size, in
-    the summary and the console's verdict."""
+    force): significant on these five channels (z ≈ 8), but 6 % of the smallest friction
+    a real cylinder shows (1 % of the stall force; significance.SIZE_FLOOR is 10 % of
+    it): negligible, with its size, in the summary and the console's verdict."""
     from fuzzyservo.calibration import calibrate as calibrate_records
 
     ctl = controller_named("p_k10")
@@ -278,7 +277,8 @@ def test_a_negligible_effect_is_reported_not_added(rig, tmp_path) -> None:
     judged = {a.name: a for a in first.assessments}
     friction = judged["coulomb_friction"]
     assert friction.z > first.threshold and friction.verdict == "negligible"
-    assert friction.share < 0.25 and friction.limit > 1.0  # the size it would need
+    assert friction.practical.fraction < SIZE_FLOOR and friction.limit > 1.0  # size needed
+    assert "of the smallest a real rig typically shows" in friction.reason
     summary = result.to_dict()
     (negligible,) = summary["negligible"]
     assert negligible["name"] == "coulomb_friction"
@@ -297,6 +297,8 @@ def test_an_effect_within_the_starting_models_prediction_band_is_negligible(rig)
     intervals (null.prediction_band: the larger end per parameter, in quadrature, as a
     share of the residual level). A slow 3-noise-level pattern its candidate explains
     exactly is added without frozen parameters and negligible within a band of 1.2."""
+    from types import SimpleNamespace
+
     from fuzzyservo.calibration.null import assess, null_round, prediction_band
 
     ctl = controller_named("p_k10")
@@ -322,8 +324,13 @@ def test_an_effect_within_the_starting_models_prediction_band_is_negligible(rig)
     for band, frozen in ((0.0, []), (1.2, [[moved(1.2)]])):
         null = null_round(record, nominal, [effect], draws=40, frozen=frozen)
         assert null.band == pytest.approx(band)
-        judged = assess(record, nominal, effect, "pattern", z, null)
-        assert z > null.threshold and MIN_SHARE < judged.share < 1.2
+        # as a 1 mA null bias (5 % of rated: it matters physically), whose contribution
+        # the pattern stands for
+        fitted = SimpleNamespace(
+            name="valve_bias", params={"offset": 1e-3}, model=effect, status="ok"
+        )
+        judged = assess(record, rig, nominal, fitted, z, null)
+        assert z > null.threshold and 0.25 < judged.share < 1.2
         verdicts[band] = judged.verdict
     assert verdicts == {0.0: "added", 1.2: "negligible"}
 

@@ -46,3 +46,8 @@ def test_faster_calibration_is_the_whole_command(tmp_path: Path, monkeypatch) ->
         [] if summary["decision"] == "none" else summary["decision"].split(", ")
     )
     assert Path(summary["calibrated_rig"]).is_file()
+    # no candidate's fit ends above the model it extends (tests/test_calibration_invariant.py)
+    for r in summary["rounds"]:
+        for c in r["candidates"]:
+            assert c["cost_train"] <= r["start_cost_train"] * (1 + 1e-9), c["name"]
+            assert not c["status"].startswith("failed fit"), c["name"]

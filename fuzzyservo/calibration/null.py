@@ -28,16 +28,16 @@ explain little, so this is the residual of the fitted nominal model up to that:
    the ``1 − ALPHA`` quantile of the largest z over the candidates in each draw; the
    share of draws whose largest z passes it is the false-positive rate on this record.
 3. **Practical significance** (:func:`assess`). An effect is added when it passes the
-   test (its size is above the one that would just pass on this record) and its
-   contribution to the predicted outputs over the record, ``share = ‖δ/σ‖ / ‖r/σ‖``
-   (pooled over channels), is at least ``MIN_SHARE`` of the residual level; one that
-   passes the test and not this is reported as negligible, with its size. Each judged
-   candidate carries its detection limit on this record: the smallest scale ``s`` of
-   its fitted contribution with ``s·share ≥ MIN_SHARE`` that passes the threshold in
-   ``REQUIRED`` of records like this one. Linearised, z grows in proportion to ``s``
-   (the log-likelihood ratio with ``s²``, its spread with ``s``), so that is the ``s``
-   at which the data's ``z`` scales to the threshold plus the ``REQUIRED`` quantile of
-   the candidate's z over the surrogates (its null spread).
+   test and matters physically (significance.py: its fitted size against the sizes real
+   rigs show, or, for an effect without a size, its change of a recorded signal against
+   that signal's own variation; never against the residual level, which on a clean
+   record is mostly noise); one that passes the test and not this is reported as
+   negligible, with its size. Each judged candidate carries its detection limit on this
+   record: the smallest scale ``s`` of its fitted contribution that matters and passes
+   the threshold in ``REQUIRED`` of records like this one. Linearised, z grows in
+   proportion to ``s`` (the log-likelihood ratio with ``s²``, its spread with ``s``), so
+   that is the ``s`` at which the data's ``z`` scales to the threshold plus the
+   ``REQUIRED`` quantile of the candidate's z over the surrogates (its null spread).
 4. **The starting model's own prediction uncertainty** (:func:`prediction_band`). From
    the second round on, the starting model carries effects added earlier whose fitted
    parameters the round's candidates do not move (the rig's unknowns they refit). Those
@@ -52,7 +52,7 @@ explain little, so this is the residual of the fitted nominal model up to that:
    negligible.
    A candidate whose contribution is below ``β`` does less than re-estimating what the
    model already has within the data's own uncertainty, so it is negligible whatever its
-   z: an effect is added only when ``share ≥ max(MIN_SHARE, β / ‖r/σ‖)``. It matters
+   z: an effect is added only when ``share ≥ β / ‖r/σ‖``. It matters
    where the model is ill-conditioned: a piston held by Coulomb friction with the valve
    near null leaves its chamber pressures to integrate whatever tiny flow remains, so
    where it stops and at which pressures depends on the friction to a fraction of a
@@ -70,18 +70,29 @@ from __future__ import annotations
 import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
+from typing import Protocol
 
 import numpy as np
 from scipy.stats import norm
 
 from fuzzyservo.calibration.decision import ALPHA, held_out_lags, long_run_variance, threshold
 from fuzzyservo.calibration.replay import Replay
+from fuzzyservo.calibration.significance import Practical, practical
+from fuzzyservo.rig import Rig
 
 DRAWS = 200  # surrogate records per round (numpy only: ~5 ms each with 10 candidates)
 LIMIT_DRAWS = 40  # of them, for a candidate's interval and null spread of z
-MIN_SHARE = 0.25  # an added effect moves the outputs by >= this share of the residual level
 REQUIRED = 0.9  # detection limit: passes in this share of draws (as detection.py)
 SEED = 28  # the surrogates' phases: a calibration is repeatable
+
+
+class Fitted(Protocol):
+    """What :func:`assess` reads of a fitted candidate (search.Candidate)."""
+
+    name: str
+    params: dict[str, float]
+    model: dict[str, np.ndarray]
+    status: str
 
 
 @dataclass(frozen=True)
@@ -118,10 +129,12 @@ class Null:
 class Assessment:
     """Whether a fitted candidate matters: ``share`` of the residual level its
     contribution reaches, its size as a ``scale`` of the fitted contribution that the
-    data support (``interval``, 95 %) and its detection limit on this record as a
-    scale (``limit``; inf: not reachable). ``verdict``: ``added``, ``negligible``
-    (passes the test, too small to matter), ``not established``, ``failed`` (the run
-    diverged) or ``out-ranked`` (would be added, but another ranks first)."""
+    data support (``interval``, 95 %), its detection limit on this record as a scale
+    (``limit``; inf: not reachable) and how it compares physically (``practical``,
+    significance.py). ``verdict``: ``added``, ``negligible`` (passes the test, too small
+    to matter), ``not established``, ``failed`` (the run diverged), ``failed fit`` (the
+    fit could not get below the starting model) or ``out-ranked`` (would be added, but
+    another ranks first); ``reason``: why, in words."""
 
     name: str
     z: float
@@ -129,6 +142,8 @@ class Assessment:
     limit: float
     interval: tuple[float, float]
     verdict: str
+    reason: str = ""
+    practical: Practical | None = None
 
 
 def residual_levels(
@@ -311,38 +326,59 @@ def null_round(
 
 def assess(
     replay: Replay,
+    rig: Rig,
     base: Mapping[str, np.ndarray],
-    model: Mapping[str, np.ndarray],
-    name: str,
+    candidate: Fitted,
     z: float,
     null: Null,
 ) -> Assessment:
-    """Share, size interval, detection limit and verdict of candidate ``name`` (channels
-    ``model``, held-out ``z``) against the round's ``null``."""
+    """Share, size interval, detection limit and verdict of ``candidate`` (fitted on top
+    of ``rig``, whose channels are ``base``; held-out ``z``) against the round's ``null``.
+
+    Added when it passes the test (``z`` above the threshold), matters physically
+    (significance.py) and, from the second round on, moves the outputs more than the
+    effects added before do within their intervals (the band)."""
+    name, model = candidate.name, candidate.model
+    if candidate.status.startswith("failed fit"):
+        return Assessment(name, z, math.nan, math.inf, (math.nan, math.nan), "failed fit",
+                          candidate.status.removeprefix("failed fit: "))  # fmt: skip
     if not _finite(replay, model) or not math.isfinite(z):
-        return Assessment(name, z, math.nan, math.inf, (math.nan, math.nan), "failed")
+        return Assessment(name, z, math.nan, math.inf, (math.nan, math.nan), "failed",
+                          f"its replay {candidate.status or 'diverged'}")  # fmt: skip
     direction = _Direction(replay, base, model)
     residual, _ = residual_levels(replay, base)
     level = sum(float(r @ r) for r in residual.values())
     share = math.sqrt(direction.power() / level) if level > 0.0 else 0.0
-    draws = null.surrogates
-    needed_share = max(MIN_SHARE, null.band)
-    limit = needed_share / share if share > 0.0 else math.inf
+    physical = practical(replay, rig, name, candidate.params, base, model)
+    # the smallest scale of the fitted contribution that matters: physically, and more
+    # than the band (both grow in proportion to the scale, linearised)
+    limits = [physical.floor / physical.fraction if physical.fraction > 0.0 else math.inf]
+    if null.band > 0.0:
+        limits.append(null.band / share if share > 0.0 else math.inf)
+    limit = max(limits)
     interval = (math.nan, math.nan)
-    if draws:
-        zs, fits = direction.z(draws)
+    if null.surrogates:
+        zs, fits = direction.z(null.surrogates)
         spread = float(np.std(fits))
         interval = (1.0 - 1.96 * spread, 1.0 + 1.96 * spread)
         # z grows in proportion to the size (the log-likelihood ratio with its square,
         # its spread with the size): found in REQUIRED of the records where its expected
         # z is the threshold plus that quantile of the null's spread of z
-        z_spread = float(np.std(zs))
-        needed = null.threshold + float(norm.ppf(REQUIRED)) * z_spread
+        needed = null.threshold + float(norm.ppf(REQUIRED)) * float(np.std(zs))
         limit = max(limit, needed / z if z > 0.0 else math.inf)
     if z <= null.threshold:
         verdict = "not established"
-    elif share >= needed_share:
-        verdict = "added"
-    else:
+        reason = f"z {z:.2f} is not above the threshold {null.threshold:.2f}"
+    elif not physical.matters:
         verdict = "negligible"
-    return Assessment(name, z, share, limit, interval, verdict)
+        reason = physical.words
+    elif share < null.band:
+        verdict = "negligible"
+        reason = (
+            f"it moves the outputs less ({100 * share:.3g} % of the residual level) than the "
+            f"effects already added do within their 95 % intervals ({100 * null.band:.3g} %)"
+        )
+    else:
+        verdict = "added"
+        reason = physical.words
+    return Assessment(name, z, share, limit, interval, verdict, reason, physical)

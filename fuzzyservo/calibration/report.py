@@ -10,7 +10,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from fuzzyservo.calibration.joint import split_field
-from fuzzyservo.calibration.null import MIN_SHARE, REQUIRED, Assessment, Null
+from fuzzyservo.calibration.null import REQUIRED, Assessment, Null
 from fuzzyservo.calibration.replay import Replay
 from fuzzyservo.calibration.residuals import (
     noise_floor,
@@ -20,6 +20,7 @@ from fuzzyservo.calibration.residuals import (
 )
 from fuzzyservo.calibration.search import Outcome, Round, fit_table
 from fuzzyservo.calibration.signatures import mean_share, signatures
+from fuzzyservo.calibration.significance import SIGNAL_FLOOR, SIZE_FLOOR
 from fuzzyservo.components.effects import LIBRARY, owner
 from fuzzyservo.display import display_scale
 from fuzzyservo.rig import Rig
@@ -124,6 +125,7 @@ def summary_data(outcome: Outcome, replay: Replay) -> dict[str, Any]:
     data["rounds"] = [
         {
             "start_cost": r.start_cost_val,
+            "start_cost_train": r.start_cost_train,
             "added": r.added,
             "threshold_z": r.threshold,
             "ambiguous_with": list(r.ambiguous_with),
@@ -238,7 +240,15 @@ def _judged(outcome: Outcome, r: Round, a: Assessment) -> dict[str, Any]:
         "params": dict(candidate.params),
         "z": a.z,
         "share_of_residual": a.share,
-        "share_needed": max(MIN_SHARE, r.null.band) if r.null is not None else MIN_SHARE,
+        "share_needed": r.null.band if r.null is not None else 0.0,
+        "reason": a.reason,
+        "practical": None
+        if a.practical is None
+        else {
+            "fraction": a.practical.fraction,
+            "floor": a.practical.floor,
+            "matters": a.practical.matters,
+        },
         "interval_scale": list(a.interval),
         "limit_scale": a.limit,
     }
@@ -296,16 +306,8 @@ def verdict_lines(summary: dict[str, Any]) -> list[str]:
         f"residual): {rate}"
     )
     for j in summary["negligible"]:
-        band = j["share_needed"] > MIN_SHARE
         lines.append(
-            f"negligible: {j['name']} ({_sizes(j['params'])}, z {j['z']:.1f}): it moves the "
-            f"outputs by {100 * j['share_of_residual']:.1f} % of the residual level, "
-            + (
-                f"less than the starting model's fitted effects move them within their 95 % "
-                f"intervals ({100 * j['share_needed']:.1f} %)"
-                if band
-                else f"below its detection limit on this record ({_limit(j)})"
-            )
+            f"negligible: {j['name']} ({_sizes(j['params'])}, z {j['z']:.1f}): {j['reason']}"
         )
     for j in summary["not_established"]:
         line = (
@@ -404,7 +406,7 @@ def _null_lines(r: dict[str, Any]) -> list[str]:
         + (
             f"The effects added before move the outputs by {100 * null['prediction_band_share']:.1f} % "
             "of the residual level within their 95 % intervals: an effect must move them more. "
-            if null["prediction_band_share"] > MIN_SHARE
+            if null["prediction_band_share"] > 0.0
             else ""
         )
         + "Residual: "
@@ -543,9 +545,11 @@ def report_markdown(
         "threshold: the larger of Φ⁻¹(1 − 0.05/K) for K candidates and the 95 % quantile "
         "of the largest z on surrogate records of this one without a missing effect (the "
         "round's residual with its spectrum kept and its phases randomised, added to the "
-        "starting model's replay; null.py), and when it matters: its contribution to the "
-        f"outputs is at least {MIN_SHARE:.0%} of the residual level and its size at least "
-        f"its detection limit on this record (found in {REQUIRED:.0%} of the surrogates); "
+        "starting model's replay; null.py), and when it matters physically (significance.py): "
+        f"its size at least {SIZE_FLOOR:.0%} of the smallest a real rig typically shows, or, "
+        f"for an effect without a size, a change of at least {SIGNAL_FLOOR:.0%} of a recorded "
+        f"signal's own variation (its detection limit on this record: found in "
+        f"{REQUIRED:.0%} of the surrogates and mattering); "
         "from the second round on, also more than the effects added before move them "
         "within their 95 % intervals (the starting model's own prediction uncertainty). "
         "Else it is negligible.",

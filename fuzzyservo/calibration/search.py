@@ -61,6 +61,7 @@ JACOBIAN_STEP = 0.01  # absolute finite-difference step on the unit box
 # ones start the lowering, loses its Stribeck friction when screened on 10 000).
 SCREEN_SAMPLES = 10_000
 SCREEN_RATIO = 3
+LOCAL_STARTS = 2  # local searches from the best starts of a candidate's fit
 JUDGED = 3  # candidates of a round judged and reported (size, z, interval, limit)
 
 
@@ -102,6 +103,7 @@ class Round:
     # not added, the experiment that drives each furthest from the round's starting model
     assessments: tuple[Assessment, ...] = ()
     establish: tuple[tuple[str, Separation, float], ...] = ()  # (name, experiment, D recorded)
+    start_cost_train: float = math.nan  # the starting model's training cost (no fit ends above)
 
 
 @dataclass(frozen=True)
@@ -271,27 +273,36 @@ def fit(
 ) -> tuple[Rig, Candidate]:
     """Fit ``effect`` (None: only the rig's unknowns) on the training part; score it.
 
-    ``screen``: fit on the first ``screen`` training samples only (the score still
-    takes the whole held-out part). ``start_from``: a fit of the same effect (e.g. a
-    screening one) to refine locally, without the global scan."""
+    The fit starts from several points (:func:`_minimise`), the starting model among
+    them (the effect off, the unknowns as they are), so it never ends above the starting
+    model's training cost: a candidate contains the model it extends. ``screen``: fit the
+    effect's parameters on the first ``screen`` training samples only, the rig's unknowns
+    held (they were fitted on the whole training part; refitted on a window they drift
+    to it); the score still takes the whole held-out part. ``start_from``: a fit of the
+    same effect (e.g. a screening one) to refine, unknowns included, without the scan."""
     start = time.perf_counter()
     space = _space(base, effect, replay)
     fitted_on = _screened(replay, screen)
+    if fitted_on is not replay:
+        space = _only(space, effect)
     objective = _Objective(fitted_on, base, effect, space)
     n_effect = sum(1 for owner, _ in space.names if owner == effect) if effect else 0
+    z_start = _start_point(replay, base, effect, space)
+    z_from = None
     if start_from is not None:
         known = dict(start_from.unknowns)
         for param in LIBRARY[effect].fitted if effect else ():
             known[param.field] = float(getattr(start_from.rig.params, param.field))
-        z0 = np.array([space.unit(j, known[f]) for j, (_, f) in enumerate(space.names)])
-    else:
-        z0 = np.array(
-            [
-                START if owner and owner == effect else space.unit(j, _start(replay, base, f))
-                for j, (owner, f) in enumerate(space.names)
-            ]
+        z_from = np.array([space.unit(j, known[f]) for j, (_, f) in enumerate(space.names)])
+    z = _minimise(objective, z_start, n_effect, max_evaluations, scan=start_from is None,
+                  z_from=z_from)  # fmt: skip
+    cost_start = objective.train_cost(z_start)
+    status_note = ""
+    if not objective.train_cost(z) <= cost_start:  # only a start that cannot be replayed
+        status_note = (
+            f"failed fit: its training cost {objective.train_cost(z):.4g} ends above the "
+            f"starting model's {cost_start:.4g}"
         )
-    z = _minimise(objective, z0, n_effect, max_evaluations, scan=start_from is None)
     rig = objective.rig(z)
     model, status = objective.model(z)
     cost_train, cost_val = replay.costs(model)
@@ -299,6 +310,9 @@ def fit(
     unknowns = {
         f: space.value(j, z[j]) for j, (owner, f) in enumerate(space.names) if owner != effect
     }
+    for f in _space(base, effect, replay).names:  # held ones (screening) as they are
+        if f[0] != effect and f[1] not in unknowns:
+            unknowns[f[1]] = _start(replay, base, f[1])
     candidate = Candidate(
         name=effect or "none",
         params=params,
@@ -308,13 +322,37 @@ def fit(
         cost_val=cost_val,
         score=cost_val if cost_val < DIVERGED_COST else math.inf,
         fit_val=fit_table(replay, model),
-        status=status,
+        status=status_note or status,
         evaluations=len(objective.cache),
         seconds=time.perf_counter() - start,
         model=model,
         rig=rig,
     )
     return rig, candidate
+
+
+def _only(space: _Space, effect: str | None) -> _Space:
+    """``space`` cut to ``effect``'s own parameters (the rest held as they are)."""
+    keep = [j for j, (owner, _) in enumerate(space.names) if effect and owner == effect]
+    return _Space(
+        [space.names[j] for j in keep],
+        [space.bounds[j] for j in keep],
+        [space.log[j] for j in keep],
+    )
+
+
+def _start_point(replay: Replay, base: Rig, effect: str | None, space: _Space) -> np.ndarray:
+    """The starting model on the unit box: ``effect`` off (0, or the end of its bounds
+    where it does least: a bulk modulus at the oil's, an unlimited pump;
+    ``EffectParam.off_at_upper``), everything else at its current value."""
+    z = []
+    for j, (of, f) in enumerate(space.names):
+        if effect and of == effect:
+            param = LIBRARY[effect].param_by_field(f)
+            z.append(1.0 if param.off_at_upper else space.unit(j, 0.0))
+        else:
+            z.append(space.unit(j, _start(replay, base, f)))
+    return np.array(z, dtype=float)
 
 
 def _start(replay: Replay, rig: Rig, name: str) -> float:
@@ -337,33 +375,73 @@ def _screened(replay: Replay, screen: int | None) -> Replay:
 
 
 def _minimise(
-    objective: _Objective, z0: np.ndarray, n_effect: int, budget: int, *, scan: bool = True
+    objective: _Objective,
+    z_start: np.ndarray,
+    n_effect: int,
+    budget: int,
+    *,
+    scan: bool = True,
+    z_from: np.ndarray | None = None,
 ) -> np.ndarray:
-    """Global-then-local search on the unit box: a scan of each effect parameter in turn
-    (least squares alone gets caught where friction makes the cost rough; a single one
-    refined coarse-to-fine around its best few points, :func:`_scan`), then bounded
-    Brent for a single parameter or trust-region least squares for several. Without
-    ``scan``, only the local search from ``z0`` (Brent within the finest scan spacing)."""
-    n = z0.size
-    z = z0.copy()
+    """The best point on the unit box from several starts, never worse than ``z_start``
+    (the starting model). The starts: ``z_start``; with ``scan``, a scan of each effect
+    parameter in turn from START (the cost is not convex in a delay, a time constant, a
+    dead band or stiction, and least squares alone gets caught where friction makes the
+    cost rough; a single one refined coarse-to-fine around its best few points,
+    :func:`_scan`) and one Gauss-Newton step from ``z_start`` (the estimate the
+    residual's projection on the effect's own sensitivity gives); ``z_from``: a
+    previous fit to refine. A local search (bounded Brent for a single parameter,
+    trust-region least squares for several) runs from the best of them, and with
+    ``scan`` from the runner-up too (LOCAL_STARTS)."""
+    n = z_start.size
     if n == 0:
-        return z
+        return z_start.copy()
     grid = SCAN_FINE if n == 1 else SCAN
     step = (grid[1] - grid[0]) / 2**REFINE_LEVELS
-    if scan and n_effect == 1:
-        z[0], step = _scan(lambda v: objective.train_cost([v, *z[1:]]), grid)
-    elif scan and n_effect > 1:
-        # a full grid over the effect's parameters: friction with stiction trades its
-        # parameters against each other and a coordinate search stalls
-        best_cost = objective.train_cost(z)
-        for point in itertools.product(SCAN, repeat=n_effect):
-            trial = z.copy()
-            trial[:n_effect] = point
-            cost = objective.train_cost(trial)
-            if cost < best_cost:
-                best_cost, best_point = cost, trial
-        if best_cost < objective.train_cost(z):
-            z = best_point
+    starts = [z_start.copy()]
+    if z_from is not None:
+        starts.append(np.clip(z_from, 0.0, 1.0))
+    if scan and n_effect:
+        z = z_start.copy()
+        z[:n_effect] = START
+        if n_effect == 1:
+            z[0], step = _scan(lambda v: objective.train_cost([v, *z[1:]]), grid)
+        else:
+            # a full grid over the effect's parameters: friction with stiction trades its
+            # parameters against each other and a coordinate search stalls
+            best = min(itertools.product(SCAN, repeat=n_effect),
+                       key=lambda point: objective.train_cost([*point, *z[n_effect:]]))  # fmt: skip
+            z[:n_effect] = best
+        starts.append(z)
+        starts.append(_gauss_newton(objective, z_start))
+    ranked = sorted(_distinct(starts), key=objective.train_cost)
+    local = [_local(objective, z, step, budget) for z in ranked[: LOCAL_STARTS if scan else 1]]
+    return min([*local, *ranked], key=objective.train_cost)
+
+
+def _distinct(points: Sequence[np.ndarray], tol: float = 1e-6) -> list[np.ndarray]:
+    out: list[np.ndarray] = []
+    for p in points:
+        if all(np.max(np.abs(p - q)) > tol for q in out):
+            out.append(p)
+    return out
+
+
+def _gauss_newton(objective: _Objective, z: np.ndarray) -> np.ndarray:
+    """One Gauss-Newton step from ``z`` on the unit box, clipped to it: where the
+    training residual's projection on each parameter's sensitivity puts it."""
+    jac = _jacobian(objective.residuals, z)
+    r = objective.residuals(z)
+    if not (np.isfinite(jac).all() and np.isfinite(r).all()):
+        return z.copy()
+    step, *_ = np.linalg.lstsq(jac, -r, rcond=None)
+    return np.clip(z + step, 0.0, 1.0)
+
+
+def _local(objective: _Objective, z: np.ndarray, step: float, budget: int) -> np.ndarray:
+    """Bounded Brent within ``step`` of ``z`` for one parameter, trust-region least
+    squares for several; ``z`` itself if that does not improve on it."""
+    n = z.size
     if n == 1:
         sol = minimize_scalar(
             lambda v: objective.train_cost([v]),
@@ -506,47 +584,12 @@ def calibrate(
             if screened:
                 results = _confirm(replay, current, current_model, results)
             frozen = _frozen_ends(replay, current, added, current_model)
-            null = null_round(replay, current_model, [c.model for c in results],
-                              draws=bootstrap_draws, seed=SEED + len(rounds),
-                              frozen=frozen)  # fmt: skip
-            z_min = null.threshold
-            results = _established_first(replay, current, current_model, results, z_min,
-                                         screened=screened)  # fmt: skip
-            best = results[0] if results else None
-            significant = best is not None and _significant(best, z_min)
-            ambiguous = _ties(replay, results, z_min) if significant else ()
-            if ambiguous:  # parsimony: the simplest of the tied forms of the best's law
-                tied = [c for c in results if c.name in (best.name, *ambiguous)]
-                same_law = [c for c in tied if c is best or c.name in _special_cases(best)]
-                simplest = min(same_law, key=lambda c: (c.n_params, c.score))
-                if simplest is not best:
-                    results.remove(simplest)
-                    results.insert(0, simplest)
-                    ambiguous = tuple(c.name for c in tied if c is not simplest)
-                    best = simplest
-            judged = _judge(replay, current_model, results, null)
-            accept = bool(judged) and judged[0].verdict == "added"
-            if not accept:
-                ambiguous = ()
-            experiments: tuple[Separation, ...] = ()
-            first = getattr(replay, "records", (replay,))[0]
-            if ambiguous:
-                tied = {c.name: c.rig for c in results if c.name in (best.name, *ambiguous)}
-                experiments = tuple(separating_experiments(first, tied))
-            establish = () if accept else _establishing(first, current, results, judged)
-            rounds.append(
-                Round(
-                    cost,
-                    tuple(results),
-                    best.name if accept else None,
-                    threshold=z_min,
-                    ambiguous_with=ambiguous,
-                    experiments=experiments,
-                    null=null,
-                    assessments=judged,
-                    establish=establish,
-                )
-            )
+            decided = decide(replay, current, current_model, results, cost, frozen=frozen,
+                             screened=screened, draws=bootstrap_draws,
+                             seed=SEED + len(rounds))  # fmt: skip
+            rounds.append(decided)
+            accept = decided.added is not None
+            best = decided.candidates[0] if accept else None
             if not accept:
                 break
             added.append(best)
@@ -576,6 +619,66 @@ def calibrate(
         controller=replay.controller,
         uncertainty=uncertainty,
         per_record=dict(replay.values),
+    )
+
+
+def decide(
+    replay: Replay,
+    current: Rig,
+    current_model: dict[str, np.ndarray],
+    results: list[Candidate],
+    cost: float,
+    *,
+    frozen: Sequence[Sequence[dict[str, np.ndarray]]] = (),
+    screened: bool = False,
+    draws: int = DRAWS,
+    seed: int = SEED,
+) -> Round:
+    """One round's decision on its fitted candidates (``results``, by held-out cost) over
+    the starting model ``current`` (channels ``current_model``, held-out cost ``cost``):
+    the record's null (null.py), parsimony among the forms of one law, the judgement of
+    the best few and, when none is added, the experiments that would establish them.
+    ``frozen``: the starting model's channels at the ends of its earlier effects'
+    intervals (:func:`_frozen_ends`)."""
+    results = list(results)
+    null = null_round(replay, current_model, [c.model for c in results],
+                      draws=draws, seed=seed, frozen=frozen)  # fmt: skip
+    z_min = null.threshold
+    results = _established_first(replay, current, current_model, results, z_min,
+                                 screened=screened)  # fmt: skip
+    best = results[0] if results else None
+    significant = best is not None and _significant(best, z_min)
+    ambiguous = _ties(replay, results, z_min) if significant else ()
+    if ambiguous:  # parsimony: the simplest of the tied forms of the best's law
+        tied = [c for c in results if c.name in (best.name, *ambiguous)]
+        same_law = [c for c in tied if c is best or c.name in _special_cases(best)]
+        simplest = min(same_law, key=lambda c: (c.n_params, c.score))
+        if simplest is not best:
+            results.remove(simplest)
+            results.insert(0, simplest)
+            ambiguous = tuple(c.name for c in tied if c is not simplest)
+            best = simplest
+    judged = _judge(replay, current, current_model, results, null)
+    accept = bool(judged) and judged[0].verdict == "added"
+    if not accept:
+        ambiguous = ()
+    experiments: tuple[Separation, ...] = ()
+    first = getattr(replay, "records", (replay,))[0]
+    if ambiguous:
+        tied = {c.name: c.rig for c in results if c.name in (best.name, *ambiguous)}
+        experiments = tuple(separating_experiments(first, tied))
+    establish = () if accept else _establishing(first, current, results, judged)
+    return Round(
+        cost,
+        tuple(results),
+        best.name if accept else None,
+        threshold=z_min,
+        ambiguous_with=ambiguous,
+        experiments=experiments,
+        null=null,
+        assessments=judged,
+        establish=establish,
+        start_cost_train=replay.cost(current_model, slice(0, replay.split)),
     )
 
 
@@ -694,13 +797,17 @@ def _frozen_ends(
 
 
 def _judge(
-    replay: Replay, base_model: dict[str, np.ndarray], ranked: Sequence[Candidate], null: Null
+    replay: Replay,
+    base: Rig,
+    base_model: dict[str, np.ndarray],
+    ranked: Sequence[Candidate],
+    null: Null,
 ) -> tuple[Assessment, ...]:
     """The first JUDGED candidates against the round's ``null`` (null.assess)."""
     out = []
     for k, c in enumerate(ranked[:JUDGED]):
         z = c.evidence.z if c.evidence is not None else math.nan
-        a = assess(replay, base_model, c.model, c.name, z, null)
+        a = assess(replay, base, base_model, c, z, null)
         if k and a.verdict == "added":  # only the first of a round can be added
             a = dataclasses.replace(a, verdict="out-ranked")
         out.append(a)

@@ -97,6 +97,12 @@ class EffectParam:
     default: Callable[[Scales], float] | None = None
     log: bool = False  # search the parameter on a logarithmic grid
     maximum: float | None = None  # physical upper limit, checked when a rig is built
+    # the end of its bounds at which the effect does nothing (0 when the bounds hold it;
+    # a bulk modulus or a pump flow does least at its upper bound: the oil's, unlimited)
+    off_at_upper: bool = False
+    # the range of sizes a real rig shows (docs/modelling.md "Typical ranges"), for an
+    # effect's size parameter: calibration calls a fitted size far below it negligible
+    typical: Callable[[Scales], tuple[float, float]] | None = None
 
     def __post_init__(self) -> None:
         if self.unit not in UNIT_TOKENS:
@@ -163,7 +169,8 @@ LIBRARY: dict[str, Effect] = {
             "coulomb_friction",
             "plant",
             (
-                EffectParam("force", "coulomb_force_si", "force", lambda s: (0.0, 0.1 * s.force), doc="Coulomb friction force or torque"),
+                EffectParam("force", "coulomb_force_si", "force", lambda s: (0.0, 0.1 * s.force), doc="Coulomb friction force or torque",
+                    typical=lambda s: (0.01 * s.force, 0.1 * s.force)),
                 _smoothing(),
             ),
             "F = Fc·tanh(v/vc) opposing the motion [N or N·m]; vc the plant's smoothing velocity",
@@ -175,7 +182,8 @@ LIBRARY: dict[str, Effect] = {
             (
                 EffectParam(
                     "coulomb_force", "stribeck_coulomb_force_si", "force",
-                    lambda s: (0.0, 0.1 * s.force), doc="Coulomb level"),
+                    lambda s: (0.0, 0.1 * s.force), doc="Coulomb level",
+                    typical=lambda s: (0.01 * s.force, 0.1 * s.force)),
                 EffectParam(
                     "stiction_force", "stribeck_stiction_force_si", "force",
                     lambda s: (0.0, 0.1 * s.force), doc="breakaway minus Coulomb"),
@@ -194,7 +202,9 @@ LIBRARY: dict[str, Effect] = {
             (
                 EffectParam(
                     "resistance", "line_resistance_pa_s_m3", "Pa*s/m^3",
-                    lambda s: (0.0, s.pressure / s.flow), log=True, doc="laminar line resistance"),
+                    lambda s: (0.0, s.pressure / s.flow), log=True, doc="laminar line resistance",
+                    # 1-10 % of the supply pressure lost at the rated flow
+                    typical=lambda s: (0.01 * s.pressure / s.flow, 0.1 * s.pressure / s.flow)),
             ),
             "laminar line between each valve port and its chamber: Δp = R·q [Pa], "
             "R = 128·μ·L/(π·d⁴)",
@@ -209,7 +219,10 @@ LIBRARY: dict[str, Effect] = {
                     # a tenth of it (the earlier bound) was below the cylinder range's top
                     # on seed 002 (8.8e-13 < 1e-12 m³/(s·Pa))
                     "coefficient", "internal_leakage_m3_s_pa", "m^3/(s*Pa)",
-                    lambda s: (0.0, s.flow / s.pressure), log=True, doc="cross-port leakage"),
+                    lambda s: (0.0, s.flow / s.pressure), log=True, doc="cross-port leakage",
+                    # 0.1-10 % of the rated flow at the full supply pressure (1e-14..1e-12
+                    # m³/(s·Pa) on seed 002's cylinder, 1e-12..1e-11 on a motor)
+                    typical=lambda s: (1e-3 * s.flow / s.pressure, 0.1 * s.flow / s.pressure)),
             ),
             "q = Kl·(pA − pB) across the piston or motor [m³/s]",
             "docs/modelling.md typical ranges (1e-14..1e-12 cylinders, 1e-12..1e-11 motors); "
@@ -220,7 +233,8 @@ LIBRARY: dict[str, Effect] = {
             "input",
             (
                 EffectParam(
-                    "width", "valve_deadband_si", "input", lambda s: (0.0, 0.1 * s.input), doc="dead band half-width"),
+                    "width", "valve_deadband_si", "input", lambda s: (0.0, 0.1 * s.input), doc="dead band half-width",
+                    typical=lambda s: (0.005 * s.input, 0.05 * s.input)),
             ),
             "i_eff = i0 + sign(Δi)·max(|Δi| − w, 0) around the valve null i0",
             "docs/modelling.md dead band / overlap",
@@ -231,7 +245,8 @@ LIBRARY: dict[str, Effect] = {
             (
                 EffectParam(
                     "offset", "valve_bias_si", "input",
-                    lambda s: (-0.05 * s.input, 0.05 * s.input), doc="null bias offset", signed=True),
+                    lambda s: (-0.05 * s.input, 0.05 * s.input), doc="null bias offset", signed=True,
+                    typical=lambda s: (0.005 * s.input, 0.03 * s.input)),
             ),
             "i_eff = i + b: a null bias beyond the declared one [A or V]",
             "docs/modelling.md null bias (≤ 2-3 % of rated current)",
@@ -239,7 +254,8 @@ LIBRARY: dict[str, Effect] = {
         Effect(
             "valve_lag",
             "input",
-            (EffectParam("time_constant", "valve_lag_s", "s", lambda s: (0.0, 0.02), doc="spool time constant"),),
+            (EffectParam("time_constant", "valve_lag_s", "s", lambda s: (0.0, 0.02), doc="spool time constant",
+                         typical=lambda s: (0.8e-3, 3.2e-3)),),
             "τ·di_s/dt = i − i_s: first-order spool dynamics [s]",
             "docs/modelling.md typical ranges (spool bandwidth 50-200 Hz: τ 0.8-3.2 ms); seed 000 eq. 8",
             lookalike=(
@@ -255,7 +271,9 @@ LIBRARY: dict[str, Effect] = {
             (
                 EffectParam(
                     "delay", "transport_delay_s", "s",
-                    lambda s: (0.0, max(0.05, 5.0 * s.sample_time)), doc="input delay"),
+                    lambda s: (0.0, max(0.05, 5.0 * s.sample_time)), doc="input delay",
+                    # a computation and converter delay of up to a sample period
+                    typical=lambda s: (0.1 * s.sample_time, s.sample_time)),
             ),
             "i_eff(t) = i(t − d): computation, bus and converter delay [s]",
             "docs/modelling.md transport delay (cross-correlation peak at lag > 0)",
@@ -274,7 +292,8 @@ LIBRARY: dict[str, Effect] = {
             (
                 EffectParam(
                     "effective", "effective_bulk_modulus_pa", "Pa",
-                    lambda s: (0.1e9, s.bulk_modulus), doc="effective bulk modulus (0: the oil's)"),
+                    lambda s: (0.1e9, s.bulk_modulus), doc="effective bulk modulus (0: the oil's)",
+                    off_at_upper=True),
             ),
             "E_eff replaces the oil's bulk modulus in every chamber [Pa]",
             "docs/modelling.md typical ranges (oil 1.4-1.8 GPa; hoses or air 0.2-0.7 GPa)",
@@ -285,7 +304,8 @@ LIBRARY: dict[str, Effect] = {
             (
                 EffectParam(
                     "pump_flow", "pump_flow_m3_s", "m^3/s",
-                    lambda s: (0.1 * s.flow, 4.0 * s.flow), doc="pump flow limit (0: unlimited)"),
+                    lambda s: (0.1 * s.flow, 4.0 * s.flow), doc="pump flow limit (0: unlimited)",
+                    off_at_upper=True),
             ),
             "q_supply = min(q_demand, Qp): a pump of limited flow behind the relief valve; "
             "the supply pressure sags when the valve asks for more",
@@ -297,7 +317,8 @@ LIBRARY: dict[str, Effect] = {
             (
                 EffectParam(
                     "coefficient", "external_leakage_m3_s_pa", "m^3/(s*Pa)",
-                    lambda s: (0.0, 0.1 * s.flow / s.pressure), log=True, doc="leakage to the drain"),
+                    lambda s: (0.0, 0.1 * s.flow / s.pressure), log=True, doc="leakage to the drain",
+                    typical=lambda s: (1e-3 * s.flow / s.pressure, 0.1 * s.flow / s.pressure)),
             ),
             "q = Ke·p out of each chamber to the drain (rod seals, a motor's case drain) "
             "[m³/s]; composed cylinders and motors",
@@ -310,7 +331,8 @@ LIBRARY: dict[str, Effect] = {
             (
                 EffectParam(
                     "air_fraction", "air_fraction", "1", lambda s: (0.0, 0.02), maximum=0.5,
-                    doc="free air per oil volume at 1 atm (0: no air; 0.001-0.01 typical)"),
+                    doc="free air per oil volume at 1 atm (0: no air; 0.001-0.01 typical)",
+                    typical=lambda s: (0.001, 0.01)),
                 EffectParam(
                     "polytropic_index", "air_polytropic_index", "1", lambda s: (1.0, 1.4),
                     doc="polytropic index n of the air (1-1.4)", fitted=False,

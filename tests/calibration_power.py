@@ -1,0 +1,168 @@
+"""Calibration's power and error rate on the independent generator (issue 40;
+docs/calibration.md "Power and error rate").
+
+Records from tests/independent_rig.py (its own formulations of every effect) of the
+seed-002 bench under P K=10, each with a model error of a real bench's size:
+
+* **power**: each library effect at the middle of its typical range plus the bench's
+  mismatches together (``BENCH``: ADC codes, the orifices' laminar transition at 0.3 bar,
+  the valve's flow gain 5 % off); is it named first and added?
+* **error rate**: no effect, one mismatch (each of ``MISMATCHES``, and ``BENCH``); is
+  anything added? (A 1 ms sensor filter comes back as the loop delay it acts as, with
+  its lookalike stated: the issue's decided clause; counted apart.)
+
+The rig is seed 002's (``old_loop``) with the valve's flow gain (``slot_coefficient_b``)
+declared unknown within ±10 %, as an engineer unsure of it would declare it: the 5 %
+flow-gain error is then fitted with the nominal model, and what the fit cannot take
+(ADC codes, the orifice law) stays as model error. The nulls are run on that rig and
+also on the rig without the unknown (``fixed``: the 5 % error left in the residual).
+
+Round 1 of the calibration decides both (a record whose first round adds nothing adds
+nothing); its candidates are fitted once per record and kept (``--cache``), so the
+decision (search.decide) can be re-run on them cheaply.
+
+Run from the repository root (about 10 s per record and core; use nice):
+
+    PYTHONPATH=. python tests/calibration_power.py [draws=20] [--cache DIR] [--jobs 2]
+"""
+
+from __future__ import annotations
+
+import argparse
+import pickle
+import sys
+import tempfile
+import time
+from concurrent.futures import ProcessPoolExecutor
+from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+
+from independent_rig import BENCH, MIDDLE, MISMATCHES, independent_draws
+from support import controller_named
+from test_calibration import NOISE, old_loop
+
+FLOW_GAIN_FIT = (0.054, 0.066)  # l/(min·mA·sqrt(bar)): the declared 0.0600 ± 10 %
+
+
+def power_rig(folder: Path, declared: bool = True) -> Path:
+    """The seed-002 rig file of these measurements: ``old_loop``, and with ``declared``
+    the valve's flow gain an unknown within FLOW_GAIN_FIT."""
+    import yaml
+
+    path = old_loop(folder)
+    if declared:
+        data = yaml.safe_load(path.read_text(encoding="utf-8"))
+        valve = data["plant"]["components"]["valve"]["parameters"]
+        valve["slot_coefficient_b"]["fit"] = list(FLOW_GAIN_FIT)
+        path.write_text(yaml.safe_dump(data, sort_keys=False), encoding="utf-8")
+    return path
+
+
+def cases(draws: int) -> list[tuple[str, str | None, str, tuple[int, ...]]]:
+    """(kind, effect, mismatch, seeds): the power cases, then the nulls (``null`` on the
+    rig with the flow gain declared, ``fixed`` on the one without)."""
+    out = []
+    for effect in MIDDLE:
+        out.append(("power", effect, BENCH, tuple(range(200, 200 + draws))))
+    for mismatch in (*MISMATCHES, BENCH):
+        out.append(("null", None, mismatch, tuple(range(300, 300 + draws))))
+    for mismatch in ("flow_gain", BENCH):
+        out.append(("fixed", None, mismatch, tuple(range(300, 300 + draws))))
+    return out
+
+
+def _fit_round(args) -> list[Path]:
+    """Simulate one case's records and fit round 1's candidates on each; pickled."""
+    kind, effect, mismatch, seeds, cache = args
+    from fuzzyservo.calibration.replay import make_replay
+    from fuzzyservo.calibration.search import _candidate, candidate_effects, fit
+    from fuzzyservo.io.rigs import load_rig
+
+    rig = load_rig(power_rig(Path(tempfile.mkdtemp()), declared=kind != "fixed"))
+    controller = controller_named("p_k10")
+    paths = []
+    todo = [s for s in seeds if not (cache / f"{kind}_{effect}_{mismatch}_{s}.pkl").is_file()]
+    records = independent_draws(effect, NOISE, tuple(todo), mismatch=mismatch) if todo else []
+    for seed, data in zip(todo, records, strict=True):
+        start = time.perf_counter()
+        replay = make_replay(rig, data, controller)
+        nominal = rig
+        model, _ = replay.run(rig)
+        cost = replay.cost(model, slice(replay.split, None))
+        if rig.unknowns:  # as search.calibrate fits them first
+            nominal, fitted = fit(replay, rig, None, max_evaluations=120)
+            model, cost = fitted.model, fitted.cost_val
+        results = [_candidate(replay, nominal, model, name) for name in candidate_effects(rig)]
+        results.sort(key=lambda c: c.score)
+        path = cache / f"{kind}_{effect}_{mismatch}_{seed}.pkl"
+        with path.open("wb") as f:
+            pickle.dump((replay, nominal, model, cost, results), f)
+        print(f"fitted {path.name} ({time.perf_counter() - start:.0f} s)", flush=True)
+        paths.append(path)
+    return paths
+
+
+def decide_all(cache: Path, draws: int) -> dict:
+    """The decision on every cached record: (kind, effect, mismatch) -> list of
+    (named first, added) per draw."""
+    from fuzzyservo.calibration.search import decide
+
+    out: dict = {}
+    for kind, effect, mismatch, seeds in cases(draws):
+        rows = []
+        for seed in seeds:
+            path = cache / f"{kind}_{effect}_{mismatch}_{seed}.pkl"
+            if not path.is_file():
+                continue
+            with path.open("rb") as f:
+                replay, rig, model, cost, results = pickle.load(f)
+            r = decide(replay, rig, model, results, cost)
+            a = r.assessments[0] if r.assessments else None
+            rows.append((r.candidates[0].name, r.added, a.verdict if a else "", a.z if a else 0.0,
+                         r.threshold, a.reason if a else ""))  # fmt: skip
+        out[kind, effect, mismatch] = rows
+    return out
+
+
+def table(results: dict) -> str:
+    lines = ["| record | draws | named first | named first and added | added (any) |",
+             "|---|---|---|---|---|"]  # fmt: skip
+    for (kind, effect, mismatch), rows in results.items():
+        n = len(rows)
+        if not n:
+            continue
+        name = f"{effect} + {mismatch}" if kind == "power" else f"no effect, {mismatch}"
+        if kind == "fixed":
+            name += " (flow gain not declared)"
+        first = sum(r[0] == effect for r in rows) if effect else 0
+        both = sum(r[0] == effect and r[1] == effect for r in rows) if effect else 0
+        added = sum(r[1] is not None for r in rows)
+        lines.append(f"| {name} | {n} | {first if effect else '-'} | "
+                     f"{both if effect else '-'} | {added} |")  # fmt: skip
+    return "\n".join(lines)
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser()
+    parser.add_argument("draws", nargs="?", type=int, default=20)
+    parser.add_argument("--cache", type=Path, default=Path(tempfile.gettempdir()) / "power")
+    parser.add_argument("--jobs", type=int, default=2)
+    parser.add_argument("--decide-only", action="store_true")
+    parser.add_argument("--verbose", action="store_true")
+    args = parser.parse_args()
+    args.cache.mkdir(parents=True, exist_ok=True)
+    if not args.decide_only:
+        work = [(*c, args.cache) for c in cases(args.draws)]
+        with ProcessPoolExecutor(args.jobs) as pool:
+            list(pool.map(_fit_round, work))
+    results = decide_all(args.cache, args.draws)
+    if args.verbose:
+        for key, rows in results.items():
+            for r in rows:
+                print(key, r[0], r[1], r[2], f"z {r[3]:.2f} > {r[4]:.2f}", r[5])
+    print(table(results))
+
+
+if __name__ == "__main__":
+    main()

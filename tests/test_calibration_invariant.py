@@ -1,0 +1,70 @@
+"""A candidate contains the model it extends, so its fit never ends above it (issue 40).
+
+Every candidate of the library is the starting model with one more effect; with the
+effect off (size 0) it is the starting model. Its fit starts from several points, that
+one among them (search._minimise), so on the part it is fitted on its training cost
+never ends above the starting model's. Checked for every library effect the record's
+rig can take, on synthetic, independent-generator and real records (the FASTER record's
+in tests/test_calibration_faster.py, on its whole calibration).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+from independent_rig import independent_run
+from support import DATA, SHARED, controller_named, rig_named
+from test_calibration import NOISE, old_loop
+
+from fuzzyservo.calibration.replay import make_replay
+from fuzzyservo.calibration.search import calibrate, candidate_effects
+from fuzzyservo.io.measured import read_rig_data
+from fuzzyservo.io.rigs import load_rig
+
+FESTO = SHARED / "data" / "festo_hanging_load" / "HangingLoad.csv"
+EXAMPLE = DATA / "examples" / "run_dinca_friction.csv"
+
+
+def _needs(path: Path):
+    return pytest.mark.skipif(
+        not path.is_file(), reason=f"real data not found at {path} (../shared is absent)"
+    )
+
+
+def _check(replay, rig) -> None:
+    """Round 1 of a calibration: every library candidate's training cost at most the
+    starting model's (up to rounding), and none of them reported as a failed fit."""
+    outcome = calibrate(replay, rig, max_effects=1, bootstrap_draws=20)
+    first = outcome.rounds[0]
+    assert {c.name for c in first.candidates} == set(candidate_effects(rig))
+    for c in first.candidates:
+        assert c.cost_train <= first.start_cost_train * (1 + 1e-9) + 1e-12, (
+            f"{c.name}: training cost {c.cost_train} above the start's {first.start_cost_train}"
+        )
+        assert not c.status.startswith("failed fit"), f"{c.name}: {c.status}"
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("closed", [False, True], ids=["open_loop", "closed_loop"])
+def test_fits_never_end_above_the_start_on_the_example_record(closed: bool) -> None:
+    rig = rig_named("dinca_cylinder")
+    data = read_rig_data(EXAMPLE, rig.measured)
+    _check(make_replay(rig, data, controller_named("p_k10") if closed else None), rig)
+
+
+@pytest.mark.slow
+def test_fits_never_end_above_the_start_on_an_independent_record(tmp_path: Path) -> None:
+    """The independent generator's LuGre friction and a 5 % flow-gain error: no library
+    candidate is the generator's formulation."""
+    rig = load_rig(old_loop(tmp_path))
+    data = independent_run("coulomb_friction", NOISE, seed=3, mismatch="flow_gain")
+    _check(make_replay(rig, data, controller_named("p_k10")), rig)
+
+
+@pytest.mark.slow
+@_needs(FESTO)
+def test_fits_never_end_above_the_start_on_the_festo_record() -> None:
+    rig = rig_named("festo_hanging_load")
+    data = read_rig_data(FESTO, rig.measured)
+    _check(make_replay(rig, data, controller_named("p_festo_hanging_load")), rig)

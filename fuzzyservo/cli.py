@@ -334,12 +334,12 @@ def cmd_calibrate(args: argparse.Namespace) -> int:
     stem = Path(args.data[0]).stem + (f"+{len(args.data) - 1}" if len(args.data) > 1 else "")
     out = out or _out_dir(str(Path("out") / f"calibrate_{rig.name}_{stem}"))
     paths = write_calibration(result, out, ", ".join(Path(d).name for d in args.data))
-    print(result.text())
     print(f"report: {paths['report']}")
     if "rig" in paths:
         print(f"calibrated rig: {paths['rig']}")
     _json(args.json, read_json(paths["summary"]))  # summary.json as written
     print(f"the command took {_took()} (the search {_took(result.outcome.seconds)})")
+    print(result.text())  # the verdict last: what an engineer reads first
     return 0
 
 

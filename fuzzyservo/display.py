@@ -259,6 +259,43 @@ def prefixed(value: float, unit: str) -> str:
     return f"{value / scale:.3g} {prefix}{unit}"
 
 
+def unit_text(unit: str) -> str:
+    """A unit as printed: ``m^3/(s*Pa)`` reads ``m³/(s·Pa)`` ("" for a ratio of 1)."""
+    if unit in ("", "1"):
+        return ""
+    return unit.replace("^2", "²").replace("^3", "³").replace("*", "·")
+
+
+def quantity_text(values: Sequence[float], si_unit: str, digits: int = 3) -> tuple[list[str], str]:
+    """Values of one quantity [``si_unit``] printed alike in the unit a test engineer
+    reads them in, and that unit: the bench unit (:func:`display_scale`: mm, bar, mA,
+    l/min) where the largest prints between 0.01 and 1e5 in it, else an SI prefix on a
+    simple unit (3.2 ms, 29.7 nA), else the SI unit; ``digits`` significant digits of the
+    largest, the others to the same decimal place."""
+    finite = [abs(v) for v in values if math.isfinite(v)]
+    mag = max(finite, default=0.0)
+    unit, k = display_scale(si_unit)
+    if unit == si_unit or not 1e-2 <= mag * k < 1e5:
+        unit, k = si_unit, 1.0
+        simple = unit.isalpha() and unit not in ("1", "rad")
+        if simple and 0.0 < mag < 1.0:
+            scale, prefix = next((sp for sp in _PREFIXES if mag / sp[0] < 999.5), (1.0, ""))
+            unit, k = prefix + unit, 1.0 / scale
+    shown = mag * k
+    if shown and 1e-3 <= shown < 1e6:  # fixed point, to the largest one's last digit
+        form = f".{max(digits - 1 - math.floor(math.log10(shown)), 0)}f"
+    else:
+        form = f".{digits}g"
+
+    def text(v: float) -> str:
+        if not math.isfinite(v):
+            return "n/a"
+        out = format(v * k, form)
+        return out[1:] if out.startswith("-") and float(out) == 0.0 else out  # no "-0.0"
+
+    return [text(v) for v in values], unit_text(unit)
+
+
 def not_moved_note(metrics: Metrics, units: MetricUnits) -> str:
     """Why a run has no rise, settling or overshoot although its reference stepped: it
     did not move by what its sensor resolves ("" for a run that moved), e.g. ``did not
@@ -341,9 +378,11 @@ __all__ = [
     "not_moved_note",
     "preferred_unit",
     "prefixed",
+    "quantity_text",
     "saturated_spans",
     "signal_unit",
     "to_display",
     "trial_counts_text",
     "undefined_note",
+    "unit_text",
 ]

@@ -59,9 +59,32 @@ def power_rig(folder: Path, declared: bool = True) -> Path:
     return path
 
 
+SIZES = (0.25, 0.5)  # the power curve's smaller sizes, as a share of the middle one
+CURVE_DRAWS = 10
+
+
+def scaled(effect: str, share: float) -> dict[str, float]:
+    """The generator's parameters of ``effect`` at ``share`` of its middle size (a
+    slower spool, a softer oil, a smaller pump for a larger effect)."""
+    p = dict(MIDDLE[effect])
+    if effect == "valve_lag":
+        p["wn"] /= share
+    elif effect == "bulk_modulus":
+        e_oil = 1.8e9
+        p["e"] = 1.0 / (1.0 / e_oil + share * (1.0 / p["e"] - 1.0 / e_oil))
+    elif effect == "supply_droop":
+        p["qp"] /= share
+    else:
+        for key in p:
+            if key not in ("vs",):
+                p[key] *= share
+    return p
+
+
 def cases(draws: int) -> list[tuple[str, str | None, str, tuple[int, ...]]]:
-    """(kind, effect, mismatch, seeds): the power cases, then the nulls (``null`` on the
-    rig with the flow gain declared, ``fixed`` on the one without)."""
+    """(kind, effect, mismatch, seeds): the power cases, the nulls (``null`` on the
+    rig with the flow gain declared, ``fixed`` on the one without), then the power
+    curve's smaller sizes (``size0.25`` ...)."""
     out = []
     for effect in MIDDLE:
         out.append(("power", effect, BENCH, tuple(range(200, 200 + draws))))
@@ -69,6 +92,9 @@ def cases(draws: int) -> list[tuple[str, str | None, str, tuple[int, ...]]]:
         out.append(("null", None, mismatch, tuple(range(300, 300 + draws))))
     for mismatch in ("flow_gain", BENCH):
         out.append(("fixed", None, mismatch, tuple(range(300, 300 + draws))))
+    for share in SIZES:
+        for effect in MIDDLE:
+            out.append((f"size{share}", effect, BENCH, tuple(range(400, 400 + CURVE_DRAWS))))
     return out
 
 
@@ -83,7 +109,12 @@ def _fit_round(args) -> list[Path]:
     controller = controller_named("p_k10")
     paths = []
     todo = [s for s in seeds if not (cache / f"{kind}_{effect}_{mismatch}_{s}.pkl").is_file()]
-    records = independent_draws(effect, NOISE, tuple(todo), mismatch=mismatch) if todo else []
+    params = scaled(effect, float(kind[4:])) if kind.startswith("size") else None
+    records = (
+        independent_draws(effect, NOISE, tuple(todo), params=params, mismatch=mismatch)
+        if todo
+        else []
+    )
     for seed, data in zip(todo, records, strict=True):
         start = time.perf_counter()
         replay = make_replay(rig, data, controller)
@@ -132,7 +163,9 @@ def table(results: dict) -> str:
         n = len(rows)
         if not n:
             continue
-        name = f"{effect} + {mismatch}" if kind == "power" else f"no effect, {mismatch}"
+        name = f"{effect} + {mismatch}" if effect else f"no effect, {mismatch}"
+        if kind.startswith("size"):
+            name = f"{effect} at {kind[4:]} × middle + {mismatch}"
         if kind == "fixed":
             name += " (flow gain not declared)"
         first = sum(r[0] == effect for r in rows) if effect else 0

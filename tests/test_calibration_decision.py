@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import re
 from pathlib import Path
 
 import numpy as np
@@ -285,10 +286,9 @@ def test_a_negligible_effect_is_reported_not_added(rig, tmp_path) -> None:
     assert negligible["size"]["value"] == pytest.approx(3.0, rel=0.3)
     assert negligible["size"]["limit"] > negligible["size"]["value"]
     assert 0.0 <= summary["false_positive_rate"] <= 0.05
-    assert any(
-        line.startswith("verdict: negligible: coulomb_friction")
-        for line in result.text().splitlines()
-    )
+    verdict = result.text().split("\nverdict:\n")[1].splitlines()
+    line = next(v for v in verdict if v.startswith("  negligible: coulomb_friction"))
+    assert re.search(r"force about \d[\d.]* N: ", line), line  # its size in its unit
 
 
 def test_an_effect_within_the_starting_models_prediction_band_is_negligible(rig) -> None:
@@ -337,24 +337,32 @@ def test_an_effect_within_the_starting_models_prediction_band_is_negligible(rig)
 
 def test_a_detection_limit_reads_as_a_magnitude_and_says_when_the_range_cannot_reach_it():
     """The Festo record printed "offset ≥ -0.433" for a null shift fitted below 0 and
-    "delay ≥ 1.97" for a delay the fit may not take beyond 0.05 s."""
+    "delay ≥ 1.97" for a delay the fit may not take beyond 0.05 s: a limit reads as a
+    magnitude in the parameter's unit, and a limit beyond the range says so."""
     from fuzzyservo.calibration.report import verdict_lines
 
-    def weak(name: str, param: str, value: float, limit: float, lo: float, hi: float) -> dict:
+    def weak(name: str, param: str, value: float, limit: float, lo: float, hi: float,
+             unit: str, verdict: str = "not established") -> dict:  # fmt: skip
         size = {"param": param, "value": value, "limit": limit, "range": [lo, hi]}
-        return {"name": name, "params": {param: value}, "z": 1.0, "size": size}
+        return {"name": name, "verdict": verdict, "params": {param: value}, "z": 1.0,
+                "size": size, "units": {param: unit}, "share_of_residual": 0.1,
+                "share_needed": 0.25}  # fmt: skip
 
+    bias = weak("valve_bias", "offset", -1.35e-4, -4.33e-4, -1e-3, 1e-3, "A", "negligible")
     summary = {
         "false_positive_rate": 0.05,
         "effects_added": [],
-        "negligible": [],
+        "negligible": [bias],
         "not_established": [
-            weak("valve_bias", "offset", -0.135, -0.433, -1.0, 1.0),
-            weak("transport_delay", "delay", 0.1, 1.97, 0.0, 0.05),
-            weak("coulomb_friction", "force", 40.0, 80.0, 0.0, 500.0),
+            weak("transport_delay", "delay", 0.1, 1.97, 0.0, 0.05, "s"),
+            weak("coulomb_friction", "force", 40.0, 80.0, 0.0, 500.0, "N"),
         ],
     }
     lines = verdict_lines(summary)
-    assert "limit on this record |offset| ≥ 0.433)" in lines[2]
-    assert "delay ≥ 1.97, beyond its range (up to 0.05): this record cannot detect it" in lines[3]
-    assert "limit on this record force ≥ 80)" in lines[4]
+    negligible = next(line for line in lines if line.startswith("negligible: valve_bias"))
+    assert "offset about -0.135 mA" in negligible
+    assert "this record shows it from |offset| 0.433 mA" in negligible
+    delay = next(line for line in lines if "transport_delay" in line)
+    assert "delay about 100 ms" in delay and "cannot show it within the range" in delay
+    friction = next(line for line in lines if "coulomb_friction" in line)
+    assert "force about 40.0 N" in friction and "too weak on this record" in friction

@@ -68,3 +68,29 @@ def test_fits_never_end_above_the_start_on_the_festo_record() -> None:
     rig = rig_named("festo_hanging_load")
     data = read_rig_data(FESTO, rig.measured)
     _check(make_replay(rig, data, controller_named("p_festo_hanging_load")), rig)
+
+
+def test_a_fit_that_ends_above_the_start_is_a_failed_fit_not_unestablished() -> None:
+    """A candidate whose fit could not get below the starting model (its status says
+    why) is judged a failed fit with that cause, never "not established"."""
+    from types import SimpleNamespace
+
+    import numpy as np
+
+    from fuzzyservo.calibration.null import assess, null_round
+    from fuzzyservo.calibration.synthetic import synthetic_run
+
+    rig = rig_named("dinca_cylinder")
+    ctl = controller_named("p_k10")
+    data = synthetic_run(rig, ctl, "pulses", {}, NOISE, seed=3, duration_s=6.0)
+    replay = make_replay(rig, data, ctl)
+    start, _ = replay.run(rig)
+    model = {c: np.asarray(v) + 3 * replay.sigma[c] for c, v in start.items()}
+    cause = "failed fit: its training cost 10.2 ends above the starting model's 1.01"
+    candidate = SimpleNamespace(
+        name="valve_bias", params={"offset": 1e-4}, model=model, status=cause
+    )
+    null = null_round(replay, start, [model], draws=20)
+    judged = assess(replay, rig, start, candidate, -5.0, null)
+    assert judged.verdict == "failed fit"
+    assert judged.reason == cause.removeprefix("failed fit: ")

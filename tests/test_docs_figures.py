@@ -200,45 +200,70 @@ def test_seed_observation_counts_are_the_reproduction_tables():
 
 
 # ------------------------------------------------------------------ docs/calibration.md
+# the lines the console prints that are this machine's (paths written, times)
+MACHINE = ("report: ", "calibrated rig: ", "JSON written to ", "the command took ")
+
+
 @pytest.mark.slow
 def test_calibration_example_prints_what_the_page_shows(tmp_path, capsys, monkeypatch):
-    """The page's console excerpt: the effect added and the verdicts' kinds exactly, the
-    friction within 5 %, z within 30 %, the fits within 5 points (the record is generated
-    with sensor noise, so the last digits may move between machines)."""
+    """The page's console excerpt ("Reading the console", its ``$ fuzzyservo`` line run
+    as written) line by line: every word as printed (the numbers aside), the forces and
+    their 95 % intervals within 5 %, the fits and the error rate within 5 points (the
+    record is generated with sensor noise, so the last digits may move between
+    machines); and the figures the page quotes from its first command."""
     from fuzzyservo.cli import main
 
     text = page("docs/calibration.md")
-    command = re.search(r"^fuzzyservo (calibrate dinca_cylinder examples/\S+ .*)$", text, re.M)
-    excerpt = re.search(r"## Reading the console.*?```text\n(.*?)```", text, re.S).group(1)
-    args = command.group(1).split()
-    args[2] = str(ROOT / args[2])  # the record, wherever the test runs
     monkeypatch.chdir(tmp_path)  # --out and --json are relative: under tmp_path
+    (tmp_path / "examples").mkdir()
+    (tmp_path / "examples" / "run_dinca_friction.csv").write_bytes(
+        (ROOT / "examples" / "run_dinca_friction.csv").read_bytes()
+    )
+    section = text.split("## Reading the console")[1].split("\n## ")[0]
+    command, *shown = re.search(r"```text\n(.*?)```", section, re.S).group(1).splitlines()
+    args = command.removeprefix("$ fuzzyservo ").split()
     assert main(args) == 0
-    printed = capsys.readouterr().out
+    printed = [
+        line for line in capsys.readouterr().out.splitlines() if not line.startswith(MACHINE)
+    ]
+
+    def words(line: str) -> str:
+        return NUMBER.sub("#", line)
+
+    assert [words(x) for x in shown] == [words(x) for x in printed], "\n".join(printed)
+    summary = json.loads((tmp_path / args[args.index("--out") + 1] / "summary.json").read_text())
+    for line in (x.strip() for x in shown):
+        if line.startswith("added: "):
+            name, key = re.match(r"added: (\w+): (\w+) ", line).groups()
+            found = re.search(r"(\S+) N \(95 % interval (\S+) to (\S+) N\)", line)
+            value, low, high = map(number, found.groups())
+            u = summary["uncertainty"][f"{name}.{key}"]
+            agree(f"calibration.md {name}", value, u["value"], rel=0.05, floor=0)
+            agree(f"calibration.md {name} low", low, u["interval"][0], rel=0.05, floor=0)
+            agree(f"calibration.md {name} high", high, u["interval"][1], rel=0.05, floor=0)
+        elif line.startswith("held-out fit % "):
+            for channel in summary["fit_after_pct"]:
+                before, after = re.search(rf"\b{channel} (\S+) -> ([^,\s]+)", line).groups()
+                agree(f"calibration.md fit {channel} before", float(before),
+                      summary["fit_before_pct"][channel], rel=0, floor=5)  # fmt: skip
+                agree(f"calibration.md fit {channel} after", float(after),
+                      summary["fit_after_pct"][channel], rel=0, floor=5)  # fmt: skip
+        elif line.startswith("error rate: "):
+            rate = number(re.search(r"in (?:about|under) (\S+) %", line).group(1))
+            agree("calibration.md error rate", rate, 100 * summary["false_positive_rate"],
+                  rel=0, floor=5)  # fmt: skip
+
+    # the page's first command: the calibrated rig's interval, z and the threshold quoted
+    first = re.search(r"^fuzzyservo (calibrate dinca_cylinder examples/\S+ .*)$", text, re.M)
+    assert main(first.group(1).split()) == 0
     summary = json.loads((tmp_path / "out" / "cal.json").read_text())
-
-    def kinds(lines: str) -> list[str]:
-        return re.findall(r"^(?:verdict: )?(effects added: \w+|added: \w+|not established: \w+|"
-                          r"negligible: \w+|false-positive rate)", lines, re.M)  # fmt: skip
-
-    assert kinds(excerpt) == kinds(printed), printed
-    added = summary["effects_added"][0]
-    force = number(re.search(r"coulomb_friction: force = (\S+)", excerpt).group(1))
-    agree("calibration.md friction", force, added["params"]["force"], rel=0.05, floor=0)
-    z = number(re.search(r"added: coulomb_friction \(.*z (\S+)\)", excerpt).group(1))
-    agree("calibration.md z", z, added["z"], rel=0.3, floor=0)
-    for channel in summary["fit_after_pct"]:
-        before, after = re.search(rf"^  {channel} +(\S+) -> +(\S+)$", excerpt, re.M).groups()
-        agree(f"calibration.md fit {channel} before", float(before),
-              summary["fit_before_pct"][channel], rel=0, floor=5)  # fmt: skip
-        agree(f"calibration.md fit {channel} after", float(after),
-              summary["fit_after_pct"][channel], rel=0, floor=5)  # fmt: skip
-    # the calibrated rig's interval and the threshold the table of terms quotes
     low, high = map(float, re.search(r"interval: \[([\d.]+), ([\d.]+)\]", text).groups())
     interval = summary["uncertainty"]["coulomb_friction.force"]["interval"]
     agree("calibration.md interval low", low, interval[0], rel=0.05, floor=0)
     agree("calibration.md interval high", high, interval[1], rel=0.05, floor=0)
-    threshold = number(re.search(r"against a threshold near (\S+)", text).group(1))
+    z = number(re.search(r"z = (\S+) for the friction", text).group(1))
+    agree("calibration.md z", z, summary["effects_added"][0]["z"], rel=0.3, floor=0)
+    threshold = number(re.search(r"against a threshold near\s+(\S+)", text).group(1))
     agree("calibration.md threshold", threshold, summary["rounds"][0]["threshold_z"],
           rel=0.3, floor=0)  # fmt: skip
 

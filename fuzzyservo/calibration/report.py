@@ -3,12 +3,15 @@
 from __future__ import annotations
 
 import dataclasses
-from collections.abc import Iterable
+import math
+from collections.abc import Iterable, Mapping
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from fuzzyservo.calibration.decision import ALPHA
+from fuzzyservo.calibration.identifiability import SWEEP_HZ, Separation
 from fuzzyservo.calibration.joint import split_field
 from fuzzyservo.calibration.null import REQUIRED, Assessment, Null
 from fuzzyservo.calibration.replay import Replay
@@ -18,11 +21,12 @@ from fuzzyservo.calibration.residuals import (
     signature_regression,
     whiteness,
 )
-from fuzzyservo.calibration.search import Outcome, Round, fit_table
+from fuzzyservo.calibration.search import Candidate, Outcome, Round, fit_table
 from fuzzyservo.calibration.signatures import mean_share, signatures
 from fuzzyservo.calibration.significance import SIGNAL_FLOOR, SIZE_FLOOR
 from fuzzyservo.components.effects import LIBRARY, owner
-from fuzzyservo.display import display_scale
+from fuzzyservo.display import display_scale, quantity_text
+from fuzzyservo.metrics import format_value
 from fuzzyservo.rig import Rig
 
 if TYPE_CHECKING:
@@ -83,8 +87,11 @@ def _key(outcome: Outcome, name: str) -> str:
     return fields[name].metadata["key"]
 
 
-def summary_data(outcome: Outcome, replay: Replay) -> dict[str, Any]:
-    """The ``--json`` payload: effects added, fit before/after, the ranking, and more."""
+def summary_data(
+    outcome: Outcome, replay: Replay, skipped: Mapping[str, str] | None = None
+) -> dict[str, Any]:
+    """The ``--json`` payload: effects added, fit before/after, the ranking, and more;
+    ``skipped``: effects asked for that were not tried, with why (run.skipped_effects)."""
     models = outcome.models
     first = outcome.rounds[0].candidates if outcome.rounds else ()
     data: dict[str, Any] = {
@@ -92,6 +99,7 @@ def summary_data(outcome: Outcome, replay: Replay) -> dict[str, Any]:
             {
                 "name": c.name,
                 "params": dict(c.params),
+                "units": effect_units(outcome.declared, c.name),
                 "ambiguous_with": list(_round_of(outcome, c.name).ambiguous_with),
                 "z": c.evidence.z if c.evidence else None,
                 "lookalike": LIBRARY[c.name].lookalike,
@@ -134,7 +142,7 @@ def summary_data(outcome: Outcome, replay: Replay) -> dict[str, Any]:
                 for e in r.experiments
             ],
             "null": _null_data(r.null),
-            "judged": [_judged(outcome, r, a) for a in r.assessments],
+            "judged": [_judged(outcome, replay, r, a) for a in r.assessments],
             "candidates": [
                 {
                     "name": c.name,
@@ -195,13 +203,20 @@ def summary_data(outcome: Outcome, replay: Replay) -> dict[str, Any]:
     }
     data["seconds"] = outcome.seconds
     data["false_positive_rate"] = _false_positive_rate(outcome)
-    data["negligible"] = [
-        j for r in data["rounds"] for j in r["judged"] if j["verdict"] == "negligible"
-    ]
+    data["skipped_effects"] = dict(skipped or {})
+    # the last round's judgements (an earlier round's are against a model without the
+    # effects added since), but the added one
     last = data["rounds"][-1]["judged"] if data["rounds"] else []
+    data["judged"] = [j for j in last if j["verdict"] != "added"]
+    data["negligible"] = [j for j in last if j["verdict"] == "negligible"]
     data["not_established"] = [j for j in last if j["verdict"] == "not established" and j["z"] > 0]
     data["verdict"] = verdict_lines(data)
     return data
+
+
+def effect_units(rig: Rig, effect: str) -> dict[str, str]:
+    """The SI unit of each parameter of ``effect`` on ``rig``'s plant (force N or N·m ...)."""
+    return {p.key: rig.plant.effect_unit(p.unit) for p in LIBRARY[effect].params}
 
 
 def _false_positive_rate(outcome: Outcome) -> float | None:
@@ -228,16 +243,19 @@ def _null_data(null: Null | None) -> dict[str, Any] | None:
     }
 
 
-def _judged(outcome: Outcome, r: Round, a: Assessment) -> dict[str, Any]:
+def _judged(outcome: Outcome, replay: Replay, r: Round, a: Assessment) -> dict[str, Any]:
     """A judged candidate: its fitted size, z, share of the residual, the 95 % interval
     and detection limit of its size (as scales of the fitted contribution, and in SI
-    for the effect's first parameter when it is off at 0) and the experiment that would
-    establish it."""
+    for the effect's first parameter when it is off at 0), the experiment that would
+    establish it (``plain``: in a test engineer's words, :func:`experiment_words`),
+    the candidate ranked first in its round and the verdict's ``reason`` when it gives one."""
     candidate = next(c for c in r.candidates if c.name == a.name)
     out: dict[str, Any] = {
         "name": a.name,
         "verdict": a.verdict,
         "params": dict(candidate.params),
+        "units": effect_units(outcome.declared, a.name),
+        "first_in_round": r.candidates[0].name,
         "z": a.z,
         "share_of_residual": a.share,
         "share_needed": r.null.band if r.null is not None else 0.0,
@@ -268,10 +286,47 @@ def _judged(outcome: Outcome, r: Round, a: Assessment) -> dict[str, Any]:
             out["experiment"] = {
                 "name": experiment.name,
                 "description": experiment.description,
+                "plain": experiment_words(experiment, replay, outcome.declared),
                 "distance": experiment.distance,
                 "distance_recorded": recorded,
             }
     return out
+
+
+def experiment_words(experiment: Separation, replay: Replay, rig: Rig) -> str:
+    """The experiment (identifiability.excitations) as a test engineer would ask for
+    it, in the rig's units: "a run of the same reference under a constant 990 N load
+    pulling in the + direction" (a positive load resists motion in the + direction)."""
+    record = getattr(replay, "records", (replay,))[0]  # the one the experiment varies
+    fb = rig.feedback
+    position_unit = rig.plant.signal_units.get(fb.signal, "")
+    recorded = np.asarray(record.scenario.reference.sample(record.t), dtype=float)
+    varied = np.asarray(experiment.scenario.reference.sample(record.t), dtype=float)
+    name = experiment.name
+    if name == "recorded":
+        return "repeating the same run (more records of it, calibrated together)"
+    if name.startswith("positions_"):
+        (shift,), unit = quantity_text(
+            [float(np.mean(varied - recorded)) / fb.slope], position_unit
+        )
+        sign = "+" if not shift.startswith("-") else ""
+        return f"a run of the same reference shifted by {sign}{shift} {unit}".rstrip()
+    if name.startswith("load_"):
+        load = float(np.mean(experiment.scenario.load.sample(record.t)))
+        (size,), unit = quantity_text([abs(load)], rig.plant.load[1])
+        way = "resisting motion in" if load > 0 else "pulling in"
+        return (
+            f"a run of the same reference under a constant {size} {unit} load {way} the + direction"
+        )
+    if name == "sine_sweep":
+        (amplitude,), unit = quantity_text(
+            [float(np.ptp(varied)) / 2.0 / abs(fb.slope)], position_unit
+        )
+        return (
+            f"a sine sweep from {SWEEP_HZ[0]:g} to {SWEEP_HZ[1]:g} Hz of ±{amplitude} {unit} about "
+            "the recorded mid position"
+        )
+    return experiment.description
 
 
 def _size_param(rig: Rig, effect: str) -> str | None:
@@ -285,62 +340,217 @@ def _size_param(rig: Rig, effect: str) -> str | None:
 
 
 def verdict_lines(summary: dict[str, Any]) -> list[str]:
-    """The verdict in words: what was added, what is negligible, what is likely but not
-    established on this record and the experiment that would establish it."""
-    lines = []
-    fpr = summary.get("false_positive_rate")
-    rate = f"{100 * fpr:.1f} %" if fpr is not None else "n/a"
+    """The verdict an engineer reads in ten seconds (the console's last lines): each
+    effect added with its size in the rig's units and its 95 % interval, the held-out
+    fit before -> after, the decision's error rate, then one line for each other effect
+    judged (out-ranked, negligible, failed fit, failed, likely but not established:
+    its size and the experiment that would settle it) and for each effect skipped."""
     added = summary["effects_added"]
-    if added:
-        lines.append(
-            "added: "
-            + "; ".join(f"{e['name']} ({_sizes(e['params'])}, z {e['z']:.1f})" for e in added)
-        )
-    else:
-        lines.append("added: no effect")
+    uncertainty = summary.get("uncertainty") or {}
+    lines = []
     for e in added:
+        lines.append(f"added: {e['name']}: {_added_size(e, uncertainty)}")
         if e["lookalike"]:
             lines.append(f"{e['name']} may also be {e['lookalike']}")
-    lines.append(
-        f"false-positive rate of the decision on this record's null (bootstrap of its "
-        f"residual): {rate}"
-    )
-    for j in summary["negligible"]:
+    if not added:
+        tried = summary.get("rounds", True)
+        lines.append("added: no effect" + ("" if tried else " (no candidate effect to try)"))
+    before, after = summary.get("fit_before_pct"), summary.get("fit_after_pct")
+    if before and after:
         lines.append(
-            f"negligible: {j['name']} ({_sizes(j['params'])}, z {j['z']:.1f}): {j['reason']}"
+            "held-out fit % (100 = perfect), before -> after: "
+            + ", ".join(f"{c} {format_value(before[c])} -> {format_value(after[c])}" for c in after)
         )
-    for j in summary["not_established"]:
-        line = (
-            f"not established: {j['name']} of about {_sizes(j['params'])} (z "
-            f"{j['z']:.2f}, limit on this record {_limit(j)})"
-        )
-        if "experiment" in j:
-            e = j["experiment"]
-            ratio = (
-                e["distance"] / e["distance_recorded"] if e["distance_recorded"] else float("inf")
+    rate = error_rate_words(summary)
+    if rate:
+        lines.append(rate)
+    judged = summary.get("judged", [])
+    for j in judged:
+        if j["verdict"] == "out-ranked":
+            lines.append(
+                f"out-ranked: {j['name']}, {_judged_size(j)}: passes the test too, but "
+                f"{j.get('first_in_round', 'another')} ranks first"
+                + (f" ({j['reason']})" if j.get("reason") else "")
             )
-            line += f"; would need {e['name']}: {e['description']} ({ratio:.3g}× the recorded separation)"
-        lines.append(line)
+    for j in summary["negligible"]:
+        lines.append(f"negligible: {j['name']}, {_judged_size(j)}: {j.get('reason') or _small(j)}")
+    failed_fits = {j["name"]: j.get("reason", "") for j in judged if j["verdict"] == "failed fit"}
+    last = summary["rounds"][-1]["candidates"] if summary.get("rounds") else []
+    failed_fits.update(
+        {
+            c["name"]: ""
+            for c in last
+            if str(c.get("status", "")).startswith("failed fit") and c["name"] not in failed_fits
+        }
+    )
+    for name, reason in failed_fits.items():
+        lines.append(
+            f"failed fit: {name}: "
+            + (
+                reason
+                or "its fit ended above the starting model's cost on the fitting part, which "
+                "it contains: the search failed, and this record neither shows nor rules it out"
+            )
+        )
+    for j in judged:
+        if j["verdict"] == "failed":
+            lines.append(
+                f"failed: {j['name']}: "
+                + (j.get("reason") or "its replay diverged at the fitted values: not judged")
+            )
+    for j in summary["not_established"]:
+        e = j.get("experiment")
+        if e:
+            settle = f"{e.get('plain') or e['description']} would settle it"
+        elif _beyond_range(j):
+            settle = "this record cannot show it within the range the fit may take"
+        else:
+            settle = "too weak on this record to tell"
+        lines.append(f"not established: {j['name']} may be present, {_judged_size(j)}; {settle}")
+    for name, why in summary.get("skipped_effects", {}).items():
+        lines.append(f"skipped: {name}: {why}")
     return lines
 
 
-def _sizes(params: dict[str, float]) -> str:
-    return ", ".join(f"{k} = {v:.3g}" for k, v in params.items())
+def ranking_line(summary: dict[str, Any], shown: int = 5) -> str:
+    """The first round's best candidates by fitted improvement (held-out cost, lowest
+    first), with the cost of the model they start from ("" when no round ran)."""
+    if not summary.get("rounds"):
+        return ""
+    first = summary["rounds"][0]
+    ranked = sorted(first["candidates"], key=_score_key)
+    shown_text = ", ".join(
+        f"{c['name']} "
+        + (
+            "failed fit"
+            if c.get("status") == "failed fit"
+            else "failed"
+            if not _finite(c["score"])
+            else format_value(c["score"])
+        )
+        for c in ranked[:shown]
+    )
+    return (
+        "candidates, best fit first (held-out cost in noise units, lower is better: the "
+        f"starting model {format_value(first['start_cost'])}, a perfect one 1): {shown_text}"
+    )
+
+
+def error_rate_words(summary: dict[str, Any]) -> str:
+    """The decision's error rate on this record, worded as the decision's (how often it
+    would add an effect to a record like this one that lacks it), not the finding's."""
+    if not summary.get("rounds", True):
+        return ""
+    rate = summary.get("false_positive_rate")
+    null = (summary.get("rounds") or [{}])[0].get("null") or {}
+    draws = null.get("draws") or 0
+    if rate is None or not draws:
+        return (
+            "error rate: no records like this one were drawn to measure it; where the "
+            "model reproduces the data up to noise, this decision adds an effect the "
+            f"record lacks in at most {100 * ALPHA:.0f} % of cases"
+        )
+    if rate == 0.0:
+        how_often = f"under {100 / draws:.2g} % of cases (none of the {draws} tried)"
+    else:
+        how_often = (
+            f"about {100 * rate:.2g} % of cases ({round(rate * draws)} of the {draws} tried)"
+        )
+    return (
+        "error rate: on records like this one without a missing effect, this decision "
+        f"would add one in {how_often}"
+    )
+
+
+def _score_key(c: dict[str, Any]) -> float:
+    return c["score"] if _finite(c["score"]) else math.inf
+
+
+def _finite(value: float | None) -> bool:
+    return value is not None and math.isfinite(value)
+
+
+def _added_size(e: dict[str, Any], uncertainty: dict[str, Any]) -> str:
+    """Each fitted parameter of an added effect in its unit with its 95 % interval."""
+    parts = []
+    for param in LIBRARY[e["name"]].fitted:
+        value = e["params"][param.key]
+        unit = e.get("units", {}).get(param.key, "")
+        u = uncertainty.get(f"{e['name']}.{param.key}")
+        if u is None or not all(_finite(v) for v in u["interval"]):
+            (text,), shown = quantity_text([value], unit)
+            parts.append(f"{param.key} {text} {shown}".rstrip())
+            continue
+        lo, hi = u["interval"]
+        (text, a, b), shown = quantity_text([value, lo, hi], unit, _digits(value, lo, hi))
+        shown = f" {shown}" if shown else ""
+        parts.append(
+            f"{param.key} {text}{shown} (95 % interval {a} to {b}{shown}"
+            + (", on its bound: the data want it further out)" if u["at_bound"] else ")")
+        )
+    return "; ".join(parts)
+
+
+def _digits(value: float, lo: float, hi: float) -> int:
+    """Significant digits that show an interval's half-width to two."""
+    half = (hi - lo) / 2.0
+    if not (half > 0.0 and value != 0.0):
+        return 3
+    return min(max(math.floor(math.log10(abs(value))) - math.floor(math.log10(half)) + 2, 3), 6)
+
+
+def _judged_size(j: dict[str, Any]) -> str:
+    """A judged candidate's approximate size in its unit: its size parameter (report
+    ``size``) or every fitted parameter."""
+    units = j.get("units", {})
+    if "size" in j:
+        keys = [j["size"]["param"]]
+    else:
+        fitted = {p.key for p in LIBRARY[j["name"]].fitted} if j["name"] in LIBRARY else set()
+        keys = [k for k in j["params"] if k in fitted] or list(j["params"])
+    parts = []
+    for key in keys:
+        (text,), unit = quantity_text([j["params"][key]], units.get(key, ""))
+        parts.append(f"{key} about {text} {unit}".rstrip())
+    return ", ".join(parts)
+
+
+def _small(j: dict[str, Any]) -> str:
+    """Why a candidate that passes the test is negligible (a summary without ``reason``)."""
+    return (
+        f"it moves the outputs by {100 * j['share_of_residual']:.1f} % of the residual level, "
+        "less than the starting model's fitted effects move them within their 95 % intervals "
+        f"({100 * j['share_needed']:.1f} %)"
+    )
+
+
+def _beyond_range(j: dict[str, Any]) -> bool:
+    """The detection limit lies beyond the range the fit may take."""
+    if "size" not in j:
+        return False
+    size = j["size"]
+    if not _finite(size["limit"]):
+        return True
+    lo, hi = size["range"]
+    return abs(size["limit"]) > (hi if size["limit"] >= 0 else -lo)
 
 
 def _limit(j: dict[str, Any]) -> str:
-    """The detection limit in words: the size (its magnitude for a signed one found
-    below 0), and whether the fit's range reaches it at all."""
-    if "size" not in j:
-        return f"{j['limit_scale']:.3g}× the fitted contribution"
+    """The detection limit in words and in the parameter's unit: the size (its
+    magnitude for a signed one found below 0) from which this record shows it, and
+    whether the fit's range reaches it at all."""
     size = j["size"]
     limit, name = size["limit"], size["param"]
-    text = f"|{name}| ≥ {-limit:.3g}" if limit < 0 else f"{name} ≥ {limit:.3g}"
-    lo, hi = size["range"]
-    reach = hi if limit >= 0 else -lo
-    if abs(limit) > reach:
-        text += f", beyond its range (up to {reach:.3g}): this record cannot detect it"
-    return text
+    if not _finite(limit):
+        return "this record cannot show it at any size"
+    unit = j.get("units", {}).get(name, "")
+    (text,), shown = quantity_text([abs(limit)], unit)
+    words = f"this record shows it from {'|' + name + '|' if limit < 0 else name} {text} {shown}"
+    if _beyond_range(j):
+        lo, hi = size["range"]
+        (reach,), shown = quantity_text([hi if limit >= 0 else -lo], unit)
+        words += f", beyond the {reach} {shown} the fit may take"
+    return words.replace("  ", " ").rstrip()
 
 
 def warnings(outcome: Outcome) -> list[str]:
@@ -416,19 +626,23 @@ def _null_lines(r: dict[str, Any]) -> list[str]:
         )
         + ".",
         "",
-        "| effect | verdict | z | share of residual | size 95 % (× fitted) | limit (× fitted) | "
-        "experiment that would establish it |",
-        "|---|---|---|---|---|---|---|",
+        "| effect | verdict | size | z | share of residual | size 95 % (× fitted) | "
+        "limit (× fitted) | detection limit | experiment that would establish it |",
+        "|---|---|---|---|---|---|---|---|---|",
     ]
     for j in r["judged"]:
         a, b = j["interval_scale"]
         e = j.get("experiment")
+        limit = _limit(j) if "size" in j else ""
         lines.append(
-            f"| {j['name']} | {j['verdict']} | {j['z']:.2f} | {100 * j['share_of_residual']:.1f} % | "
-            f"[{a:.3g}, {b:.3g}] | {j['limit_scale']:.3g} | "
-            + (f"{e['name']}: {e['description']}" if e else "")
+            f"| {j['name']} | {j['verdict']} | {_judged_size(j)} | {j['z']:.2f} | "
+            f"{100 * j['share_of_residual']:.1f} % | [{a:.3g}, {b:.3g}] | {j['limit_scale']:.3g} | "
+            f"{limit.removeprefix('this record shows it from ')} | "
+            + (f"{e['name']}: {e['description']} ({e['distance'] / e['distance_recorded']:.3g}× "
+               "the recorded separation)" if e and _finite(e["distance_recorded"]) and e["distance_recorded"] > 0 else "")
+            + (f" {j['reason']}" if j.get("reason") else "")
             + " |"
-        )
+        )  # fmt: skip
     return [*lines, ""]
 
 
@@ -562,15 +776,15 @@ def report_markdown(
             + (f" (ambiguous with {', '.join(r.ambiguous_with)})" if r.ambiguous_with else ""),
             "",
             *_null_lines(summary["rounds"][k - 1]),
-            "| rank | effect | score | z | parameters | runs | s |",
-            "|---|---|---|---|---|---|---|",
+            "| rank | effect | score | improvement | z | parameters | status | runs | s |",
+            "|---|---|---|---|---|---|---|---|---|",
         ]
-        for i, c in enumerate(r.candidates, start=1):
+        for i, c in enumerate(by_improvement(r), start=1):
             params = ", ".join(f"{key} = {v:.4g}" for key, v in c.params.items())
             z = f"{c.evidence.z:.2f}" if c.evidence else "n/a"
             lines.append(
-                f"| {i} | {c.name} | {c.score:.4g} | {z} | {params} | "
-                f"{c.evaluations} | {c.seconds:.1f} |"
+                f"| {i} | {c.name} | {c.score:.4g} | {r.start_cost_val - c.score:.4g} | {z} | "
+                f"{params} | {c.status} | {c.evaluations} | {c.seconds:.1f} |"
             )
         lines += ["", f"![candidates]({rel(f'candidates_{k}')})", ""]
     lines += [
@@ -601,12 +815,35 @@ def report_markdown(
         f"![residuals after]({rel('residuals_after')})",
         "",
         "Residual of the model before calibration regressed on each effect's signature "
-        "(docs/modelling.md table; share of residual variance explained):",
+        "(docs/modelling.md table; R²: share of residual variance explained), ranked by "
+        "what the effect's fit improves the held-out cost in round 1 (a signature is a "
+        "linear guess; the fit is the evidence):",
         "",
-        "| effect | R² |",
-        "|---|---|",
+        "| effect | round 1 held-out cost | improvement | R² |",
+        "|---|---|---|---|",
     ]
-    for name, r2 in sorted(summary["signature_r2"].items(), key=lambda kv: -kv[1]):
-        lines.append(f"| {name} | {r2:.3f} |")
+    for name, r2, cost, gain in signature_rows(outcome, summary["signature_r2"]):
+        lines.append(f"| {name} | {cost} | {gain} | {r2:.3f} |")
     lines.append("")
     return "\n".join(lines)
+
+
+def by_improvement(r: Round) -> list[Candidate]:
+    """A round's candidates by fitted improvement, the held-out cost reduction against
+    the round's start (lowest score first; a failed run last), ties in the round's order."""
+    return sorted(r.candidates, key=lambda c: c.score if math.isfinite(c.score) else math.inf)
+
+
+def signature_rows(outcome: Outcome, r2: Mapping[str, float]) -> list[tuple[str, float, str, str]]:
+    """(effect, signature R², round-1 held-out cost, its improvement on the start) by
+    fitted improvement; the effects without a round-1 candidate after, by R²."""
+    first = outcome.rounds[0] if outcome.rounds else None
+    ranked = by_improvement(first) if first else []
+    rows = [
+        (c.name, r2[c.name], f"{c.score:.4g}", f"{first.start_cost_val - c.score:.4g}")
+        for c in ranked
+        if c.name in r2
+    ]
+    fitted = {c.name for c in ranked}
+    rest = sorted((kv for kv in r2.items() if kv[0] not in fitted), key=lambda kv: -kv[1])
+    return rows + [(name, value, "not fitted", "") for name, value in rest]

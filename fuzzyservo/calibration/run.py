@@ -15,8 +15,8 @@ from fuzzyservo.calibration.null import DRAWS
 from fuzzyservo.calibration.replay import Replay
 from fuzzyservo.calibration.search import Outcome, candidate_effects
 from fuzzyservo.components.effects import LIBRARY
+from fuzzyservo.display import quantity_text
 from fuzzyservo.errors import ConfigError, DataError, did_you_mean
-from fuzzyservo.metrics import format_value
 from fuzzyservo.results import Result, json_ready
 
 if TYPE_CHECKING:
@@ -34,32 +34,31 @@ class CalibrationResult(Result):
 
     outcome: Outcome
     replay: Replay = field(repr=False)
+    # effects asked for that were not tried, with why (:func:`skipped_effects`)
+    skipped: dict[str, str] = field(default_factory=dict)
 
     def __getattr__(self, name: str) -> Any:
-        if name.startswith("__") or name in ("outcome", "replay"):
+        if name.startswith("__") or name in ("outcome", "replay", "skipped"):
             raise AttributeError(name)
         return getattr(self.outcome, name)
 
     def to_dict(self) -> dict[str, Any]:
         from fuzzyservo.calibration.report import summary_data
 
-        return summary_data(self.outcome, self.replay)
+        return summary_data(self.outcome, self.replay, self.skipped)
 
     def text(self) -> str:
+        """Warnings, the first round's ranking, then the verdict (report.verdict_lines):
+        what an engineer reads first is last on the console."""
+        from fuzzyservo.calibration.report import ranking_line
+
         summary = json_ready(self.to_dict())  # as in summary.json: non-finite numbers are null
         lines = [f"warning: {w}" for w in summary["warnings"]]
-        lines.append(f"effects added: {summary['decision']}")
-        for c in self.outcome.added:
-            lines.append(f"  {c.name}: " + ", ".join(f"{k} = {v:.4g}" for k, v in c.params.items()))
-        lines.append("held-out fit %  (channel: before -> after)")
-        for channel in self.replay.channels:
-            b, a = summary["fit_before_pct"][channel], summary["fit_after_pct"][channel]
-            lines.append(f"  {channel:6s} {format_value(b):>8s} -> {format_value(a):>8s}")
-        if self.outcome.rounds:
-            best = summary["candidates"][:5]
-            ranking = ", ".join(f"{c['name']} {format_value(c['score'])}" for c in best)
-            lines.append(f"ranking (score, lower is better): {ranking}")
-        lines += [f"verdict: {line}" for line in summary["verdict"]]
+        ranking = ranking_line(summary)
+        if ranking:
+            lines.append(ranking)
+        lines.append("verdict:")
+        lines += [f"  {line}" for line in summary["verdict"]]
         return "\n".join(lines)
 
 
@@ -78,15 +77,24 @@ class Calibration:
         """The effects the rig's plant can take and does not declare yet."""
         return candidate_effects(self.rig, self.effects)
 
+    @property
+    def skipped(self) -> dict[str, str]:
+        """The effects asked for that are not tried, with why (:func:`skipped_effects`)."""
+        return skipped_effects(self.rig, self.effects or ())
+
     def steps(self, max_effects: int) -> int:
         """Candidate fits at most: what a progress bar counts."""
         return len(self.candidates) * max(max_effects, 1)
 
     def describe(self) -> str:
+        n = len(self.candidates)
+        named = f" ({', '.join(self.candidates)})" if self.effects is not None and n else ""
         return (
             f"calibrate {self.rig.name} on {', '.join(d.source for d in self.records)}: "
             f"{self.replay.mode}; {sum(len(d) for d in self.records)} samples, "
-            f"channels {', '.join(self.replay.channels)}; {len(self.candidates)} candidate effects"
+            f"channels {', '.join(self.replay.channels)}; {n} candidate "
+            f"effect{'' if n == 1 else 's'}{named}"
+            + "".join(f"\nskipped: {name}: {why}" for name, why in self.skipped.items())
         )
 
     def run(
@@ -109,7 +117,41 @@ class Calibration:
         outcome = search(self.replay, self.rig, effects=effects, max_effects=max_effects,
                          progress=progress, workers=workers, cluster=cluster,
                          bootstrap_draws=DRAWS if bootstrap_draws is None else bootstrap_draws)  # fmt: skip
-        return CalibrationResult(outcome, self.replay)
+        return CalibrationResult(outcome, self.replay, self.skipped)
+
+
+def skipped_effects(rig: Rig, effects: Sequence[str]) -> dict[str, str]:
+    """Of the ``effects`` asked for, those a calibration of ``rig`` does not try (the
+    complement of search.candidate_effects), with why: the rig declares it already
+    (a calibration adds only what the rig lacks), or its plant cannot take it."""
+    out = {}
+    for name in effects:
+        if name in rig.effects:
+            out[name] = _declared_words(rig, name)
+        elif why := rig.plant.refusal(name):
+            out[name] = why
+    return out
+
+
+def _declared_words(rig: Rig, name: str) -> str:
+    """Why a declared effect is not a candidate, and how to have it fitted."""
+    params = LIBRARY[name].params
+    fitted = [p.key for p in params if p.field in rig.unknowns]
+    if fitted:
+        return (
+            f"the rig declares it already, with {', '.join(fitted)} marked fit: and fitted "
+            "with the rig's other unknowns"
+        )
+    values = []
+    for p in params:
+        (text,), unit = quantity_text(
+            [float(getattr(rig.params, p.field))], rig.plant.effect_unit(p.unit)
+        )
+        values.append(f"{p.key} {text} {unit}".rstrip())
+    return (
+        f"the rig declares it already ({', '.join(values)}); a calibration adds only "
+        "effects the rig lacks: to refit it, mark its value fit: [lower, upper] in the rig file"
+    )
 
 
 def prepare(
@@ -136,6 +178,7 @@ def prepare(
                 f"--effects: unknown effect {e!r}; {did_you_mean(e, LIBRARY)}"
                 f"choose from {', '.join(LIBRARY)}"
             )
+    effects = None if effects is None else tuple(dict.fromkeys(effects))  # each once
     replays = [make_replay(rig, d, controller) for d in records]
     replay = joint_replay(replays, rig, fields) if several or fields else replays[0]
     still = replay.still_channels()

@@ -401,6 +401,12 @@ def _minimise(
     starts = [z_start.copy()]
     if z_from is not None:
         starts.append(np.clip(z_from, 0.0, 1.0))
+    if scan and n_effect == 0 and n == 1:
+        # a single unknown alone (the nominal fit): scanned over its whole bounds, as an
+        # effect parameter is (Brent alone looks only within a step of its start)
+        z = z_start.copy()
+        z[0], step = _scan(lambda v: objective.train_cost([v]), grid)
+        starts.append(z)
     if scan and n_effect:
         z = z_start.copy()
         z[:n_effect] = START

@@ -7,6 +7,7 @@ module only writes them (files are the edge of the package).
 from __future__ import annotations
 
 import datetime as _dt
+from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
@@ -34,10 +35,15 @@ from fuzzyservo.display import display_scale
 
 
 def write_outputs(
-    outcome: Outcome, replay: Replay, data_path: str | Path, out_dir: Path
+    outcome: Outcome,
+    replay: Replay,
+    data_path: str | Path,
+    out_dir: Path,
+    skipped: Mapping[str, str] | None = None,
 ) -> tuple[dict[str, Path], dict[str, Any]]:
     """Write the calibrated rig, figures, report and summary into ``out_dir``; return
-    the paths and the summary (as written to ``summary.json``)."""
+    the paths and the summary (as written to ``summary.json``); ``skipped``: the
+    effects asked for and not tried, with why (calibration/run.skipped_effects)."""
     from fuzzyservo.io.jsonfile import write_json
     from fuzzyservo.io.rigs import write_calibrated_rig
     from fuzzyservo.plots import candidates_figure, overlay_figure, residual_figure, save
@@ -89,7 +95,7 @@ def write_outputs(
             header=header,
             intervals=intervals,
         )
-    summary = summary_data(outcome, replay)
+    summary = summary_data(outcome, replay, skipped)
     if "rig" in paths:
         summary["calibrated_rig"] = str(paths["rig"])
 
@@ -162,7 +168,9 @@ def write_outputs(
 def write_calibration(result: Any, out_dir: str | Path, data_label: str) -> dict[str, Path]:
     """Write a :class:`~fuzzyservo.calibration.CalibrationResult` into ``out_dir``
     (``data_label`` names the data in the files); returns the files by role."""
-    paths, _ = write_outputs(result.outcome, result.replay, data_label, Path(out_dir))
+    paths, _ = write_outputs(
+        result.outcome, result.replay, data_label, Path(out_dir), result.skipped
+    )
     return paths
 
 

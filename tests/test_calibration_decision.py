@@ -346,7 +346,7 @@ def test_a_detection_limit_reads_as_a_magnitude_and_says_when_the_range_cannot_r
         size = {"param": param, "value": value, "limit": limit, "range": [lo, hi]}
         return {"name": name, "verdict": verdict, "params": {param: value}, "z": 1.0,
                 "size": size, "units": {param: unit}, "share_of_residual": 0.1,
-                "share_needed": 0.25}  # fmt: skip
+                "share_needed": 0.0}  # fmt: skip
 
     bias = weak("valve_bias", "offset", -1.35e-4, -4.33e-4, -1e-3, 1e-3, "A", "negligible")
     summary = {

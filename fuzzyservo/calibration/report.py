@@ -516,12 +516,16 @@ def _judged_size(j: dict[str, Any]) -> str:
 
 
 def _small(j: dict[str, Any]) -> str:
-    """Why a candidate that passes the test is negligible (a summary without ``reason``)."""
-    return (
-        f"it moves the outputs by {100 * j['share_of_residual']:.1f} % of the residual level, "
-        "less than the starting model's fitted effects move them within their 95 % intervals "
-        f"({100 * j['share_needed']:.1f} %)"
-    )
+    """Why a candidate that passes the test is negligible (a summary without ``reason``):
+    within the starting model's prediction band, or below what matters on this record."""
+    share = 100 * j["share_of_residual"]
+    if j["share_needed"] > 0.0 and j["share_of_residual"] < j["share_needed"]:
+        return (
+            f"it moves the outputs by {share:.1f} % of the residual level, less than the "
+            "starting model's fitted effects move them within their 95 % intervals "
+            f"({100 * j['share_needed']:.1f} %)"
+        )
+    return "too small to matter" + (f" ({_limit(j)})" if "size" in j else "")
 
 
 def _beyond_range(j: dict[str, Any]) -> bool:

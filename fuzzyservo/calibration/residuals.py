@@ -98,7 +98,9 @@ def noise_floor(y: np.ndarray) -> float:
       taken on the updates alone — from changes, not from all samples — else the
       median of the second differences is 0 and the estimate collapses;
     * **quantisation**: when every change is a whole multiple of one step ``q`` (the
-      smallest change), the estimate is at least the quantisation noise ``q/√12``.
+      smallest change), the estimate is at least the quantisation noise ``q/√12``; a
+      record whose changes are mostly single codes (a converter step above the noise)
+      repeats because of its rounding, not a logger, and is taken whole.
 
     Non-finite samples are skipped (every second difference touching one). In the
     units of ``y``; NaN when fewer than three finite samples are in a row. A noise-free
@@ -106,7 +108,13 @@ def noise_floor(y: np.ndarray) -> float:
     """
     y = _as_1d("y", y)
     dy = np.diff(y)
-    if dy.size and np.count_nonzero(dy == 0.0) > 0.5 * dy.size:
+    q = quantisation_step(dy)
+    moves = np.abs(dy[np.isfinite(dy) & (dy != 0.0)])
+    # a record that mostly repeats: a logger holding values, unless its changes are
+    # mostly one code (a still signal read through a converter whose step exceeds the
+    # noise repeats too, and its updates alone are code flips of a full step)
+    flips = q > 0.0 and moves.size and float(np.median(moves)) <= 1.5 * q
+    if dy.size and np.count_nonzero(dy == 0.0) > 0.5 * dy.size and not flips:
         y = y[np.concatenate(([True], dy != 0.0))]  # the updates, each once
     d2 = y[2:] - 2.0 * y[1:-1] + y[:-2]
     d2 = d2[np.isfinite(d2)]
@@ -114,7 +122,7 @@ def noise_floor(y: np.ndarray) -> float:
         return math.nan
     mad = float(np.median(np.abs(d2 - np.median(d2))))
     sigma = _MAD_TO_SIGMA * mad / math.sqrt(6.0)
-    return max(sigma, quantisation_step(dy) / math.sqrt(12.0))
+    return max(sigma, q / math.sqrt(12.0))
 
 
 def quantisation_step(dy: np.ndarray) -> float:

@@ -94,3 +94,41 @@ def test_a_fit_that_ends_above_the_start_is_a_failed_fit_not_unestablished() -> 
     judged = assess(replay, rig, start, candidate, -5.0, null)
     assert judged.verdict == "failed fit"
     assert judged.reason == cause.removeprefix("failed fit: ")
+
+
+@pytest.mark.slow
+def test_a_long_records_delay_is_found_and_no_screened_fit_loses(tmp_path: Path) -> None:
+    """A 45 s record at 1 kHz (31 500 training samples: its candidates are screened on
+    the first 10 000) of the servo lift with a 3.7 ms transport delay and a payload of
+    110 kg where the rig declares 100 kg, fit: [80, 130]. The screening fits hold the
+    payload (refitted on a window it drifts to it); the delay is added near 3.7 ms with
+    the payload refitted near 110 kg, and no candidate ends above the starting model on
+    the whole training part."""
+    import yaml
+
+    from fuzzyservo.calibration.synthetic import synthetic_run
+
+    text = yaml.safe_load((DATA / "rigs" / "servo_lift.yaml").read_text(encoding="utf-8"))
+    times = [0.5 + 2.5 * k for k in range(18)]
+    text["scenarios"]["long"] = {
+        "description": "steps between 120 and 180 mm every 2.5 s",
+        "duration": {"value": 45, "unit": "s"},
+        "reference": {"type": "steps", "unit": "mm", "initial": 150, "times_s": times,
+                      "values": [180 if k % 2 == 0 else 120 for k in range(18)]},
+    }  # fmt: skip
+    (tmp_path / "truth.yaml").write_text(yaml.safe_dump(text), encoding="utf-8")
+    text["plant"]["components"]["payload"]["parameters"]["mass"]["fit"] = [80, 130]
+    (tmp_path / "fit.yaml").write_text(yaml.safe_dump(text), encoding="utf-8")
+    truth = load_rig(tmp_path / "truth.yaml").with_params(payload__mass=110.0)
+    rig = load_rig(tmp_path / "fit.yaml")
+    ctl = controller_named("p_servo_lift")
+    delay = {"transport_delay": {"delay": 3.7e-3}}
+    data = synthetic_run(truth, ctl, "long", delay, {"y": 20e-6}, seed=1)
+    outcome = calibrate(make_replay(rig, data, ctl), rig, max_effects=1, bootstrap_draws=40)
+    first = outcome.rounds[0]
+    for c in first.candidates:
+        assert c.cost_train <= first.start_cost_train * (1 + 1e-9), c.name
+    (added,) = outcome.added
+    assert added.name == "transport_delay"
+    assert added.params["delay"] == pytest.approx(3.7e-3, rel=0.02)
+    assert outcome.calibrated.params.payload__mass == pytest.approx(110.0, rel=0.01)

@@ -303,6 +303,10 @@ def fit(
             f"failed fit: its training cost {objective.train_cost(z):.4g} ends above the "
             f"starting model's {cost_start:.4g}"
         )
+    elif fitted_on is not replay:  # screened: the whole training part must agree
+        whole = _Objective(replay, base, effect, space)
+        if whole.train_cost(z) > whole.train_cost(z_start):
+            z = z_start  # what the window found does not carry over: nothing better
     rig = objective.rig(z)
     model, status = objective.model(z)
     cost_train, cost_val = replay.costs(model)

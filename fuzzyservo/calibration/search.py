@@ -36,7 +36,12 @@ from fuzzyservo.calibration.joint import record_field, split_field
 from fuzzyservo.calibration.null import DRAWS, SEED, Assessment, Null, assess, null_round
 from fuzzyservo.calibration.replay import DIVERGED_COST, Replay
 from fuzzyservo.calibration.residuals import fit_percent
-from fuzzyservo.calibration.uncertainty import Estimate, effective_samples, estimates
+from fuzzyservo.calibration.uncertainty import (
+    Estimate,
+    effective_samples,
+    estimates,
+    held_interval,
+)
 from fuzzyservo.components.effects import LIBRARY, EffectParam, owner
 from fuzzyservo.controllers.base import Controller
 from fuzzyservo.executor import make_executor
@@ -739,7 +744,8 @@ def _uncertainty(
     replay: Replay, rig: Rig, added: Sequence[Candidate], model: dict[str, np.ndarray]
 ) -> dict[str, Estimate]:
     """95 % intervals and at-bound flags of every fitted value: the rig's unknowns and the
-    added effects' parameters (uncertainty.py), from one Jacobian at the final model."""
+    added effects' parameters (uncertainty.py): the sandwich of one Jacobian at the final
+    model, widened by each parameter's profile on the training part (others held)."""
     unknowns = dict(rig.unknowns)
     scales = rig.scales()
     for candidate in added:
@@ -761,9 +767,15 @@ def _uncertainty(
     values = [_start(replay, rig, f) for _, f in space.names]
     z = np.array([space.unit(j, v) for j, v in enumerate(values)])
     jac = _jacobian(objective.residuals, z)
-    samples, effective = effective_samples(replay, model)
-    cost_train = replay.cost(model, slice(0, replay.split))
-    found = estimates(jac, z, values, space.value, space.bounds, cost_train, samples, effective)
+    channels = len(replay.channels)
+
+    def cost(j: int, v: float) -> np.ndarray:  # each training sample's, parameter j at v
+        trial = z.copy()
+        trial[j] = v
+        return np.sum(objective.residuals(trial).reshape(channels, -1) ** 2, axis=0)
+
+    residuals = objective.residuals(z).reshape(channels, -1)
+    found = estimates(jac, residuals, z, values, space.value, space.bounds, cost, JACOBIAN_STEP)
     return {f: e for (_, f), e in zip(space.names, found, strict=True)}
 
 
@@ -772,11 +784,14 @@ def _frozen_ends(
 ) -> list[list[dict[str, np.ndarray]]]:
     """For each fitted parameter of the effects ``added`` so far (a round's candidates
     leave them as they are): ``rig``'s channels at the ends of its 95 % interval with
-    the others held (uncertainty.py on its own Jacobian column), for the round's
-    prediction band (null.prediction_band). Held, not marginal: the marginal interval of
-    correlated parameters is reached only with the others moved along (Stribeck's
-    levels on the Festo record span their whole bounds), and one parameter at its
-    marginal end with the others held is a model the data reject."""
+    the others held (uncertainty.held_interval on its own Jacobian column), for the
+    round's prediction band (null.prediction_band). Held, not marginal: the marginal
+    interval of correlated parameters is reached only with the others moved along
+    (Stribeck's levels on the Festo record span their whole bounds), and one parameter
+    at its marginal end with the others held is a model the data reject. The band keeps
+    this linearised interval, not the reported one (:func:`_uncertainty`'s profile,
+    several times wider where the cost is rough): the decision's error rate and power
+    were measured with it."""
     if not added:
         return []
     scales = rig.scales()
@@ -798,9 +813,8 @@ def _frozen_ends(
     cost_train = replay.cost(model, slice(0, replay.split))
     out = []
     for j, (_, name) in enumerate(space.names):
-        (held,) = estimates(jac[:, [j]], z[[j]], [values[j]],
-                            lambda _, u, j=j: space.value(j, u), [space.bounds[j]],
-                            cost_train, samples, effective)  # fmt: skip
+        held = held_interval(jac[:, j], z[j], values[j], lambda u, j=j: space.value(j, u),
+                             space.bounds[j], cost_train, samples, effective)  # fmt: skip
         ends = [v for v in held.interval if math.isfinite(v) and v != held.value]
         out.append([replay.run(rig.with_params(**{name: v}))[0] for v in ends])
     return out

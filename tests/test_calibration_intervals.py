@@ -1,0 +1,84 @@
+"""The 95 % intervals of fitted values hold the truth (issue 40, item 3): the sandwich
+covariance on correlated residuals, the profile's envelope on a rough cost, the shipped
+friction example, and a few draws of tests/interval_coverage.py (which measures the
+docs' coverage table)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from interval_coverage import covers, draw
+from support import TESTS, controller_named, rig_named
+
+from fuzzyservo.calibration.replay import make_replay
+from fuzzyservo.calibration.search import calibrate
+from fuzzyservo.calibration.uncertainty import long_run_lags, profile_interval, sandwich
+from fuzzyservo.io.measured import read_measured
+
+
+def test_sandwich_counts_correlated_residuals_as_fewer_samples() -> None:
+    """A straight line through AR(1) noise (ρ = 0.8): the sandwich's variance of the slope
+    is the spread of the slope over noise draws, where (JᵀJ)⁻¹σ² is (1−ρ)/(1+ρ) of it."""
+    rng = np.random.default_rng(1)
+    n, rho = 4000, 0.8
+    x = np.sin(np.linspace(0.0, 6.0 * np.pi, n))[:, None]  # the Jacobian: one channel
+
+    def noise() -> np.ndarray:
+        e = np.empty(n)
+        e[0] = rng.normal()
+        for t in range(1, n):
+            e[t] = rho * e[t - 1] + rng.normal() * np.sqrt(1.0 - rho**2)
+        return e
+
+    slopes = [float(x[:, 0] @ e / (x[:, 0] @ x[:, 0])) for e in (noise() for _ in range(300))]
+    e = noise()
+    var = sandwich(x, e[None, :], long_run_lags(e[None, :]))[0, 0]
+    white = float(e @ e) / n / float(x[:, 0] @ x[:, 0])
+    assert var == pytest.approx(np.var(slopes), rel=0.35)
+    assert white < 0.3 * var
+
+
+def test_profile_finds_the_bottom_of_a_rough_cost_beside_the_fits_narrow_valley() -> None:
+    """A cost whose envelope is lowest at 0.5 with a roughness of ±30 % on top (a piston
+    that sticks and slips makes one), fitted at 0.47 (a narrow valley of the roughness):
+    the profile's interval holds 0.5."""
+    n = 2000
+    base = np.random.default_rng(2).exponential(size=n)
+
+    def cost(v: float) -> np.ndarray:
+        rough = 0.3 * np.sin(1e3 * v) * np.sin(37.0 * np.arange(n) / n + 7.0 * v)
+        return base * (1.0 + 40.0 * (v - 0.5) ** 2 + rough)
+
+    lo, hi = profile_interval(cost, 0.47, step=0.01, block=100)
+    assert lo <= 0.5 <= hi and hi - lo < 0.2
+
+
+@pytest.mark.parametrize("controller", ["p_k10", None], ids=["closed loop", "open loop"])
+def test_the_friction_examples_interval_holds_the_300_n_it_was_made_with(controller) -> None:
+    """examples/run_dinca_friction.csv was made with a 300 N Coulomb friction
+    (examples/make_examples.py): its calibrated interval holds 300 N, replayed through
+    P K=10 (where the piston sticks and slips and the cost is rough in the force) and
+    open loop from the recorded current."""
+    rig = rig_named("dinca_cylinder")
+    data = read_measured(TESTS.parent / "examples" / "run_dinca_friction.csv")
+    ctl = controller_named(controller) if controller else None
+    outcome = calibrate(make_replay(rig, data, ctl), rig, effects=["coulomb_friction"])
+    assert [c.name for c in outcome.added] == ["coulomb_friction"]
+    force = outcome.uncertainty["coulomb_force_si"]
+    assert force.interval[0] <= 300.0 <= force.interval[1], force
+    assert force.interval[1] - force.interval[0] < 0.15 * 300.0
+
+
+@pytest.mark.parametrize(
+    ("effect", "draws", "least"), [("coulomb_friction", 6, 5), ("transport_delay", 4, 4)]
+)
+def test_a_few_coverage_draws_hold_their_truth(effect: str, draws: int, least: int) -> None:
+    """The first draws of tests/interval_coverage.py: a Coulomb friction (a rough cost in
+    closed loop; its old linearised interval held the truth in 1 of the first 3) and a
+    transport delay (smooth)."""
+    rig = rig_named("dinca_cylinder")
+    held = 0
+    for k in range(draws):
+        truth, found = draw(rig, effect, k)
+        held += all(covers(est, truth[key]) for key, est in found.items())
+    assert held >= least

@@ -59,7 +59,7 @@ def power_rig(folder: Path, declared: bool = True) -> Path:
     return path
 
 
-SIZES = (0.25, 0.5)  # the power curve's smaller sizes, as a share of the middle one
+SIZES = (0.25,)  # the power curve's smaller sizes, as a share of the middle one
 CURVE_DRAWS = 10
 
 
@@ -176,6 +176,22 @@ def table(results: dict) -> str:
     return "\n".join(lines)
 
 
+def curve_table(results: dict) -> str:
+    """Named first and added, by effect and size (the middle one from the power cases)."""
+    sizes = (*SIZES, 1.0)
+    head = " | ".join(f"{k:g} × middle" for k in sizes)
+    lines = [f"| effect | {head} |", "|---" * (len(sizes) + 1) + "|"]
+    for effect in MIDDLE:
+        cells = []
+        for k in sizes:
+            kind = "power" if k == 1.0 else f"size{k}"
+            rows = results.get((kind, effect, BENCH), [])
+            both = sum(r[0] == effect and r[1] == effect for r in rows)
+            cells.append(f"{both}/{len(rows)}" if rows else "-")
+        lines.append(f"| {effect} | " + " | ".join(cells) + " |")
+    return "\n".join(lines)
+
+
 def main() -> None:
     parser = argparse.ArgumentParser()
     parser.add_argument("draws", nargs="?", type=int, default=20)
@@ -195,6 +211,8 @@ def main() -> None:
             for r in rows:
                 print(key, r[0], r[1], r[2], f"z {r[3]:.2f} > {r[4]:.2f}", r[5])
     print(table(results))
+    print()
+    print(curve_table(results))
 
 
 if __name__ == "__main__":

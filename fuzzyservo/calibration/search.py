@@ -5,15 +5,19 @@ Grey-box estimation in the manner of MATLAB's ``nlgreyest``: each candidate is t
 with one more effect of :data:`~fuzzyservo.components.effects.LIBRARY` switched on; its
 parameters (and the rig's declared unknowns) are fitted by bounded least squares
 (``scipy.optimize.least_squares``, dogleg in the box, finite differences with an
-absolute step on the unit box) on the training part of the replay. Candidates are
-ranked by held-out cost (among candidates the data cannot tell apart, the one with the
-fewest parameters first); a long record's candidates are fitted on the first
-``SCREEN_SAMPLES`` of its training part and the best refitted on all of it. The best
-is added when its held-out likelihood ratio over the current model passes
+absolute step on the unit box) on the training part of the replay, from several starts,
+the starting model (the effect off) among them, so that no candidate ends above the
+model it extends (:func:`_minimise`). Candidates are ranked by held-out cost (among
+candidates the data cannot tell apart, the one with the fewest parameters first); a
+long record's candidates are fitted on the first ``SCREEN_SAMPLES`` of its training
+part and the best refitted on all of it. The best is added (:func:`decide`) when its
+held-out likelihood ratio over the current model passes
 :mod:`~fuzzyservo.calibration.decision`'s test (error rate ``ALPHA`` split over the
-candidates). Candidates that pass too and that the best does
-not beat on the held-out data are reported as ``ambiguous_with`` (the data cannot tell
-them apart). The decision never looks at how the data was made.
+candidates, and the record's own null, :mod:`~fuzzyservo.calibration.null`) and it
+matters physically (:mod:`~fuzzyservo.calibration.significance`). Candidates that pass
+too and that the best does not beat on the held-out data are reported as
+``ambiguous_with`` (the data cannot tell them apart). The decision never looks at how
+the data was made.
 """
 
 from __future__ import annotations

@@ -290,10 +290,9 @@ def fit(
     to it); the score still takes the whole held-out part. ``start_from``: a fit of the
     same effect (e.g. a screening one) to refine, unknowns included, without the scan."""
     start = time.perf_counter()
-    space = _space(base, effect, replay)
+    full = _space(base, effect, replay)
     fitted_on = _screened(replay, screen)
-    if fitted_on is not replay:
-        space = _only(space, effect)
+    space = full if fitted_on is replay else _only(full, effect)
     objective = _Objective(fitted_on, base, effect, space)
     n_effect = sum(1 for owner, _ in space.names if owner == effect) if effect else 0
     z_start = _start_point(replay, base, effect, space)
@@ -323,9 +322,9 @@ def fit(
     unknowns = {
         f: space.value(j, z[j]) for j, (owner, f) in enumerate(space.names) if owner != effect
     }
-    for f in _space(base, effect, replay).names:  # held ones (screening) as they are
-        if f[0] != effect and f[1] not in unknowns:
-            unknowns[f[1]] = _start(replay, base, f[1])
+    for owner_f, f in full.names:  # held ones (screening) as they are
+        if owner_f != effect and f not in unknowns:
+            unknowns[f] = _start(replay, base, f)
     candidate = Candidate(
         name=effect or "none",
         params=params,
@@ -414,16 +413,12 @@ def _minimise(
     starts = [z_start.copy()]
     if z_from is not None:
         starts.append(np.clip(z_from, 0.0, 1.0))
-    if scan and n_effect == 0 and n == 1:
-        # a single unknown alone (the nominal fit): scanned over its whole bounds, as an
-        # effect parameter is (Brent alone looks only within a step of its start)
-        z = z_start.copy()
-        z[0], step = _scan(lambda v: objective.train_cost([v]), grid)
-        starts.append(z)
-    if scan and n_effect:
+    # a single unknown alone (the nominal fit) is scanned over its whole bounds as an
+    # effect parameter is (Brent alone looks only within a step of its start)
+    if scan and (n_effect or n == 1):
         z = z_start.copy()
         z[:n_effect] = START
-        if n_effect == 1:
+        if n_effect <= 1:
             z[0], step = _scan(lambda v: objective.train_cost([v, *z[1:]]), grid)
         else:
             # a full grid over the effect's parameters: friction with stiction trades its
@@ -432,6 +427,7 @@ def _minimise(
                        key=lambda point: objective.train_cost([*point, *z[n_effect:]]))  # fmt: skip
             z[:n_effect] = best
         starts.append(z)
+    if scan and n_effect:
         starts.append(_gauss_newton(objective, z_start))
     ranked = sorted(_distinct(starts), key=objective.train_cost)
     local = [_local(objective, z, step, budget) for z in ranked[: LOCAL_STARTS if scan else 1]]

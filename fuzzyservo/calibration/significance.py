@@ -35,13 +35,17 @@ SIGNAL_FLOOR = 0.01  # share of a channel's own variation that matters
 @dataclass(frozen=True)
 class Practical:
     """``fraction``: the fitted size over its floor's reference (the smallest typical
-    size, or SIGNAL_FLOOR's share of the signal; ≥ the floor: it matters);
-    ``matters``; ``words``: the comparison in words (for a report)."""
+    size, or SIGNAL_FLOOR's share of the signal); ``words``: the comparison in words
+    (for a report)."""
 
     fraction: float
     floor: float
-    matters: bool
     words: str
+
+    @property
+    def matters(self) -> bool:
+        """At least the floor: the effect matters."""
+        return self.fraction >= self.floor
 
 
 def size_param(effect: str) -> EffectParam | None:
@@ -85,7 +89,7 @@ def practical(
             f"its {param.key.replace('_', ' ')} {size:.3g} {unit} is {100 * fraction:.3g} % "
             f"of the smallest a real rig typically shows ({low:.3g} {unit})"
         ).replace("  ", " ")
-        return Practical(fraction, SIZE_FLOOR, fraction >= SIZE_FLOOR, words)
+        return Practical(fraction, SIZE_FLOOR, words)
     share, channel = signal_share(replay, base, model)
     words = f"it moves {channel} by {100 * share:.3g} % of that signal's own variation"
-    return Practical(share / SIGNAL_FLOOR, 1.0, share >= SIGNAL_FLOOR, words)
+    return Practical(share / SIGNAL_FLOOR, 1.0, words)

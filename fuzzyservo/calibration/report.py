@@ -614,7 +614,8 @@ def _null_lines(r: dict[str, Any]) -> list[str]:
         return []
     lines = [
         f"Null: {null['draws']} surrogate records; threshold z > {null['threshold_z']:.2f} "
-        f"(Bonferroni {null['bonferroni_z']:.2f}, bootstrap 95 % {null['bootstrap_quantile_z']:.2f}); "
+        f"(the 95 % quantile of the largest z on them {null['bootstrap_quantile_z']:.2f}, at least "
+        f"1.64; Bonferroni's {null['bonferroni_z']:.2f} for comparison); "
         f"false-positive rate {100 * null['false_positive_rate']:.1f} % "
         f"(Bonferroni alone: {100 * null['false_positive_rate_bonferroni']:.1f} %). "
         + (

@@ -663,7 +663,10 @@ def decide(
                                  screened=screened)  # fmt: skip
     best = results[0] if results else None
     significant = best is not None and _significant(best, z_min)
-    ambiguous = _ties(replay, results, z_min) if significant else ()
+    # told apart only by Bonferroni's margin: a tie is the cautious claim, and the max-T
+    # threshold (null.py) is calibrated for the best against the starting model
+    tie_z = max(z_min, null.bonferroni)
+    ambiguous = _ties(replay, results, z_min, tie_z) if significant else ()
     if ambiguous:  # parsimony: the simplest of the tied forms of the best's law
         tied = [c for c in results if c.name in (best.name, *ambiguous)]
         same_law = [c for c in tied if c is best or c.name in _special_cases(best)]
@@ -914,15 +917,18 @@ def _significant(candidate: Candidate, z_min: float) -> bool:
     return candidate.evidence is not None and candidate.evidence.z > z_min
 
 
-def _ties(replay: Replay, ranked: list[Candidate], z_min: float) -> tuple[str, ...]:
-    """Runner-ups that pass the test too and that the best does not beat on the held-out
-    data by the same ``z_min`` spreads an added effect needs: the data cannot tell them
+def _ties(
+    replay: Replay, ranked: list[Candidate], z_min: float, tie_z: float | None = None
+) -> tuple[str, ...]:
+    """Runner-ups that pass the test too (``z_min``) and that the best does not beat on
+    the held-out data by ``tie_z`` spreads (default ``z_min``): the data cannot tell them
     from the best (and more parameters must earn their place as an effect does)."""
     best = ranked[0]
+    tie_z = z_min if tie_z is None else tie_z
     return tuple(
         other.name
         for other in ranked[1:]
-        if _significant(other, z_min) and _tied(replay, best, other, z_min)
+        if _significant(other, z_min) and _tied(replay, best, other, tie_z)
     )
 
 

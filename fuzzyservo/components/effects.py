@@ -282,8 +282,10 @@ LIBRARY: dict[str, Effect] = {
                 "e.g. the position sensor's or the converter's filter: a lag much shorter "
                 "than the sample period acts in the loop as a delay of its time constant "
                 "(a 1 ms sensor filter on seed 002's bench comes back as a 0.99 ms delay, "
-                "docs/calibration.md); check the sensor's bandwidth before reading it as a "
-                "delay"
+                "docs/calibration.md); or the valve's spool, whose second-order response "
+                "acts as a delay of about 2ζ/ωn (a 100 Hz spool of damping 0.7 comes back "
+                "as a 1.8 ms delay, docs/calibration-power.md); check the sensor's and the "
+                "valve's bandwidth before reading it as a delay"
             ),
         ),
         Effect(

@@ -43,6 +43,12 @@ def _check(replay, rig) -> None:
             f"{c.name}: training cost {c.cost_train} above the start's {first.start_cost_train}"
         )
         assert not c.status.startswith("failed fit"), f"{c.name}: {c.status}"
+    # every reported value lies in the box it is reported with (the box its fit had: the
+    # rig's scales move with its fitted unknowns, and the Festo record's Stribeck velocity
+    # once printed 0.001572 "on its bound [0.001865, 0.3731]")
+    for name, e in outcome.uncertainty.items():
+        lo, hi = e.bounds
+        assert lo <= e.value <= hi, f"{name} = {e.value} outside its bounds {e.bounds}"
 
 
 @pytest.mark.slow

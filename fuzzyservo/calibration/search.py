@@ -94,6 +94,9 @@ class Candidate:
     )  # channels on the data grid
     evidence: Evidence | None = None  # held-out test against the round's starting model
     rig: Rig | None = field(default=None, repr=False, compare=False)  # the fitted rig
+    # the box each effect parameter was fitted in (field -> (lo, hi) SI): the rig's scales
+    # move with its fitted unknowns, so a later round's box may not hold the value
+    bounds: dict[str, tuple[float, float]] = field(default_factory=dict, repr=False, compare=False)
 
 
 @dataclass(frozen=True)
@@ -339,8 +342,20 @@ def fit(
         seconds=time.perf_counter() - start,
         model=model,
         rig=rig,
+        bounds={f: full.bounds[j] for j, (o, f) in enumerate(full.names) if effect and o == effect},
     )
     return rig, candidate
+
+
+def fitted_box(rig: Rig, candidate: Candidate, param: EffectParam) -> tuple[float, float]:
+    """The box ``candidate``'s ``param`` was fitted in; for a candidate without one (fitted
+    before the box was kept) the box on ``rig``'s scales, widened to hold the value."""
+    box = getattr(candidate, "bounds", {}).get(param.field)
+    if box is not None:
+        return box
+    lo, hi = _bounds(rig, param, rig.scales())
+    value = float(getattr(rig.params, param.field))
+    return min(lo, value), max(hi, value)
 
 
 def _only(space: _Space, effect: str | None) -> _Space:
@@ -750,10 +765,9 @@ def _uncertainty(
     added effects' parameters (uncertainty.py): the sandwich of one Jacobian at the final
     model, widened by each parameter's profile on the training part (others held)."""
     unknowns = dict(rig.unknowns)
-    scales = rig.scales()
-    for candidate in added:
+    for candidate in added:  # each in the box its fit had (the value's bounds as reported)
         for param in LIBRARY[candidate.name].fitted:
-            unknowns.setdefault(param.field, _bounds(rig, param, scales))
+            unknowns.setdefault(param.field, fitted_box(rig, candidate, param))
     if not unknowns:
         return {}
     joint = dataclasses.replace(rig, unknowns=unknowns)
@@ -797,16 +811,13 @@ def _frozen_ends(
     were measured with it."""
     if not added:
         return []
-    scales = rig.scales()
     unknowns = {}
     for candidate in added:
         for param in LIBRARY[candidate.name].fitted:
-            # the box about the value: one fitted in an earlier round's box (the rig's
-            # scales move with its fitted unknowns) may lie outside today's, and an end
-            # clipped onto the box would move it for no uncertainty of its own
-            lo, hi = _bounds(rig, param, scales)
-            value = float(getattr(rig.params, param.field))
-            unknowns[param.field] = (min(lo, value), max(hi, value))
+            # the box its fit had: one fitted in an earlier round's box (the rig's scales
+            # move with its fitted unknowns) may lie outside today's, and an end clipped
+            # onto the box would move it for no uncertainty of its own
+            unknowns[param.field] = fitted_box(rig, candidate, param)
     space = _space(dataclasses.replace(rig, unknowns=unknowns), None)
     objective = _Objective(replay, rig, None, space)
     values = [_start(replay, rig, f) for _, f in space.names]
@@ -945,10 +956,9 @@ def _refit_jointly(
     does not get worse; the training fit always improves.
     """
     unknowns = dict(rig.unknowns)
-    for candidate in added:
-        scales = rig.scales()
+    for candidate in added:  # each in the box its own fit had
         for param in LIBRARY[candidate.name].fitted:
-            unknowns.setdefault(param.field, _bounds(rig, param, scales))
+            unknowns.setdefault(param.field, fitted_box(rig, candidate, param))
     joint = dataclasses.replace(rig, unknowns=unknowns)
     refit, joint_fit = fit(replay, joint, None, max_evaluations=80)
     if joint_fit.cost_val > cost:

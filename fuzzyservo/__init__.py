@@ -30,6 +30,7 @@ _LAZY = {
     "load_controller": ("fuzzyservo.io.controllers", "load_controller"),
     "load_study": ("fuzzyservo.io.studies", "load_study"),
     "read_measured": ("fuzzyservo.io.measured", "read_measured"),
+    "read_rig_data": ("fuzzyservo.io.measured", "read_rig_data"),
     "Rig": ("fuzzyservo.rig", "Rig"),
     "Scenario": ("fuzzyservo.rig", "Scenario"),
     "LinearSensor": ("fuzzyservo.rig", "LinearSensor"),

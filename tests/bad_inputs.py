@@ -657,6 +657,12 @@ def _cases() -> list[Case]:
             ("gains.output",),
             (),
         ),
+        (
+            "log not true or false",
+            study(parameters={"gains.output": {"low": 1, "high": 2, "log": "yes"}}),
+            ("gains.output.log", "true or false", "'yes'"),
+            (),
+        ),
     ]
     for label, text, needs, flags in studies:
         argv = ("tune", "{in}/s.yaml", "--trials", "1") if flags else TUNE

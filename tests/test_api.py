@@ -16,7 +16,7 @@ import fuzzyservo
 PUBLIC = (
     "Rig", "compose_rig", "load_rig", "P", "PI", "FuzzyController", "load_controller",
     "Study", "Parameter", "FuzzyDesign", "Objective", "load_study", "simulate", "compare", "tune",
-    "calibrate", "read_measured", "result_metrics", "Scenario", "LinearSensor", "Actuator",
+    "calibrate", "read_measured", "read_rig_data", "result_metrics", "Scenario", "LinearSensor", "Actuator",
     "METRIC_UNITS",
 )  # fmt: skip
 
@@ -126,3 +126,10 @@ def test_a_study_written_in_python_runs_resumes_and_reports(tmp_path: Path) -> N
     best = load_controller(paths["controller"])
     assert best.params() == pytest.approx(again.best_params)
     assert "lift_in_code" in paths["report"].read_text(encoding="utf-8")
+
+
+def test_a_shipped_study_loads_by_name_as_a_shipped_rig_does() -> None:
+    study = fuzzyservo.load_study("dinca_flc")
+    assert study == fuzzyservo.load_study(DATA / "studies" / "dinca_flc.yaml")
+    with pytest.raises(fuzzyservo.ConfigError, match="no study named 'dinca_flx'"):
+        fuzzyservo.load_study("dinca_flx")

@@ -267,6 +267,14 @@ class Node:
             )
         return value
 
+    def flag(self, key: str, default: bool, meaning: str = "") -> bool:
+        """``true`` or ``false`` (``meaning``: what the two say, for the message)."""
+        value = self.data.get(key, default)
+        if not isinstance(value, bool):
+            what = f" ({meaning})" if meaning else ""
+            self.fail(f"must be true or false{what}, got {excerpt(value)}", key=key)
+        return value
+
     def name(self, key: str, default: str) -> str:
         """Text that becomes part of output file names: no path, see :func:`name_problem`."""
         from fuzzyservo.io.paths import name_problem

@@ -360,9 +360,7 @@ def _measured(node: Node) -> MeasuredFormat:
     period = node.quantity("sample_period", "s") if node.has("sample_period") else None
     if period is not None and period_problem(period):
         node.fail(period_problem(period), key="sample_period")
-    resample = node.data.get("resample", False)
-    if not isinstance(resample, bool):
-        node.fail(f"must be true or false, got {excerpt(resample)}", key="resample")
+    resample = node.flag("resample", False, "resample onto an even time grid")
     return MeasuredFormat(
         columns=columns,
         sample_period_s=period,
@@ -671,11 +669,7 @@ def _scenario(
             overrides[by_key[key].name] = ov.quantity(key, by_key[key].metadata["unit"])
         _build_params(plant, {**dataclasses.asdict(params), **overrides}, ov)
     initial = _initial(plant, node.child("initial", default={}))
-    noise = node.data.get("noise", True)
-    if not isinstance(noise, bool):
-        node.fail(
-            f"must be true or false (sensor noise on or off), got {excerpt(noise)}", key="noise"
-        )
+    noise = node.flag("noise", True, "sensor noise on or off")
     return Scenario(
         name=name,
         duration_s=duration,
@@ -905,8 +899,6 @@ def _fitted(node: Node, key: str) -> FittedInterval:
         node.fail(
             f"must be [low, high], two finite numbers in order, got {excerpt(pair)}", key="interval"
         )
-    at_bound = node.data.get("at_bound", False)
-    if not isinstance(at_bound, bool):
-        node.fail(f"must be true or false, got {excerpt(at_bound)}", key="at_bound")
+    at_bound = node.flag("at_bound", False, "the fit ended on its bound")
     unit = node.data.get("unit", "")
     return FittedInterval(key, float(pair[0]), float(pair[1]), str(unit or ""), at_bound)

@@ -53,7 +53,7 @@ from typing import Any
 from fuzzyservo.errors import ConfigError, did_you_mean, excerpt
 from fuzzyservo.io._yaml import Node, read_yaml
 from fuzzyservo.io.controllers import load_controller
-from fuzzyservo.io.paths import find_file
+from fuzzyservo.io.paths import find_file, shipped_or_path
 from fuzzyservo.io.rigs import load_rig
 from fuzzyservo.limits import plant_samples_problem
 from fuzzyservo.metrics import METRIC_NAMES
@@ -78,7 +78,10 @@ DEFAULT_BASELINE = "p_k10"
 
 
 def load_study(path: str | Path) -> Study:
-    """Read and validate a study file; every problem is one :class:`ConfigError` line."""
+    """Read and validate a study file (a path, or a shipped study's name such as
+    ``"dinca_flc"``, as :func:`~fuzzyservo.io.rigs.load_rig` takes a rig's); every
+    problem is one :class:`ConfigError` line."""
+    path = shipped_or_path(path, "studies", "study")
     file = str(path)
     root = Node(read_yaml(path), file)
     root.only(_TOP)
@@ -113,10 +116,8 @@ def load_study(path: str | Path) -> Study:
     for path_key, spec in pnode.data.items():
         node = Node(spec, file, pnode.path(str(path_key)))
         node.only(("low", "high", "log", "int"))
-        log = node.data.get("log", False)
-        integer = node.data.get("int", False)
-        if not isinstance(log, bool) or not isinstance(integer, bool):
-            node.fail("'log' and 'int' must be true or false")
+        log = node.flag("log", False, "search on a logarithmic scale")
+        integer = node.flag("int", False, "whole numbers only")
         try:
             params.append(
                 Parameter(str(path_key), node.number("low"), node.number("high"), log, integer,
@@ -283,7 +284,7 @@ def with_warm_start(study: Study, files: list[str], patience: int | None = None)
     as further warm-start points, and ``patience`` when given (the command line's)."""
     import dataclasses
 
-    from fuzzyservo.io.paths import find_file
+    from fuzzyservo.io.paths import find_file, shipped_or_path
 
     if patience is not None and patience < 1:
         raise ConfigError(f"--patience must be >= 1, got {patience}")
@@ -350,9 +351,7 @@ def _uncertainty(node: Node, rig: Any, scenarios: tuple[str, ...]) -> Any:
     seed = node.data.get("seed", 0)
     if isinstance(seed, bool) or not isinstance(seed, int):
         node.fail(f"must be an integer, got {excerpt(seed)}", key="seed")
-    noise = node.data.get("noise", True)
-    if not isinstance(noise, bool):
-        node.fail("must be true or false", key="noise")
+    noise = node.flag("noise", True, "sensor noise on or off")
     samples = node.number("samples", default=8)
     if samples < 1 or samples != int(samples):
         node.fail(f"must be a whole number >= 1, got {samples}", key="samples")

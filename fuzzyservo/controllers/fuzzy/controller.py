@@ -16,7 +16,7 @@ from __future__ import annotations
 
 import dataclasses
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, ClassVar
+from typing import ClassVar, Protocol
 
 import numpy as np
 
@@ -27,8 +27,21 @@ from fuzzyservo.controllers.fuzzy.system import FuzzySystem
 from fuzzyservo.controllers.kinds import KIND_FUZZY
 from fuzzyservo.controllers.layout import Slot, layout, pack
 
-if TYPE_CHECKING:
-    from fuzzyservo.controllers.fuzzy.design import FuzzyDesign
+
+class Design(Protocol):
+    """What a controller reads of the design it was built from
+    (:class:`~fuzzyservo.controllers.fuzzy.design.FuzzyDesign`, which builds controllers
+    and so imports this module; this one names only what it calls, so the two do not
+    import each other)."""
+
+    def params(self) -> dict[str, float]: ...
+
+    def with_params(self, **values: float) -> Design: ...
+
+    def renamed(self, name: str) -> Design: ...
+
+    def controller(self) -> FuzzyController: ...
+
 
 FORMS = ("p", "pd", "pi")
 _FORM_PI = FORMS.index("pi")
@@ -90,7 +103,7 @@ class FuzzyController(Controller):
     description: str = field(default="", compare=False)
     #: the design it was built from (a controller file's seven-term variables), if any:
     #: what :meth:`with_params` changes
-    design: FuzzyDesign | None = field(default=None, compare=False, repr=False)
+    design: Design | None = field(default=None, compare=False, repr=False)
 
     kind = KIND_FUZZY
     kernel = staticmethod(fuzzy_step)

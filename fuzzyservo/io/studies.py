@@ -284,7 +284,7 @@ def with_warm_start(study: Study, files: list[str], patience: int | None = None)
     as further warm-start points, and ``patience`` when given (the command line's)."""
     import dataclasses
 
-    from fuzzyservo.io.paths import find_file, shipped_or_path
+    from fuzzyservo.io.paths import find_file
 
     if patience is not None and patience < 1:
         raise ConfigError(f"--patience must be >= 1, got {patience}")

@@ -218,7 +218,7 @@ def run_calibrate_case(root: Path | None = None, *, workers: int = 2) -> BenchRe
             "replays": runs,
             "replay_ms": 1e3 * wall / max(runs, 1),
             "added": [c.name for c in outcome.added],
-            "budget_s": 120.0,
+            "budget_s": 12.0,  # issue 40: on the 2-core machine, nothing else running
             "workers": workers,
         },
     )

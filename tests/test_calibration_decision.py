@@ -262,6 +262,28 @@ def test_a_slow_residual_raises_the_threshold_above_bonferroni(rig) -> None:
     assert null.bonferroni_rate > 0.05 >= null.false_positive_rate
 
 
+def test_alike_candidates_are_one_test_not_eleven(rig) -> None:
+    """The threshold is the max-T quantile of the largest z over the candidates on the
+    record's surrogates (at least the one-test quantile), not Bonferroni's: eleven
+    candidates that move the outputs alike (here one direction at eleven scales, on a
+    record without an effect) are one test, and the threshold is the one-test level, far
+    under Bonferroni's for eleven; the surrogates pass it in about 5 % of draws."""
+    from fuzzyservo.calibration.null import null_round
+
+    ctl = controller_named("p_k10")
+    data = synthetic_run(rig, ctl, "pulses", {}, NOISE, seed=11)
+    replay = make_replay(rig, data, ctl)
+    nominal, _ = replay.run(rig)
+    t = replay.t
+    shape = {c: replay.sigma[c] * np.sin(2 * np.pi * t / 3.0 + k) for k, c in enumerate(nominal)}
+    alike = [{c: nominal[c] + s * shape[c] for c in nominal} for s in np.linspace(0.5, 1.5, 11)]
+    null = null_round(replay, nominal, alike, draws=200)
+    assert null.bonferroni == pytest.approx(threshold(11))
+    assert threshold(1) <= null.threshold < null.bonferroni - 0.5
+    assert null.false_positive_rate <= 0.05 + 1e-12
+    assert null.bonferroni_rate < null.false_positive_rate + 1e-12
+
+
 def test_a_negligible_effect_is_reported_not_added(rig, tmp_path) -> None:
     """A 3 N Coulomb friction on the seed-002 cylinder (0.06 % of its 4.9 kN stall
     force): significant on these five channels (z ≈ 8), but 6 % of the smallest friction

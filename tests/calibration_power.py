@@ -24,11 +24,15 @@ decision (search.decide) can be re-run on them cheaply.
 Run from the repository root (about 10 s per record and core; use nice):
 
     PYTHONPATH=. python tests/calibration_power.py [draws=20] [--cache DIR] [--jobs 2]
+
+``--refit valve_lag`` refits only that candidate in every cached record (after a change
+to that effect alone), then decides.
 """
 
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import pickle
 import sys
 import tempfile
@@ -134,6 +138,34 @@ def _fit_round(args) -> list[Path]:
     return paths
 
 
+def _with_new_fields(rig):
+    """A rig unpickled from a cache written before the effect library gained a field:
+    the missing fields at their default (0: the effect part off)."""
+    params = getattr(rig, "params", None)
+    for f in dataclasses.fields(params) if params is not None else ():
+        if not hasattr(params, f.name):
+            object.__setattr__(params, f.name, f.default)
+    return rig
+
+
+def _refit(args) -> None:
+    """Refit the candidates ``names`` of one cached record and write it back: a library
+    change confined to some effects re-measures without refitting the rest."""
+    path, names = args
+    from fuzzyservo.calibration.search import _candidate
+
+    with path.open("rb") as f:
+        replay, rig, model, cost, results = pickle.load(f)
+    _with_new_fields(rig)
+    for c in results:
+        if c.rig is not None:
+            _with_new_fields(c.rig)
+    results = [_candidate(replay, rig, model, c.name) if c.name in names else c for c in results]
+    results.sort(key=lambda c: c.score)
+    with path.open("wb") as f:
+        pickle.dump((replay, rig, model, cost, results), f)
+
+
 def decide_all(cache: Path, draws: int) -> dict:
     """The decision on every cached record: (kind, effect, mismatch) -> list of
     (named first, added) per draw."""
@@ -199,9 +231,19 @@ def main() -> None:
     parser.add_argument("--jobs", type=int, default=2)
     parser.add_argument("--decide-only", action="store_true")
     parser.add_argument("--verbose", action="store_true")
+    parser.add_argument(
+        "--refit",
+        default="",
+        help="comma-separated candidates to refit "
+        "in every cached record (after a change to those effects only)",
+    )
     args = parser.parse_args()
     args.cache.mkdir(parents=True, exist_ok=True)
-    if not args.decide_only:
+    if args.refit:
+        names = frozenset(args.refit.split(","))
+        with ProcessPoolExecutor(args.jobs) as pool:
+            list(pool.map(_refit, [(path, names) for path in sorted(args.cache.glob("*.pkl"))]))
+    elif not args.decide_only:
         work = [(*c, args.cache) for c in cases(args.draws)]
         with ProcessPoolExecutor(args.jobs) as pool:
             list(pool.map(_fit_round, work))

@@ -62,7 +62,8 @@ def middle(rig: Rig) -> dict[str, dict[str, float]]:
         "internal_leakage": {"coefficient": 1e-13},  # geometric middle of 1e-14..1e-12
         "valve_deadband": {"width": 0.017 * s.input},  # 1.7 % of rated current
         "valve_bias": {"offset": 0.015 * s.input},  # 1.5 % of rated current
-        "valve_lag": {"time_constant": 2e-3},  # a 100 Hz spool, ζ 0.7, as first order
+        # a 100 Hz spool of damping 0.7: τ1 = 2ζ/ωn, τ2 = τ1/(4ζ²)
+        "valve_lag": {"time_constant": 2e-3, "second_time_constant": 0.0},  # first order
         "transport_delay": {"delay": 4.3e-3},
         "bulk_modulus": {"effective": 0.45e9},
         "supply_droop": {"pump_flow": 1e-4},
@@ -116,7 +117,7 @@ def coverage(
         for key, est in found.items():
             hits.setdefault(key, []).append(covers(est, truth[key]))
             half = 0.5 * (est.interval[1] - est.interval[0])
-            widths.setdefault(key, []).append(half / abs(truth[key]))
+            widths.setdefault(key, []).append(half / abs(truth[key]) if truth[key] else half)
             words.append(
                 f"{key} true {truth[key]:.4g} fit {est.value:.4g} "
                 f"[{est.interval[0]:.4g}, {est.interval[1]:.4g}]"

@@ -30,7 +30,7 @@ line_resistance     laminar line Δp = R·q between each valve port and chamber 
 internal_leakage    q = Kl·(pA − pB) across piston or motor                    Kl [m³/(s·Pa)]
 valve_deadband      i_eff = i0 + sign(Δi)·max(|Δi| − w, 0), Δi = i − i0       w [input]
 valve_bias          i_eff = i + b (null bias beyond the declared one)          b [input]
-valve_lag           τ·di_s/dt = i − i_s (first-order spool dynamics)           τ [s]
+valve_lag           τ1·τ2·s̈ + τ1·ṡ + s = i (spool; τ2 = 0: first order)      τ1, τ2 [s]
 transport_delay     i_eff(t) = i(t − d)                                        d [s]
 bulk_modulus        E_eff replaces the oil's E (air, hoses)                    E_eff [Pa]
 supply_droop        q_supply = min(q_demand, Qp): pump flow limit with relief   Qp [m³/s]
@@ -255,14 +255,17 @@ LIBRARY: dict[str, Effect] = {
             "valve_lag",
             "input",
             (EffectParam("time_constant", "valve_lag_s", "s", lambda s: (0.0, 0.02), doc="spool time constant",
-                         typical=lambda s: (0.8e-3, 3.2e-3)),),
-            "τ·di_s/dt = i − i_s: first-order spool dynamics [s]",
-            "docs/modelling.md typical ranges (spool bandwidth 50-200 Hz: τ 0.8-3.2 ms); seed 000 eq. 8",
+                         typical=lambda s: (0.8e-3, 3.2e-3)),
+             EffectParam("second_time_constant", "valve_lag2_s", "s", lambda s: (0.0, 0.01),
+                         doc="second time constant of a second-order spool (0: first order)",
+                         default=lambda s: 0.0)),
+            "τ1·τ2·s̈ + τ1·ṡ + s = i: spool dynamics [s]; τ2 = 0 first order, else second "
+            "order of ωn = 1/√(τ1·τ2), ζ = ½·√(τ1/τ2)",
+            "docs/modelling.md typical ranges (spool bandwidth 50-200 Hz: τ 0.8-3.2 ms); seed 000 eq. 8 "
+            "(first order); Merritt 1967 §5 (a servo valve's spool as second order)",
             lookalike=(
-                "a transport delay of about its time constant, or a spool of higher order: "
-                "a lag much faster than the loop acts as a delay (a 100 Hz second-order "
-                "spool on seed 002's bench comes back as either, depending on the noise "
-                "draw)"
+                "a transport delay of about its time constant: a lag much faster than the "
+                "loop acts as a delay"
             ),
         ),
         Effect(

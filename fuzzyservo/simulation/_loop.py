@@ -23,8 +23,8 @@ delay, then the input effects (components/effects.py) between the held actuator 
 and the plant. :class:`LoopSettings` is made from their parameters. The two delays,
 ``io_delay`` (a loop setting) and ``transport_delay`` (an effect), shift the held
 sequence in time together (an interval is integrated in two parts where the delayed
-input switches); ``valve_bias`` adds to it, ``valve_lag`` appends one state (the spool,
-``τ·ds/dt = a + b − s``) to the plant's, and ``valve_deadband`` maps the spool onto
+input switches); ``valve_bias`` adds to it, ``valve_lag`` appends the spool's states
+(its position, and for a second-order spool its velocity) to the plant's, and ``valve_deadband`` maps the spool onto
 the plant input around its null.
 """
 
@@ -240,7 +240,7 @@ LOOP_STAGES = (
     )),
     LoopStage("transport_delay", "a(t − d): bus and converter delay", effect="transport_delay"),
     LoopStage("null_bias", "a + b: a null bias beyond the declared one", effect="valve_bias"),
-    LoopStage("spool_lag", "τ·ds/dt = a + b − s: first-order spool", effect="valve_lag"),
+    LoopStage("spool_lag", "τ1·τ2·s̈ + τ1·ṡ + s = a + b: the spool (τ2 = 0: first order)", effect="valve_lag"),
     LoopStage("dead_band", "spool overlap around the null", effect="valve_deadband"),
 )  # fmt: skip
 
@@ -307,8 +307,18 @@ def held_inputs(actuator: np.ndarray, k: int, whole: int) -> tuple[float, float]
 
 
 @njit(cache=True)
+def spool_states(p: np.ndarray) -> int:
+    """How many states ``valve_lag`` appends to the plant's: none when off, the spool's
+    position for a first-order spool, its position and velocity for a second-order one."""
+    if p[E.valve_lag_s] <= 0.0:
+        return 0
+    return 2 if p[E.valve_lag2_s] > 0.0 else 1
+
+
+@njit(cache=True)
 def spool_start(p: np.ndarray, a: float) -> float:
-    """Where ``valve_lag``'s spool starts: at the first held value plus ``valve_bias``."""
+    """Where ``valve_lag``'s spool starts: at the first held value plus ``valve_bias``
+    (at rest: a second-order spool's velocity starts at 0)."""
     return a + p[E.valve_bias_si]
 
 
@@ -316,23 +326,33 @@ def spool_start(p: np.ndarray, a: float) -> float:
 def input_stage(x: np.ndarray, a: float, p: np.ndarray, null: float, dx: np.ndarray) -> float:
     """The plant input behind the input effects, for held actuator value ``a``.
 
-    Without ``valve_lag`` it is ``dz(a + b)``; with it, the last state is the spool
-    ``s`` (``ds/dt = (a + b − s)/τ``, written to ``dx``) and the input is ``dz(s)``, where
-    ``b`` is ``valve_bias`` and ``dz`` the ``valve_deadband`` around ``null``.
+    Without ``valve_lag`` it is ``dz(a + b)``; with it, the states after the plant's are
+    the spool ``s`` (first order, ``τ1·ds/dt = a + b − s``; second order, ``s`` and its
+    velocity ``v``, ``τ1·τ2·dv/dt = a + b − s − τ1·v``, written to ``dx``) and the input
+    is ``dz(s)``, where ``b`` is ``valve_bias`` and ``dz`` the ``valve_deadband`` around
+    ``null``.
     """
     tau = p[E.valve_lag_s]
     if tau > 0.0:
-        n = x.size - 1
-        s = x[n]
-        dx[n] = (a + p[E.valve_bias_si] - s) / tau
+        tau2 = p[E.valve_lag2_s]
+        if tau2 > 0.0:
+            n = x.size - 2
+            s = x[n]
+            v = x[n + 1]
+            dx[n] = v
+            dx[n + 1] = (a + p[E.valve_bias_si] - s - tau * v) / (tau * tau2)
+        else:
+            n = x.size - 1
+            s = x[n]
+            dx[n] = (a + p[E.valve_bias_si] - s) / tau
         return deadband(s, null, p[E.valve_deadband_si])
     return deadband(a + p[E.valve_bias_si], null, p[E.valve_deadband_si])
 
 
 @njit(cache=True)
 def plant_states(x: np.ndarray, p: np.ndarray) -> int:
-    """How many of ``x`` are the plant's (``valve_lag`` appends the spool)."""
-    return x.size - 1 if p[E.valve_lag_s] > 0.0 else x.size
+    """How many of ``x`` are the plant's (``valve_lag`` appends the spool's)."""
+    return x.size - spool_states(p)
 
 
 @njit(cache=True)

@@ -323,8 +323,8 @@ def closed_loop(
             where = k
             break
         if k == 0 and lag:
-            x[x.size - 1] = spool_start(p, a)
-            states[0, x.size - 1] = x[x.size - 1]
+            x[n_plant] = spool_start(p, a)
+            states[0, n_plant] = x[n_plant]
         a_before, a_now = held_inputs(actuator, k, whole)
         code = STATUS_OK
         if part > 0.0:

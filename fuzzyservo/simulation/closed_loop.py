@@ -90,11 +90,17 @@ def prepare(
     typical = np.asarray(plant.typical_state(params), dtype=np.float64)
     null = float(plant.null_input(params))
     if params.valve_lag_s > 0:
-        # valve_lag: the spool state, in plant-input units (the loop sets its start)
+        # valve_lag: the spool state, in plant-input units (the loop sets its start), and
+        # for a second-order spool its velocity (input units per s; at rest)
         rated = rig.actuator.rated
         x0 = np.append(x0, null)
         scale = np.append(scale, 1e-5 * rated)
         typical = np.append(typical, rated)
+        if params.valve_lag2_s > 0:
+            rate = rated / params.valve_lag_s
+            x0 = np.append(x0, 0.0)
+            scale = np.append(scale, 1e-5 * rate)
+            typical = np.append(typical, rate)
     if not controller.has_limits:
         controller = controller.with_limits(*rig.actuator.command_limits)
     p = pack(params)
@@ -399,6 +405,7 @@ def simulate_stepped(
     state = c.init(dt)
     h, status, where, total = dt * 1e-3, _loop.STATUS_OK, -1, 0
     lag = p[E.valve_lag_s] > 0.0
+    spool = _loop.plant_states(x, p)  # the spool's position, after the plant's states
     whole, part = _loop.delay_split(p, settings)
     try:
         for k in range(n):
@@ -411,7 +418,7 @@ def simulate_stepped(
                 status, where = _loop.STATUS_DIVERGED, k
                 break
             if k == 0 and lag:
-                x[-1] = states[0, -1] = _loop.spool_start(p, a)
+                x[spool] = states[0, spool] = _loop.spool_start(p, a)
             a_before, a_now = _loop.held_inputs(actuator, k, whole)
             code = _loop.STATUS_OK
             for held, span in ((a_before, part * dt), (a_now, (1.0 - part) * dt)):

@@ -63,7 +63,8 @@ def simulate_reference(
             status, where = "diverged", k
             break
         if k == 0 and lag:
-            x[-1] = states[0, -1] = spool_start(p, a)
+            spool = len(rig.plant.states)  # the spool's position, after the plant's states
+            x[spool] = states[0, spool] = spool_start(p, a)
         a_before, a_now = held_inputs(actuator, k, whole)
         load = prep.load[k]
         for held, span in ((a_before, part * dt), (a_now, (1.0 - part) * dt)):

@@ -32,8 +32,8 @@ explain little, so this is the residual of the fitted nominal model up to that:
    surrogates), without counting as K independent tests the candidates that move the
    outputs alike (a dead band, a bias and a leakage all shift the pressures at null):
    with 11 candidates Bonferroni asks z > 2.61 where their surrogates' largest z passes
-   1.5-2.3 in 5 % of draws on the power records, and that gap is what a bulk modulus or a leakage at the
-   middle of its typical range lacked (docs/calibration-power.md).
+   1.5-2.3 in 5 % of draws on the power records, and that gap is what a bulk modulus
+   or a leakage at the middle of its typical range lacked (docs/calibration-power.md).
 3. **Practical significance** (:func:`assess`). An effect is added when it passes the
    test and matters physically (significance.py: its fitted size against the sizes real
    rigs show, or, for an effect without a size, its change of a recorded signal against
@@ -299,9 +299,9 @@ def null_round(
     """The null of a round that starts from ``base`` (channels on the data grid) and
     fitted the candidates whose channels are ``models`` (finite ones are tested; the
     residual is what they leave together). ``candidates``: how many the Bonferroni
-    threshold (without draws) splits the rate over (default: the models); ``frozen``: the starting
-    model's channels at the interval ends of each parameter the candidates did not
-    refit (:func:`prediction_band`)."""
+    threshold (without draws) splits the rate over (default: the models); ``frozen``:
+    the starting model's channels at the interval ends of each parameter the candidates
+    did not refit (:func:`prediction_band`)."""
     bonferroni = threshold(candidates or len(models))
     band = prediction_band(replay, base, frozen)
     usable = [m for m in models if _finite(replay, m)]

@@ -279,10 +279,7 @@ def _judged(outcome: Outcome, replay: Replay, r: Round, a: Assessment) -> dict[s
             "value": value,
             "interval": [value * a.interval[0], value * a.interval[1]],
             "limit": value * a.limit,
-            "range": list(
-                getattr(candidate, "bounds", {}).get(param.field)
-                or param.value_bounds(outcome.declared.scales())
-            ),  # the fit's box
+            "range": list(candidate.bounds[param.field]),  # the fit's box
         }
     for name, experiment, recorded in r.establish:
         if name == a.name:

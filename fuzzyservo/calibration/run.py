@@ -144,7 +144,7 @@ def _declared_words(rig: Rig, name: str) -> str:
         )
     values = []
     for p in params:
-        if p.fitted and p.default is not None and not getattr(rig.params, p.field):
+        if p.optional and not getattr(rig.params, p.field):
             continue  # an optional part left off (a first-order spool's second time constant)
         (text,), unit = quantity_text(
             [float(getattr(rig.params, p.field))], rig.plant.effect_unit(p.unit)

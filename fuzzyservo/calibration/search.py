@@ -347,17 +347,6 @@ def fit(
     return rig, candidate
 
 
-def fitted_box(rig: Rig, candidate: Candidate, param: EffectParam) -> tuple[float, float]:
-    """The box ``candidate``'s ``param`` was fitted in; for a candidate without one (fitted
-    before the box was kept) the box on ``rig``'s scales, widened to hold the value."""
-    box = getattr(candidate, "bounds", {}).get(param.field)
-    if box is not None:
-        return box
-    lo, hi = _bounds(rig, param, rig.scales())
-    value = float(getattr(rig.params, param.field))
-    return min(lo, value), max(hi, value)
-
-
 def _only(space: _Space, effect: str | None) -> _Space:
     """``space`` cut to ``effect``'s own parameters (the rest held as they are)."""
     keep = [j for j, (owner, _) in enumerate(space.names) if effect and owner == effect]
@@ -767,7 +756,7 @@ def _uncertainty(
     unknowns = dict(rig.unknowns)
     for candidate in added:  # each in the box its fit had (the value's bounds as reported)
         for param in LIBRARY[candidate.name].fitted:
-            unknowns.setdefault(param.field, fitted_box(rig, candidate, param))
+            unknowns.setdefault(param.field, candidate.bounds[param.field])
     if not unknowns:
         return {}
     joint = dataclasses.replace(rig, unknowns=unknowns)
@@ -817,7 +806,7 @@ def _frozen_ends(
             # the box its fit had: one fitted in an earlier round's box (the rig's scales
             # move with its fitted unknowns) may lie outside today's, and an end clipped
             # onto the box would move it for no uncertainty of its own
-            unknowns[param.field] = fitted_box(rig, candidate, param)
+            unknowns[param.field] = candidate.bounds[param.field]
     space = _space(dataclasses.replace(rig, unknowns=unknowns), None)
     objective = _Objective(replay, rig, None, space)
     values = [_start(replay, rig, f) for _, f in space.names]
@@ -928,14 +917,11 @@ def _significant(candidate: Candidate, z_min: float) -> bool:
     return candidate.evidence is not None and candidate.evidence.z > z_min
 
 
-def _ties(
-    replay: Replay, ranked: list[Candidate], z_min: float, tie_z: float | None = None
-) -> tuple[str, ...]:
+def _ties(replay: Replay, ranked: list[Candidate], z_min: float, tie_z: float) -> tuple[str, ...]:
     """Runner-ups that pass the test too (``z_min``) and that the best does not beat on
-    the held-out data by ``tie_z`` spreads (default ``z_min``): the data cannot tell them
-    from the best (and more parameters must earn their place as an effect does)."""
+    the held-out data by ``tie_z`` spreads: the data cannot tell them from the best (and
+    more parameters must earn their place as an effect does)."""
     best = ranked[0]
-    tie_z = z_min if tie_z is None else tie_z
     return tuple(
         other.name
         for other in ranked[1:]
@@ -958,7 +944,7 @@ def _refit_jointly(
     unknowns = dict(rig.unknowns)
     for candidate in added:  # each in the box its own fit had
         for param in LIBRARY[candidate.name].fitted:
-            unknowns.setdefault(param.field, fitted_box(rig, candidate, param))
+            unknowns.setdefault(param.field, candidate.bounds[param.field])
     joint = dataclasses.replace(rig, unknowns=unknowns)
     refit, joint_fit = fit(replay, joint, None, max_evaluations=80)
     if joint_fit.cost_val > cost:

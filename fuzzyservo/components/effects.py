@@ -110,6 +110,12 @@ class EffectParam:
         if not (self.field.isidentifier() and self.doc):
             raise ValueError(f"effect parameter {self.key!r}: needs a field name and a doc")
 
+    @property
+    def optional(self) -> bool:
+        """A fitted parameter a rig file may leave out: it then takes its default (a
+        first-order spool's second time constant, 0)."""
+        return self.fitted and self.default is not None
+
     def value_bounds(self, scales: Scales) -> tuple[float, float]:
         lo, hi = self.bounds(scales)
         return float(lo), float(hi)

@@ -311,7 +311,7 @@ def _effects(
                 values[param.field] = _quantity(
                     effect_node, param.key, si_unit, param.field, unknowns
                 )
-            elif param.fitted and param.default is None:
+            elif param.fitted and not param.optional:
                 effect_node.fail(
                     f"missing key {param.key!r} (a value in {si_unit}); give it, or "
                     f"`{{value: ..., unit: {si_unit}, fit: [lower, upper]}}` to have it fitted",

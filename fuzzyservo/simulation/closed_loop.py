@@ -405,7 +405,7 @@ def simulate_stepped(
     state = c.init(dt)
     h, status, where, total = dt * 1e-3, _loop.STATUS_OK, -1, 0
     lag = p[E.valve_lag_s] > 0.0
-    spool = _loop.plant_states(x, p)  # the spool's position, after the plant's states
+    spool = prep.plant_states  # the spool's position, after the plant's states
     whole, part = _loop.delay_split(p, settings)
     try:
         for k in range(n):

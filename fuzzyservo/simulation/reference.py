@@ -63,7 +63,7 @@ def simulate_reference(
             status, where = "diverged", k
             break
         if k == 0 and lag:
-            spool = len(rig.plant.states)  # the spool's position, after the plant's states
+            spool = prep.plant_states  # the spool's position, after the plant's states
             x[spool] = states[0, spool] = spool_start(p, a)
         a_before, a_now = held_inputs(actuator, k, whole)
         load = prep.load[k]

@@ -20,7 +20,7 @@ from support import DATA, controller_named, rig_named
 
 from fuzzyservo.calibration.identifiability import Separation, excitations
 from fuzzyservo.calibration.replay import make_replay
-from fuzzyservo.calibration.report import experiment_words, verdict_lines
+from fuzzyservo.calibration.report import experiment_words, ranking_line, verdict_lines
 from fuzzyservo.calibration.run import prepare, skipped_effects
 from fuzzyservo.cli import main
 from fuzzyservo.components.effects import LIBRARY
@@ -266,3 +266,15 @@ def test_values_print_in_the_unit_an_engineer_reads() -> None:
     assert quantity_text([2e-3], "m/s") == (["2.00"], "mm/s")
     assert quantity_text([5.01e-19], "m^3/(s*Pa)") == (["5.01e-19"], "m³/(s·Pa)")
     assert unit_text("Pa*s/m^3") == "Pa·s/m³" and unit_text("1") == ""
+
+
+def test_the_ranking_names_a_failed_fit_as_such() -> None:
+    """A candidate whose fit ended above the starting model (status ``failed fit: ...``,
+    search.fit) is ranked as a failed fit, not by the cost its failed fit reached."""
+    summary = {"rounds": [{"start_cost": 9.5, "candidates": [
+        {"name": "coulomb_friction", "score": 1.2, "status": "ok"},
+        {"name": "valve_lag", "score": 12.0,
+         "status": "failed fit: its training cost 12 ends above the starting model's 9.5"},
+    ]}]}  # fmt: skip
+    line = ranking_line(summary)
+    assert line.endswith("coulomb_friction 1.2, valve_lag failed fit"), line

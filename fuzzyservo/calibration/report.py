@@ -377,11 +377,7 @@ def verdict_lines(summary: dict[str, Any]) -> list[str]:
     failed_fits = {j["name"]: j.get("reason", "") for j in judged if j["verdict"] == "failed fit"}
     last = summary["rounds"][-1]["candidates"] if summary.get("rounds") else []
     failed_fits.update(
-        {
-            c["name"]: ""
-            for c in last
-            if str(c.get("status", "")).startswith("failed fit") and c["name"] not in failed_fits
-        }
+        {c["name"]: "" for c in last if _failed_fit(c) and c["name"] not in failed_fits}
     )
     for name, reason in failed_fits.items():
         lines.append(
@@ -423,7 +419,7 @@ def ranking_line(summary: dict[str, Any], shown: int = 5) -> str:
         f"{c['name']} "
         + (
             "failed fit"
-            if c.get("status") == "failed fit"
+            if _failed_fit(c)
             else "failed"
             if not _finite(c["score"])
             else format_value(c["score"])
@@ -460,6 +456,12 @@ def error_rate_words(summary: dict[str, Any]) -> str:
         "error rate: on records like this one without a missing effect, this decision "
         f"would add one in {how_often}"
     )
+
+
+def _failed_fit(c: dict[str, Any]) -> bool:
+    """A summary candidate whose fit ended above the starting model (its status reads
+    ``failed fit: <cause>``, search.fit)."""
+    return str(c.get("status", "")).startswith("failed fit")
 
 
 def _score_key(c: dict[str, Any]) -> float:

@@ -243,6 +243,12 @@ def undefined_note(shown: Sequence[str], rows: Sequence[Mapping[str, float | Non
 _PREFIXES = ((1e-15, "f"), (1e-12, "p"), (1e-9, "n"), (1e-6, "µ"), (1e-3, "m"), (1.0, ""))
 
 
+def _si_prefix(mag: float) -> tuple[float, str]:
+    """The first SI prefix (scale, symbol) under which ``mag`` prints below 1000 (999.5
+    rounds to 1e+03)."""
+    return next((sp for sp in _PREFIXES if mag / sp[0] < 999.5), (1.0, ""))
+
+
 def prefixed(value: float, unit: str) -> str:
     """``value`` [``unit``, SI] with an SI prefix and three significant digits: a motion
     of 4.2e-15 m reads ``4.2 fm``, a resolution of 1.58e-5 m ``15.8 µm`` (values of 1 and
@@ -254,8 +260,7 @@ def prefixed(value: float, unit: str) -> str:
     mag = abs(value)
     if mag == 0.0 or mag >= 1.0:
         return f"{value:.3g} {unit}"
-    # the first prefix under which it prints below 1000 (999.5 rounds to 1e+03)
-    scale, prefix = next((sp for sp in _PREFIXES if mag / sp[0] < 999.5), (1.0, ""))
+    scale, prefix = _si_prefix(mag)
     return f"{value / scale:.3g} {prefix}{unit}"
 
 
@@ -279,7 +284,7 @@ def quantity_text(values: Sequence[float], si_unit: str, digits: int = 3) -> tup
         unit, k = si_unit, 1.0
         simple = unit.isalpha() and unit not in ("1", "rad")
         if simple and 0.0 < mag < 1.0:
-            scale, prefix = next((sp for sp in _PREFIXES if mag / sp[0] < 999.5), (1.0, ""))
+            scale, prefix = _si_prefix(mag)
             unit, k = prefix + unit, 1.0 / scale
     shown = mag * k
     if shown and 1e-3 <= shown < 1e6:  # fixed point, to the largest one's last digit

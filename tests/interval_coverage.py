@@ -16,6 +16,8 @@ machine, niced):
 
     PYTHONPATH=. nice python tests/interval_coverage.py [draws=50] [effect ...] [--from-truth]
 
+An effect may name a variant of :data:`VARIANTS` (``valve_lag:second_order``).
+
 ``--from-truth`` refines each fit from the true values instead of searching: the
 intervals' coverage apart from a search that ends in the wrong valley.
 """
@@ -53,10 +55,11 @@ def middle(rig: Rig) -> dict[str, dict[str, float]]:
     s = rig.scales()
     return {
         "coulomb_friction": {"force": 0.035 * s.force},  # MIDDLE: ~170 N, 3.5 %
-        "stribeck_friction": {  # MIDDLE: Fc 150 N, breakaway 225 N, vs 5 mm/s
-            "coulomb_force": 150.0,
+        "stribeck_friction": {  # MIDDLE: Fc 150 N, breakaway 225 N, vs 5 mm/s, LuGre
+            "coulomb_force": 150.0,  # bristles of 1e7 N/m: 22.5 µm at breakaway
             "stiction_force": 75.0,
             "stribeck_velocity": 5e-3,
+            "presliding_distance": 22.5e-6,
         },
         "line_resistance": {"resistance": 2e10},  # 2 bar at 10 cm³/s
         "internal_leakage": {"coefficient": 1e-13},  # geometric middle of 1e-14..1e-12
@@ -71,6 +74,19 @@ def middle(rig: Rig) -> dict[str, dict[str, float]]:
     }
 
 
+# other truths for an effect, measured as rows of their own: "<effect>:<variant>"
+VARIANTS = {
+    # tests/independent_rig.py's Coulomb friction: LuGre bristles of 1e7 N/m at ~170 N
+    "coulomb_friction:lugre": {"force": 170.0, "presliding_distance": 17e-6},
+    # tests/independent_rig.py's spool, 100 Hz at ζ 0.7: τ1 = 2ζ/ωn, τ2 = τ1/(4ζ²)
+    "valve_lag:second_order": {"time_constant": 2.228e-3, "second_time_constant": 1.137e-3},
+    "stribeck_friction:static": {  # the tanh law, which creeps (no pre-sliding distance)
+        "coulomb_force": 150.0, "stiction_force": 75.0, "stribeck_velocity": 5e-3,
+        "presliding_distance": 0.0,
+    },
+}  # fmt: skip
+
+
 def effects() -> tuple[str, ...]:
     """The library's screened effects, in its order."""
     return tuple(name for name, e in LIBRARY.items() if e.screened)
@@ -82,14 +98,14 @@ def draw(
     """Draw ``k`` of ``effect``: its true parameters (key -> SI) and the fitted
     parameters' estimates (key -> Estimate). ``from_truth``: the fit refines from the
     true values (no global search), which measures the intervals apart from the search."""
-    index = list(LIBRARY).index(effect)
-    rng = np.random.default_rng(SEED + 100 * index + k)
-    size = middle(rig)[effect]
+    effect, variant = effect.partition(":")[::2]
+    # a variant's draws take the second half of its effect's seeds (≤ 50 draws each)
+    seed = SEED + 100 * list(LIBRARY).index(effect) + (50 if variant else 0) + k
+    rng = np.random.default_rng(seed)
+    size = VARIANTS[f"{effect}:{variant}"] if variant else middle(rig)[effect]
     truth = {key: v * rng.uniform(1.0 - SPREAD, 1.0 + SPREAD) for key, v in size.items()}
     controller = controller_named("p_k10")
-    data = synthetic_run(
-        rig, controller, "pulses", {effect: truth}, NOISE, seed=SEED + 100 * index + k
-    )
+    data = synthetic_run(rig, controller, "pulses", {effect: truth}, NOISE, seed=seed)
     replay = make_replay(rig, data, controller)
     start = None
     if from_truth:  # a candidate at the truth (nothing to fit) to start from

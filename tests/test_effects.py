@@ -87,6 +87,43 @@ def test_friction_force_formulation() -> None:
     assert fx.friction_force(-v, p) == pytest.approx(-expected)
 
 
+def test_lugre_friction_formulation() -> None:
+    # Canudas de Wit et al. 1995: off (no pre-sliding distance) it is the static law; in
+    # steady sliding the bristles hold still at g(v)/σ0 and the force is the Stribeck
+    # curve g(v); at rest they are a spring σ0 = (Fc + Fst)/d
+    p = np.zeros(len(fx.E))
+    p[fx.E.stribeck_coulomb_force_si], p[fx.E.stribeck_stiction_force_si] = 150.0, 75.0
+    p[fx.E.stribeck_velocity_si], p[fx.E.friction_smoothing_velocity_si] = 5e-3, 1e-4
+    assert fx.actuator_friction(0.01, 0.0, 1.0, p) == fx.friction_force(0.01, p)
+    assert fx.bristle_rate(0.01, 0.0, p) == 0.0
+    p[fx.E.stribeck_presliding_si] = 22.5e-6  # σ0 = 225 N / 22.5 µm = 1e7 N/m
+    v = 3e-3
+    g = 150.0 + 75.0 * math.exp(-((v / 5e-3) ** 2))
+    assert fx.bristle_rate(v, g / 1e7, p) == pytest.approx(0.0, abs=1e-12)
+    assert fx.actuator_friction(v, g / 1e7, 1.0, p) == pytest.approx(g)
+    assert fx.actuator_friction(-v, -g / 1e7, 1.0, p) == pytest.approx(-g)
+    assert fx.actuator_friction(0.0, 1e-6, 1.0, p) == pytest.approx(10.0)
+    assert fx.bristle_rate(0.0, 1e-6, p) == 0.0
+
+
+def test_lugre_friction_sticks_where_the_static_law_creeps() -> None:
+    # an exact reading, as the other reference-path tests; the steps end in a 2 s hold
+    rig, ctrl = ideal_sensor(rig_named("dinca_cylinder")), controller_named("p_k10")
+    curve = {"coulomb_force": 150.0, "stiction_force": 75.0, "stribeck_velocity": 5e-3}
+    lugre = rig.with_effect("stribeck_friction", **curve, presliding_distance=22.5e-6)
+    static = rig.with_effect("stribeck_friction", **curve)
+    held = {}
+    for name, r in (("lugre", lugre), ("static", static)):
+        res = simulate(r, ctrl, "steps", duration_s=4.0)
+        y = res.signals["y"]
+        held[name] = abs(y[-1] - y[np.searchsorted(res.t, res.t[-1] - 1.0)])
+    assert held["lugre"] < 1e-9  # stuck: the bristles hold the P loop's force
+    assert held["static"] > 1e-8  # the tanh law creeps at about its smoothing velocity
+    ref = simulate_reference(lugre, ctrl, "steps", duration_s=4.0, rtol=1e-8)
+    fast = simulate(lugre, ctrl, "steps", duration_s=4.0)
+    assert np.max(np.abs(fast.signals["y"] - ref.signals["y"])) < 5e-6  # 4.0 µm measured
+
+
 def test_deadband_around_the_null() -> None:
     null, w = 2.83e-3, 0.5e-3
     assert fx.deadband(null + 0.3e-3, null, w) == null

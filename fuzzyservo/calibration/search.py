@@ -42,8 +42,10 @@ from fuzzyservo.calibration.replay import DIVERGED_COST, Replay
 from fuzzyservo.calibration.residuals import fit_percent
 from fuzzyservo.calibration.uncertainty import (
     Estimate,
+    correlated,
     effective_samples,
     estimates,
+    gauss_newton_step,
     held_interval,
 )
 from fuzzyservo.components.effects import LIBRARY, EffectParam, owner
@@ -752,7 +754,8 @@ def _uncertainty(
 ) -> dict[str, Estimate]:
     """95 % intervals and at-bound flags of every fitted value: the rig's unknowns and the
     added effects' parameters (uncertainty.py): the sandwich of one Jacobian at the final
-    model, widened by each parameter's profile on the training part (others held)."""
+    model, widened by each parameter's profile on the training part (the parameters it
+    is correlated with following it, uncertainty.correlated)."""
     unknowns = dict(rig.unknowns)
     for candidate in added:  # each in the box its fit had (the value's bounds as reported)
         for param in LIBRARY[candidate.name].fitted:
@@ -774,11 +777,20 @@ def _uncertainty(
     z = np.array([space.unit(j, v) for j, v in enumerate(values)])
     jac = _jacobian(objective.residuals, z)
     channels = len(replay.channels)
+    follows = correlated(jac)
 
     def cost(j: int, v: float) -> np.ndarray:  # each training sample's, parameter j at v
         trial = z.copy()
         trial[j] = v
-        return np.sum(objective.residuals(trial).reshape(channels, -1) ** 2, axis=0)
+        r = objective.residuals(trial)
+        others = follows[j]
+        if others.size:  # the parameters it trades with follow it down the valley
+            moved = trial.copy()
+            moved[others] = gauss_newton_step(jac[:, others], r, z[others])
+            r_moved = objective.residuals(moved)
+            if np.sum(r_moved**2) < np.sum(r**2):
+                r = r_moved
+        return np.sum(r.reshape(channels, -1) ** 2, axis=0)
 
     residuals = objective.residuals(z).reshape(channels, -1)
     found = estimates(jac, residuals, z, values, space.value, space.bounds, cost, JACOBIAN_STEP)

@@ -20,19 +20,30 @@ Every fitted value gets two intervals, and the one reported spans both (and the 
   between 5 and 13 (noise units) from one newton to the next, and the fit lands in a
   valley under 1 N wide, 10 N below the 300 N the record was made with; a Jacobian
   there sees only the valley. So each parameter's training cost is also evaluated on a
-  grid of ``PROFILE_POINTS`` points each side of the fit, the others held, and a cubic
-  fitted through it by least squares: the *envelope*, whose lowest point estimates
+  grid of ``PROFILE_POINTS`` points each side of the fit and a cubic fitted through it
+  by least squares: the *envelope*, whose lowest point estimates
   where the cost bottoms out under its roughness. Two spreads place that bottom, added
   in quadrature: the costs' scatter about the cubic (Student's t on its degrees of
   freedom, the delta method for the position of the bottom), and a moving-block
   bootstrap of the training part (``RESAMPLES`` resamples of about ``BLOCKS`` blocks,
   each at least the residual's correlation time long; the 2.5 and 97.5 % percentiles of
-  each resample's envelope bottom). The grid leaves out the fit itself, whose cost is
-  the least a search found (low by selection where the cost is rough). Its spacing
+  each resample's envelope bottom). To them it adds every value at which the cubic
+  lies within the 95 % quantile of the costs' scatter about it of its lowest point: on
+  a rough cost the bottom places only the envelope, and a needle as deep as the fit's
+  may lie wherever the envelope has not risen by more than its roughness (about a
+  smooth cost's cubic the scatter is next to nothing, and so is what this adds). The grid leaves out the fit itself,
+  whose cost is the least a search found (low by selection where the cost is rough).
+  At each grid point the other parameters stay where they were fitted, except those
+  correlated with it (|ρ| ≥ ``CORRELATED`` in ``(JᵀJ)⁻¹``, :func:`correlated`): they
+  take one Gauss-Newton step from there (:func:`gauss_newton_step`), kept where it
+  lowers the cost. That follows a curved valley, as a profile likelihood does, where
+  holding them cuts across it (a second-order spool's two time constants trade along
+  one). Its spacing
   starts at half the sandwich's half-width, never under the search's Jacobian step, and
   doubles (``DOUBLINGS`` times at most) until the bottom lies inside the grid, or at a
-  bound of the box, and the scatter places it within ``SETTLED`` of the grid's
-  half-span; a grid still unsettled at its widest is part of the interval. The
+  bound of the box, the scatter places it within ``SETTLED`` of the grid's half-span,
+  and the cubic rises above the scatter before each end of the grid (or the end is a
+  bound); a grid still unsettled at its widest is part of the interval. The
   envelope is a cubic, not a parabola, because a valley steeper on one side (a delay's)
   moves a parabola's bottom off the true one; and its bottom, not each resample's lowest
   grid point, because a rough cost's lowest point jumps between valleys that resampling
@@ -70,6 +81,7 @@ DEGREE = 3  # of the polynomial fitted to a profile (its envelope)
 SETTLED = 0.5  # the envelope's bottom is placed when its 95 % half-width is under
 # this share of the grid's half-span
 DOUBLINGS = 3  # at most this many times the profile's spacing doubles
+CORRELATED = 0.5  # |correlation| at which a parameter follows another's profile
 SEED = 40  # of the bootstrap's resampling (the intervals are reproducible)
 
 
@@ -163,6 +175,10 @@ def profile_interval(
     rough = t_dist.ppf(0.975, envelope.dof) * envelope.error  # its spread over the grid
     lo = bottom - math.hypot(max(bottom - lo, 0.0), rough)
     hi = bottom + math.hypot(max(hi - bottom, 0.0), rough)
+    # where the envelope rises less than the costs scatter about it, a value is as good
+    # as the bottom: a needle as deep as the fit's may lie there (a rough cost)
+    near = envelope.below(t_dist.ppf(0.975, envelope.dof) * envelope.roughness)
+    lo, hi = min(lo, near[0]), max(hi, near[1])
     if not envelope.settled(points[0] <= 0.0, points[-1] >= 1.0):  # the grid at its widest
         lo, hi = min(lo, x[0] / scale), max(hi, x[-1] / scale)
     return float(max(z + scale * lo, 0.0)), float(min(z + scale * hi, 1.0))
@@ -181,6 +197,9 @@ class _Envelope:
     dof: int
     interior: bool
     at_lower: bool
+    coef: tuple[float, float, float, float]
+    span: tuple[float, float]  # the grid's ends
+    roughness: float  # the costs' standard deviation about the cubic
 
     @staticmethod
     def fit(x: np.ndarray, y: np.ndarray) -> _Envelope:
@@ -197,14 +216,35 @@ class _Envelope:
             curvature = 6.0 * a * bottom + 2.0 * b
             gradient = -np.array([3.0 * bottom**2, 2.0 * bottom, 1.0, 0.0]) / curvature
             error = math.sqrt(max(float(gradient @ cov @ gradient), 0.0))
-        return _Envelope(bottom, error, dof, interior, bottom <= x[0])
+        roughness = math.sqrt(float(scatter @ scatter) / dof) if dof > 0 else 0.0
+        return _Envelope(bottom, error, dof, interior, bottom <= x[0],
+                         tuple(float(c) for c in coef), (float(x[0]), float(x[-1])),
+                         roughness)  # fmt: skip
+
+    def below(self, rise: float) -> tuple[float, float]:
+        """The span of the grid where the cubic lies within ``rise`` of its lowest point
+        there (the bottom itself when ``rise`` is 0)."""
+        grid = np.linspace(self.span[0], self.span[1], 401)
+        values = np.polyval(self.coef, grid)
+        lowest = float(np.polyval(self.coef, self.bottom))
+        inside = grid[values <= lowest + rise]
+        if not inside.size:
+            return self.bottom, self.bottom
+        return min(float(inside[0]), self.bottom), max(float(inside[-1]), self.bottom)
 
     def settled(self, lower_is_bound: bool, upper_is_bound: bool) -> bool:
         """The grid shows the bottom: inside it (or at a bound of the box), placed by
-        the costs' scatter to within ``SETTLED`` of its half-span."""
+        the costs' scatter to within ``SETTLED`` of its half-span; and the cubic rises
+        by more than that scatter before each end of the grid (or the end is a bound)."""
         if not self.interior:
             return lower_is_bound if self.at_lower else upper_is_bound
-        return t_dist.ppf(0.975, self.dof) * self.error <= SETTLED
+        t = t_dist.ppf(0.975, self.dof)
+        near = self.below(t * self.roughness)
+        if (near[0] <= self.span[0] and not lower_is_bound) or (
+            near[1] >= self.span[1] and not upper_is_bound
+        ):
+            return False
+        return t * self.error <= SETTLED
 
     @staticmethod
     def resampled_minima(
@@ -237,6 +277,34 @@ def _lowest(coef: np.ndarray, lo: float, hi: float) -> np.ndarray:
     ends = np.where(value(np.full_like(a, lo)) <= value(np.full_like(a, hi)), lo, hi)
     local = np.where(inside, local, ends)
     return np.where(inside & (value(local) < value(ends)), local, ends)
+
+
+def correlated(jacobian: np.ndarray) -> list[np.ndarray]:
+    """For each parameter, the others whose estimate is correlated with its own by at
+    least ``CORRELATED`` (from ``(JᵀJ)⁻¹``; uninformed columns aside): those its profile
+    moves along (module docstring)."""
+    n = jacobian.shape[1]
+    informed = np.all(np.isfinite(jacobian), axis=0) & (np.sum(jacobian**2, axis=0) > 0)
+    out = [np.zeros(0, dtype=int) for _ in range(n)]
+    idx = np.flatnonzero(informed)
+    if idx.size < 2:
+        return out
+    cov = np.linalg.pinv(jacobian[:, idx].T @ jacobian[:, idx])
+    sd = np.sqrt(np.maximum(np.diag(cov), 1e-300))
+    corr = np.abs(cov / np.outer(sd, sd))
+    for a, j in enumerate(idx):
+        out[j] = idx[(corr[a] >= CORRELATED) & (idx != j)]
+    return out
+
+
+def gauss_newton_step(columns: np.ndarray, residuals: np.ndarray, start: np.ndarray) -> np.ndarray:
+    """``start`` moved by one Gauss-Newton step on ``residuals`` with the Jacobian
+    ``columns`` (of those parameters, taken at the fit), kept in the unit box: where the
+    parameters a profile holds would go to follow it along a curved valley."""
+    if not np.isfinite(residuals).all():
+        return start
+    step, *_ = np.linalg.lstsq(columns, -residuals, rcond=None)
+    return np.clip(start + step, 0.0, 1.0)
 
 
 def estimates(

@@ -24,8 +24,9 @@ line resistance neglected), seed 003 §2 (leakage), seed 000 Table 2.
 ==================  =========================================================  ==============
 effect              formulation                                                parameters
 ==================  =========================================================  ==============
-coulomb_friction    F = Fc·tanh(v/vc)                                          Fc; vc fixed
-stribeck_friction   F = (Fc + Fst·exp(−(v/vs)²))·tanh(v/vc)                    Fc, Fst, vs
+coulomb_friction    F = Fc·tanh(v/vc); with a pre-sliding distance d > 0 the     Fc, d; vc fixed
+                    LuGre law, which sticks (:func:`actuator_friction`)
+stribeck_friction   F = (Fc + Fst·exp(−(v/vs)²))·tanh(v/vc); LuGre with d > 0    Fc, Fst, vs, d
 line_resistance     laminar line Δp = R·q between each valve port and chamber  R [Pa·s/m³]
 internal_leakage    q = Kl·(pA − pB) across piston or motor                    Kl [m³/(s·Pa)]
 valve_deadband      i_eff = i0 + sign(Δi)·max(|Δi| − w, 0), Δi = i − i0       w [input]
@@ -54,7 +55,7 @@ from fuzzyservo.params import index_of, quantity
 from fuzzyservo.units import parse_unit
 
 # unit tokens an effect parameter may use; the plant resolves them (force N or N·m, ...)
-UNIT_TOKENS = ("force", "velocity", "input")
+UNIT_TOKENS = ("force", "velocity", "position", "input")
 
 
 # --------------------------------------------------------------------------- library
@@ -84,7 +85,8 @@ class EffectParam:
     negative, its bounds for calibration (from the rig's :class:`Scales`), fitted or fixed.
 
     ``unit`` is an SI expression (checked here) or a token the plant resolves: ``force``
-    (N or N·m), ``velocity`` (m/s or rad/s), ``input`` (the plant input's A or V).
+    (N or N·m), ``velocity`` (m/s or rad/s), ``position`` (m or rad), ``input`` (the
+    plant input's A or V).
     """
 
     key: str
@@ -156,6 +158,20 @@ class Effect:
         raise KeyError(key)
 
 
+def _presliding(field: str) -> EffectParam:
+    """A friction effect's optional LuGre pre-sliding distance (0: the static law)."""
+    return EffectParam(
+        "presliding_distance",
+        field,
+        "position",
+        # up to a tenth of what the actuator travels at full speed in one sample
+        lambda s: (0.0, 0.1 * s.velocity * s.sample_time),
+        doc="LuGre pre-sliding distance at breakaway (0: the static law)",
+        log=True,
+        default=lambda s: 0.0,
+    )
+
+
 def _smoothing() -> EffectParam:
     return EffectParam(
         "smoothing_velocity",
@@ -177,9 +193,12 @@ LIBRARY: dict[str, Effect] = {
             (
                 EffectParam("force", "coulomb_force_si", "force", lambda s: (0.0, 0.1 * s.force), doc="Coulomb friction force or torque",
                     typical=lambda s: (0.01 * s.force, 0.1 * s.force)),
+                _presliding("coulomb_presliding_si"),
                 _smoothing(),
             ),
-            "F = Fc·tanh(v/vc) opposing the motion [N or N·m]; vc the plant's smoothing velocity",
+            "F = Fc·tanh(v/vc) opposing the motion [N or N·m]; vc the plant's smoothing velocity; "
+            "with a pre-sliding distance d > 0 the LuGre law (bristles of stiffness Fc/d, "
+            "critically damped on the moving mass), which sticks",
             "docs/modelling.md Friction (smooth form); seed 002 §5 names dry friction as neglected",
         ),
         Effect(
@@ -196,10 +215,14 @@ LIBRARY: dict[str, Effect] = {
                 EffectParam(
                     "stribeck_velocity", "stribeck_velocity_si", "velocity",
                     lambda s: (1e-3 * s.velocity, 0.2 * s.velocity), log=True, doc="Stribeck velocity"),
+                _presliding("stribeck_presliding_si"),
                 _smoothing(),
             ),
-            "F = (Fc + Fst·exp(−(v/vs)²))·tanh(v/vc): breakaway Fc + Fst at rest, Fc in motion",
-            "docs/modelling.md Friction and typical ranges (Fs/Fc 1.1-1.5, vs 1-10 mm/s)",
+            "F = (Fc + Fst·exp(−(v/vs)²))·tanh(v/vc): breakaway Fc + Fst at rest, Fc in "
+            "motion; with a pre-sliding distance d > 0 the LuGre law: bristles of stiffness "
+            "σ0 = (Fc + Fst)/d, critically damped on the moving mass, which stick",
+            "docs/modelling.md Friction and typical ranges (Fs/Fc 1.1-1.5, vs 1-10 mm/s); "
+            "Canudas de Wit, Olsson, Åström and Lischinsky 1995 (LuGre)",
             special_cases=("coulomb_friction",),  # Fst = 0
         ),
         Effect(
@@ -453,6 +476,64 @@ def friction_force(v: float, p: Any) -> float:
         r = v / vs
         level += fst * math.exp(-r * r)
     return level * math.tanh(v / vc)
+
+
+@njit(cache=True, inline="always")
+def friction_level(v: float, p: Any) -> float:
+    """The Stribeck curve's level ``Fc + Fst·exp(−(v/vs)²)`` [N or N·m] at velocity ``v``
+    (``Fc`` both friction effects' Coulomb parts)."""
+    level = p[E.coulomb_force_si] + p[E.stribeck_coulomb_force_si]
+    fst = p[E.stribeck_stiction_force_si]
+    vs = p[E.stribeck_velocity_si]
+    if fst > 0.0 and vs > 0.0:
+        r = v / vs
+        level += fst * math.exp(-r * r)
+    return level
+
+
+@njit(cache=True, inline="always")
+def presliding(p: Any) -> float:
+    """The LuGre pre-sliding distance [m or rad]: the friction effects' own, added (as
+    their Coulomb levels are); 0, the static law, unless one of them gives one."""
+    return p[E.coulomb_presliding_si] + p[E.stribeck_presliding_si]
+
+
+@njit(cache=True, inline="always")
+def bristle_rate(v: float, z: float, p: Any) -> float:
+    """dz/dt of the LuGre bristles' mean deflection ``z`` [m or rad] at velocity ``v``:
+    ``v − σ0·|v|·z/g(v)``, σ0 = (Fc + Fst)/d, g the Stribeck curve
+    (:func:`friction_level`); 0 unless the pre-sliding distance d > 0
+    (Canudas de Wit et al. 1995, eq. 2-3; d from :func:`presliding`)."""
+    d = presliding(p)
+    if d <= 0.0:
+        return 0.0
+    g = friction_level(v, p)
+    top = p[E.coulomb_force_si] + p[E.stribeck_coulomb_force_si] + p[E.stribeck_stiction_force_si]
+    if g <= 0.0 or top <= 0.0:
+        return 0.0
+    return v - (top / d) * abs(v) * z / g
+
+
+@njit(cache=True, inline="always")
+def actuator_friction(v: float, z: float, mass: float, p: Any) -> float:
+    """Friction [N or N·m] on an actuator moving at ``v`` with bristle deflection ``z``
+    and moving mass ``mass`` [kg or kg·m²].
+
+    The static law (:func:`friction_force`) unless a friction effect's pre-sliding
+    distance d > 0 (:func:`presliding`); then LuGre's ``σ0·z + σ1·dz/dt`` (:func:`bristle_rate`), with
+    σ1 = 2·√(σ0·m) (the bristles critically damped on the mass, as Canudas de Wit et
+    al. advise) and no viscous term (every actuator has its own). In steady sliding it
+    is the Stribeck curve; at rest the bristles hold up to the breakaway Fc + Fst after
+    at most d of elastic pre-sliding: the actuator sticks instead of creeping.
+    """
+    d = presliding(p)
+    if d <= 0.0:
+        return friction_force(v, p)
+    top = p[E.coulomb_force_si] + p[E.stribeck_coulomb_force_si] + p[E.stribeck_stiction_force_si]
+    if top <= 0.0:
+        return 0.0
+    sigma0 = top / d
+    return sigma0 * z + 2.0 * math.sqrt(sigma0 * mass) * bristle_rate(v, z, p)
 
 
 @njit(cache=True, inline="always")

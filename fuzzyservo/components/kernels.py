@@ -10,6 +10,8 @@ from __future__ import annotations
 import math
 
 from fuzzyservo.components.effects import (
+    actuator_friction,
+    bristle_rate,
     bulk_modulus,
     chamber_modulus,
     friction_force,
@@ -19,6 +21,8 @@ from fuzzyservo.components.orifice import signed_sqrt_flow
 from fuzzyservo.components.valves import metering_edges, nn_forward, polynomial_flow
 
 __all__ = [
+    "actuator_friction",
+    "bristle_rate",
     "bulk_modulus",
     "chamber_modulus",
     "friction_force",

@@ -12,7 +12,8 @@ pressures ``p_a`` (piston side, +y extends) and ``p_b`` [Pa]:
 ``m`` is the piston's mass plus every ``mass`` load; F_loads every load's force and
 the scenario's; F_stop a stiff spring-damper beyond 0 and the stroke L (the seeds are
 silent; docs/modelling.md "chamber volumes must never reach zero"). Effects: friction
-(``coulomb_friction``, ``stribeck_friction``), ``internal_leakage`` q_leak = K_l·(p_a − p_b),
+(``coulomb_friction``, ``stribeck_friction``; LuGre's bristle state ``z`` stays at 0
+unless the latter has a pre-sliding distance), ``internal_leakage`` q_leak = K_l·(p_a − p_b),
 ``external_leakage`` K_e·p out of each chamber.
 """
 
@@ -40,6 +41,8 @@ _COMMON = (
 _STATES = (
     State("y", "m", "piston position from the retracted end", "motion", 1e-6, 1e-3),
     State("v", "m/s", "piston velocity", "motion", 1e-3, 0.1),
+    # LuGre friction's bristles (stribeck_friction's pre-sliding distance; else held at 0)
+    State("z", "m", "friction bristles' mean deflection", "motion", 1e-8, 1e-5),
     State("p_a", "Pa", "pressure in chamber A (piston side)", "chamber", 1e3, 1e6),
     State("p_b", "Pa", "pressure in chamber B", "chamber", 1e3, 1e6),
 )
@@ -72,10 +75,11 @@ _ACTUATOR = """
             P.end_stop_damping * vel if vel > 0.0 else 0.0
         )
     L.q_leak = E.internal_leakage_m3_s_pa * (p_a - p_b)
-    L.f_fric = friction_force(vel, p)
 """
 _MOTION = """
+L.f_fric = actuator_friction(vel, X.z, mass, p)
 DX.y = vel
+DX.z = bristle_rate(vel, X.z, p)
 DX.v = (p_a * area_a - p_b * area_b - L.f_fric - f_load + f_stop) / mass
 """ + two_chambers("L.va", "L.vb")
 

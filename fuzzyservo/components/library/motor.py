@@ -58,6 +58,8 @@ COMPONENTS = (
         states=(
             State("theta", "rad", "shaft angle", "motion", 1e-3, 1.0),
             State("w", "rad/s", "shaft speed", "motion", 1e-2, 10.0),
+            # LuGre friction's bristles (stribeck_friction's pre-sliding distance)
+            State("z", "rad", "friction bristles' mean deflection", "motion", 1e-7, 1e-3),
             State("p_a", "Pa", "pressure at port A", "chamber", 1e3, 1e6),
             State("p_b", "Pa", "pressure at port B", "chamber", 1e3, 1e6),
         ),
@@ -79,11 +81,12 @@ COMPONENTS = (
                 area_b = P.displacement
                 f_stop = 0.0
                 L.q_leak = E.internal_leakage_m3_s_pa * (p_a - p_b)
-                L.f_fric = friction_force(vel, p)
             """,
             "mass": "mass += P.inertia",
             "motion": """
+L.f_fric = actuator_friction(vel, X.z, mass, p)
 DX.theta = vel
+DX.z = bristle_rate(vel, X.z, p)
 DX.w = (P.hydromechanical_efficiency * (p_a - p_b) * area_a - L.f_fric - f_load) / mass
 """
             + two_chambers("P.volume_a", "P.volume_b"),

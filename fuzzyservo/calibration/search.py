@@ -307,8 +307,16 @@ def fit(
         for param in LIBRARY[effect].fitted if effect else ():
             known[param.field] = float(getattr(start_from.rig.params, param.field))
         z_from = np.array([space.unit(j, known[f]) for j, (_, f) in enumerate(space.names)])
-    z = _minimise(objective, z_start, n_effect, max_evaluations, scan=start_from is None,
-                  z_from=z_from)  # fmt: skip
+    optional = _optional(space, effect)
+    if optional and start_from is None:
+        z, nested = _minimise_nested(fitted_on, base, effect, space, objective, z_start,
+                                     n_effect, optional, max_evaluations)  # fmt: skip
+        # the optional parts stay only if they also predict the held-out part better
+        if replay.costs(objective.model(nested)[0])[1] <= replay.costs(objective.model(z)[0])[1]:
+            z = nested
+    else:
+        z = _minimise(objective, z_start, n_effect, max_evaluations, scan=start_from is None,
+                      z_from=z_from)  # fmt: skip
     cost_start = objective.train_cost(z_start)
     status_note = ""
     if not objective.train_cost(z) <= cost_start:  # only a start that cannot be replayed
@@ -438,6 +446,59 @@ def _minimise(
     ranked = sorted(_distinct(starts), key=objective.train_cost)
     local = [_local(objective, z, step, budget) for z in ranked[: LOCAL_STARTS if scan else 1]]
     return min([*local, *ranked], key=objective.train_cost)
+
+
+def _optional(space: _Space, effect: str | None) -> list[int]:
+    """Positions in ``space`` of ``effect``'s optional parameters (EffectParam.optional:
+    a spool's second time constant, friction's pre-sliding distance)."""
+    if not effect:
+        return []
+    return [
+        j
+        for j, (owner, f) in enumerate(space.names)
+        if owner == effect and LIBRARY[effect].param_by_field(f).optional
+    ]
+
+
+def _minimise_nested(
+    replay: Replay,
+    base: Rig,
+    effect: str,
+    space: _Space,
+    objective: _Objective,
+    z_start: np.ndarray,
+    n_effect: int,
+    optional: list[int],
+    budget: int,
+) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`_minimise` for an effect with optional parts, which nests the law without
+    them (a first-order spool, friction that does not stick): that law is fitted first,
+    as it would be alone, then each optional part is scanned from its fit with the rest
+    held, and a local search runs from the best two of those points. Returns the best
+    point and the nested law's fit; the first is never worse on the training part than
+    the second: adding a parameter cannot lose to the model it extends (the issue-40
+    invariant, one level down). The caller keeps the optional parts only where they
+    also predict the held-out part better (on the Festo record, a pre-sliding distance
+    on its bound fits the training part better and the held-out part worse)."""
+    keep = [j for j in range(z_start.size) if j not in optional]
+    sub_space = _Space(
+        [space.names[j] for j in keep],
+        [space.bounds[j] for j in keep],
+        [space.log[j] for j in keep],
+    )
+    sub = _Objective(replay, base, effect, sub_space)
+    nested = z_start.copy()
+    nested[keep] = _minimise(sub, z_start[keep], n_effect - len(optional), budget)
+    starts = [nested]
+    for j in optional:
+        for v in SCAN[1:]:
+            point = nested.copy()
+            point[j] = v
+            starts.append(point)
+    ranked = sorted(_distinct(starts), key=objective.train_cost)
+    step = (SCAN[1] - SCAN[0]) / 2**REFINE_LEVELS
+    local = [_local(objective, z, step, budget) for z in ranked[:LOCAL_STARTS]]
+    return min([*local, *ranked], key=objective.train_cost), nested
 
 
 def _distinct(points: Sequence[np.ndarray], tol: float = 1e-6) -> list[np.ndarray]:

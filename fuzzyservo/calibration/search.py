@@ -854,7 +854,8 @@ def _uncertainty(
         return np.sum(r.reshape(channels, -1) ** 2, axis=0)
 
     residuals = objective.residuals(z).reshape(channels, -1)
-    found = estimates(jac, residuals, z, values, space.value, space.bounds, cost, JACOBIAN_STEP)
+    found = estimates(jac, residuals, z, values, space.value, space.bounds, cost, JACOBIAN_STEP,
+                      replay.noise_cost())  # fmt: skip
     return {f: e for (_, f), e in zip(space.names, found, strict=True)}
 
 

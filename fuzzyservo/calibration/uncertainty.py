@@ -28,7 +28,9 @@ Every fitted value gets two intervals, and the one reported spans both (and the 
   bootstrap of the training part (``RESAMPLES`` resamples of about ``BLOCKS`` blocks,
   each at least the residual's correlation time long; the 2.5 and 97.5 % percentiles of
   each resample's envelope bottom). To them it adds every value at which the cubic
-  lies within the 95 % quantile of the costs' scatter about it of its lowest point: on
+  lies within the 95 % quantile of the costs' scatter about it (Rice's estimate from
+  neighbouring points, blind to a smooth misfit; never deeper than the lowest point's
+  height above a perfect model's cost) of its lowest point: on
   a rough cost the bottom places only the envelope, and a needle as deep as the fit's
   may lie wherever the envelope has not risen by more than its roughness (about a
   smooth cost's cubic the scatter is next to nothing, and so is what this adds). The grid leaves out the fit itself,
@@ -140,7 +142,12 @@ def sandwich(jacobian: np.ndarray, residuals: np.ndarray, lags: int) -> np.ndarr
 
 
 def profile_interval(
-    cost: Callable[[float], np.ndarray], z: float, step: float, block: int, seed: int = SEED
+    cost: Callable[[float], np.ndarray],
+    z: float,
+    step: float,
+    block: int,
+    seed: int = SEED,
+    floor: float = 0.0,
 ) -> tuple[float, float]:
     """The 95 % interval (unit box) of the bottom of a parameter's training-cost profile
     about the fit ``z``; see the module docstring.
@@ -163,7 +170,7 @@ def profile_interval(
         else:
             cumulative = np.array([seen[v] for v in points])
             x, scale = points - z, max(abs(points[0] - z), abs(points[-1] - z))
-            envelope = _Envelope.fit(x / scale, cumulative[:, -1])
+            envelope = _Envelope.fit(x / scale, cumulative[:, -1], floor)
             if envelope.settled(points[0] <= 0.0, points[-1] >= 1.0):
                 break
         spacing *= 2.0
@@ -177,7 +184,7 @@ def profile_interval(
     hi = bottom + math.hypot(max(hi - bottom, 0.0), rough)
     # where the envelope rises less than the costs scatter about it, a value is as good
     # as the bottom: a needle as deep as the fit's may lie there (a rough cost)
-    near = envelope.below(t_dist.ppf(0.975, envelope.dof) * envelope.roughness)
+    near = envelope.below(envelope.needle())
     lo, hi = min(lo, near[0]), max(hi, near[1])
     if not envelope.settled(points[0] <= 0.0, points[-1] >= 1.0):  # the grid at its widest
         lo, hi = min(lo, x[0] / scale), max(hi, x[-1] / scale)
@@ -199,10 +206,11 @@ class _Envelope:
     at_lower: bool
     coef: tuple[float, float, float, float]
     span: tuple[float, float]  # the grid's ends
-    roughness: float  # the costs' standard deviation about the cubic
+    roughness: float  # the costs' scatter about the cubic, from point to point
+    floor: float  # the least a cost can be (a perfect model's)
 
     @staticmethod
-    def fit(x: np.ndarray, y: np.ndarray) -> _Envelope:
+    def fit(x: np.ndarray, y: np.ndarray, floor: float = 0.0) -> _Envelope:
         design = np.vander(x, DEGREE + 1)
         coef, *_ = np.linalg.lstsq(design, y, rcond=None)
         dof = x.size - DEGREE - 1
@@ -216,10 +224,22 @@ class _Envelope:
             curvature = 6.0 * a * bottom + 2.0 * b
             gradient = -np.array([3.0 * bottom**2, 2.0 * bottom, 1.0, 0.0]) / curvature
             error = math.sqrt(max(float(gradient @ cov @ gradient), 0.0))
-        roughness = math.sqrt(float(scatter @ scatter) / dof) if dof > 0 else 0.0
+        # Rice's difference estimator on the points in order: a smooth misfit of the cubic
+        # (a wide grid over a cost that is not a cubic) changes little from point to
+        # point and counts next to nothing; a rough cost's jumps count whole
+        jumps = np.diff(scatter)
+        roughness = math.sqrt(float(jumps @ jumps) / (2 * jumps.size)) if jumps.size else 0.0
         return _Envelope(bottom, error, dof, interior, bottom <= x[0],
                          tuple(float(c) for c in coef), (float(x[0]), float(x[-1])),
-                         roughness)  # fmt: skip
+                         roughness, floor)  # fmt: skip
+
+    def needle(self) -> float:
+        """How far below the cubic a needle of the rough cost may reach: the 95 %
+        quantile of the scatter, but never below the floor (a model cannot beat the
+        noise, so where the cubic bottoms out at the floor no needle is deeper)."""
+        lowest = float(np.polyval(self.coef, self.bottom))
+        depth = t_dist.ppf(0.975, self.dof) * self.roughness if self.dof > 0 else 0.0
+        return min(depth, max(lowest - self.floor, 0.0))
 
     def below(self, rise: float) -> tuple[float, float]:
         """The span of the grid where the cubic lies within ``rise`` of its lowest point
@@ -239,7 +259,7 @@ class _Envelope:
         if not self.interior:
             return lower_is_bound if self.at_lower else upper_is_bound
         t = t_dist.ppf(0.975, self.dof)
-        near = self.below(t * self.roughness)
+        near = self.below(self.needle())
         if (near[0] <= self.span[0] and not lower_is_bound) or (
             near[1] >= self.span[1] and not upper_is_bound
         ):
@@ -316,6 +336,7 @@ def estimates(
     bounds: list[tuple[float, float]],
     cost: Callable[[int, float], np.ndarray] | None = None,
     spacing: float = 0.0,
+    floor: float = 0.0,
 ) -> list[Estimate]:
     """95 % intervals of the values fitted at the unit-box point ``z``: the sandwich's
     and the profile's together (module docstring).
@@ -325,8 +346,8 @@ def estimates(
     SI value of parameter ``j`` at a unit-box coordinate; ``cost(j, v)``: the training
     cost of each sample with parameter ``j`` at ``v``, the others at ``z`` (None: the
     sandwich alone); ``spacing``: the profile's smallest spacing on the unit box (the
-    scale the Jacobian looks at). A parameter the data do not inform (a zero column)
-    gets its bounds.
+    scale the Jacobian looks at); ``floor``: the least the summed cost can be (a perfect
+    model's). A parameter the data do not inform (a zero column) gets its bounds.
     """
     tau = correlation_time(residuals)
     n = residuals.shape[1]
@@ -340,7 +361,9 @@ def estimates(
         zl, zh = max(z[j] - half, 0.0), min(z[j] + half, 1.0)
         if cost is not None and math.isfinite(half):
             step = max(half / 2.0, spacing)
-            pl, ph = profile_interval(lambda v, j=j: cost(j, v), float(z[j]), step, block, SEED + j)
+            pl, ph = profile_interval(
+                lambda v, j=j: cost(j, v), float(z[j]), step, block, SEED + j, floor
+            )
             zl, zh = min(zl, pl), max(zh, ph)
         out.append(_estimate(value, z[j], zl, zh, lambda u, j=j: to_value(j, u), bounds[j]))
     return out

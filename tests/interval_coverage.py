@@ -104,6 +104,9 @@ def draw(
     rng = np.random.default_rng(seed)
     size = VARIANTS[f"{effect}:{variant}"] if variant else middle(rig)[effect]
     truth = {key: v * rng.uniform(1.0 - SPREAD, 1.0 + SPREAD) for key, v in size.items()}
+    for param in LIBRARY[effect].fitted:  # an optional part the record leaves off
+        if param.optional:
+            truth.setdefault(param.key, 0.0)
     controller = controller_named("p_k10")
     data = synthetic_run(rig, controller, "pulses", {effect: truth}, NOISE, seed=seed)
     replay = make_replay(rig, data, controller)

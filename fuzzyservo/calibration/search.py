@@ -312,7 +312,8 @@ def fit(
         z, nested = _minimise_nested(fitted_on, base, effect, space, objective, z_start,
                                      n_effect, optional, max_evaluations)  # fmt: skip
         # the optional parts stay only if they also predict the held-out part better
-        if replay.costs(objective.model(nested)[0])[1] <= replay.costs(objective.model(z)[0])[1]:
+        judge = objective if fitted_on is replay else _Objective(replay, base, effect, space)
+        if replay.costs(judge.model(nested)[0])[1] <= replay.costs(judge.model(z)[0])[1]:
             z = nested
     else:
         z = _minimise(objective, z_start, n_effect, max_evaluations, scan=start_from is None,

@@ -475,7 +475,8 @@ def _minimise_nested(
     """:func:`_minimise` for an effect with optional parts, which nests the law without
     them (a first-order spool, friction that does not stick): that law is fitted first,
     as it would be alone, then each optional part is scanned from its fit with the rest
-    held, and a local search runs from the best two of those points. Returns the best
+    held, and the best of those points joins the starts of the whole law's own search
+    (:func:`_minimise`). Returns the best
     point and the nested law's fit; the first is never worse on the training part than
     the second: adding a parameter cannot lose to the model it extends (the issue-40
     invariant, one level down). The caller keeps the optional parts only where they
@@ -497,9 +498,10 @@ def _minimise_nested(
             point[j] = v
             starts.append(point)
     ranked = sorted(_distinct(starts), key=objective.train_cost)
-    step = (SCAN[1] - SCAN[0]) / 2**REFINE_LEVELS
-    local = [_local(objective, z, step, budget) for z in ranked[:LOCAL_STARTS]]
-    return min([*local, *ranked], key=objective.train_cost), nested
+    # and the whole law searched as any effect is, from those points too: with its
+    # optional parts on it sits in another valley (sticking friction holds a piston
+    # with other stiction than creeping friction does)
+    return _minimise(objective, z_start, n_effect, budget, z_from=ranked[0]), nested
 
 
 def _distinct(points: Sequence[np.ndarray], tol: float = 1e-6) -> list[np.ndarray]:

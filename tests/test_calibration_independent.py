@@ -67,16 +67,17 @@ def test_independent_null_run_adds_nothing(tmp_path: Path) -> None:
 def test_an_established_special_case_goes_before_an_unestablished_generalisation(
     tmp_path: Path,
 ) -> None:
-    """Draw 100 of the mid-range LuGre friction: Stribeck's law predicts the held-out part
-    best but is not established (z 3.4 under a threshold of 3.7); Coulomb's, its special
-    case, is (z 36) and the data cannot tell the two apart, so Coulomb's is named first
-    and added (search._established_first). Nothing was added before."""
+    """Draw 100 of the mid-range LuGre Coulomb friction: Coulomb's law is named first and
+    added, Stribeck's second. Before friction could stick (a pre-sliding distance),
+    Stribeck's smooth law predicted the held-out part best without being established
+    (z 3.4 under 3.7) and Coulomb's, its established special case, went first through
+    search._established_first; with the sticking law Coulomb's predicts best itself
+    (held-out cost 1.31 against Stribeck's 1.85)."""
     rig = load_rig(old_loop(tmp_path))
     data = independent_run("coulomb_friction", NOISE, seed=100)
     outcome = calibrate(make_replay(rig, data, controller_named("p_k10")), rig, max_effects=1)
     first = outcome.rounds[0].candidates
     assert first[0].name == "coulomb_friction" and first[1].name == "stribeck_friction"
-    assert first[1].score < first[0].score  # the better predictor, not established
     assert [c.name for c in outcome.added] == ["coulomb_friction"]
 
 

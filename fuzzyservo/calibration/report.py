@@ -476,7 +476,9 @@ def _added_size(e: dict[str, Any], uncertainty: dict[str, Any]) -> str:
     """Each fitted parameter of an added effect in its unit with its 95 % interval."""
     parts = []
     for param in LIBRARY[e["name"]].fitted:
-        value = e["params"][param.key]
+        value = e["params"].get(param.key, 0.0)
+        if param.optional and not value:
+            continue  # an optional part left off (friction that does not stick)
         unit = e.get("units", {}).get(param.key, "")
         u = uncertainty.get(f"{e['name']}.{param.key}")
         if u is None or not all(_finite(v) for v in u["interval"]):

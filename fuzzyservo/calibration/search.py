@@ -887,6 +887,8 @@ def _frozen_ends(
     unknowns = {}
     for candidate in added:
         for param in LIBRARY[candidate.name].fitted:
+            if param.optional and not candidate.params.get(param.key):
+                continue  # an optional part the fit left off: not part of the model
             # the box its fit had: one fitted in an earlier round's box (the rig's scales
             # move with its fitted unknowns) may lie outside today's, and an end clipped
             # onto the box would move it for no uncertainty of its own

@@ -470,12 +470,7 @@ def friction_force(v: float, p: Any) -> float:
     vc = p[E.friction_smoothing_velocity_si]
     if vc <= 0.0:
         vc = 1e-4
-    level = fc
-    vs = p[E.stribeck_velocity_si]
-    if fst > 0.0 and vs > 0.0:
-        r = v / vs
-        level += fst * math.exp(-r * r)
-    return level * math.tanh(v / vc)
+    return friction_level(v, p) * math.tanh(v / vc)
 
 
 @njit(cache=True, inline="always")
@@ -489,6 +484,12 @@ def friction_level(v: float, p: Any) -> float:
         r = v / vs
         level += fst * math.exp(-r * r)
     return level
+
+
+@njit(cache=True, inline="always")
+def breakaway(p: Any) -> float:
+    """The friction at rest's limit Fc + Fst [N or N·m] (both effects' Coulomb parts)."""
+    return p[E.coulomb_force_si] + p[E.stribeck_coulomb_force_si] + p[E.stribeck_stiction_force_si]
 
 
 @njit(cache=True, inline="always")
@@ -508,7 +509,7 @@ def bristle_rate(v: float, z: float, p: Any) -> float:
     if d <= 0.0:
         return 0.0
     g = friction_level(v, p)
-    top = p[E.coulomb_force_si] + p[E.stribeck_coulomb_force_si] + p[E.stribeck_stiction_force_si]
+    top = breakaway(p)
     if g <= 0.0 or top <= 0.0:
         return 0.0
     return v - (top / d) * abs(v) * z / g
@@ -529,7 +530,7 @@ def actuator_friction(v: float, z: float, mass: float, p: Any) -> float:
     d = presliding(p)
     if d <= 0.0:
         return friction_force(v, p)
-    top = p[E.coulomb_force_si] + p[E.stribeck_coulomb_force_si] + p[E.stribeck_stiction_force_si]
+    top = breakaway(p)
     if top <= 0.0:
         return 0.0
     sigma0 = top / d

@@ -309,13 +309,15 @@ def fit(
         z_from = np.array([space.unit(j, known[f]) for j, (_, f) in enumerate(space.names)])
     optional = _optional(space, effect)
     if optional and start_from is None:
-        z, nested = _minimise_nested(fitted_on, base, effect, space, objective, z_start,
-                                     n_effect, optional, max_evaluations)  # fmt: skip
+        z, nested, nested_runs = _minimise_nested(fitted_on, base, effect, space, objective,
+                                                  z_start, n_effect, optional,
+                                                  max_evaluations)  # fmt: skip
         # the optional parts stay only if they also predict the held-out part better
         judge = objective if fitted_on is replay else _Objective(replay, base, effect, space)
         if replay.costs(judge.model(nested)[0])[1] <= replay.costs(judge.model(z)[0])[1]:
             z = nested
     else:
+        nested_runs = 0
         z = _minimise(objective, z_start, n_effect, max_evaluations, scan=start_from is None,
                       z_from=z_from)  # fmt: skip
     cost_start = objective.train_cost(z_start)
@@ -349,7 +351,7 @@ def fit(
         score=cost_val if cost_val < DIVERGED_COST else math.inf,
         fit_val=fit_table(replay, model),
         status=status_note or status,
-        evaluations=len(objective.cache),
+        evaluations=len(objective.cache) + nested_runs,
         seconds=time.perf_counter() - start,
         model=model,
         rig=rig,
@@ -471,14 +473,14 @@ def _minimise_nested(
     n_effect: int,
     optional: list[int],
     budget: int,
-) -> tuple[np.ndarray, np.ndarray]:
+) -> tuple[np.ndarray, np.ndarray, int]:
     """:func:`_minimise` for an effect with optional parts, which nests the law without
     them (a first-order spool, friction that does not stick): that law is fitted first,
     as it would be alone, then each optional part is scanned from its fit with the rest
     held, and the best of those points joins the starts of the whole law's own search
-    (:func:`_minimise`). Returns the best
-    point and the nested law's fit; the first is never worse on the training part than
-    the second: adding a parameter cannot lose to the model it extends (the issue-40
+    (:func:`_minimise`; its grid only if one of those points beats the nested fit).
+    Returns the best point, the nested law's fit and the replays that fit took; the
+    first is never worse on the training part than the second: adding a parameter cannot lose to the model it extends (the issue-40
     invariant, one level down). The caller keeps the optional parts only where they
     also predict the held-out part better (on the Festo record, a pre-sliding distance
     on its bound fits the training part better and the held-out part worse)."""
@@ -498,10 +500,15 @@ def _minimise_nested(
             point[j] = v
             starts.append(point)
     ranked = sorted(_distinct(starts), key=objective.train_cost)
-    # and the whole law searched as any effect is, from those points too: with its
-    # optional parts on it sits in another valley (sticking friction holds a piston
-    # with other stiction than creeping friction does)
-    return _minimise(objective, z_start, n_effect, budget, z_from=ranked[0]), nested
+    # the whole law searched as any effect is, from those points too: with its optional
+    # parts on it sits in another valley (sticking friction holds a piston with other
+    # stiction than creeping friction does). Its grid over every parameter (5^4 replays
+    # for Stribeck's law) only where an optional part helps the nested fit by itself;
+    # else a local search of the whole law from that fit (a second spool time constant
+    # helps only with the first made shorter: the lag is shared between them)
+    helps = ranked[0] is not nested
+    z = _minimise(objective, z_start, n_effect, budget, scan=helps, z_from=ranked[0])
+    return z, nested, len(sub.cache)
 
 
 def _distinct(points: Sequence[np.ndarray], tol: float = 1e-6) -> list[np.ndarray]:
@@ -532,7 +539,7 @@ def _local(objective: _Objective, z: np.ndarray, step: float, budget: int) -> np
             lambda v: objective.train_cost([v]),
             bounds=(max(z[0] - step, 0.0), min(z[0] + step, 1.0)),
             method="bounded",
-            options={"xatol": 1e-6, "maxiter": 40},
+            options={"xatol": 1e-5, "maxiter": 40},
         )
         best = np.array([sol.x])
     else:

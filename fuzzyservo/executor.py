@@ -146,7 +146,7 @@ class LocalProcesses:
 
     def _end_pool(self) -> list[int | None]:
         """Shut the pool down without waiting, end and reap its processes; their exit codes."""
-        procs = {**self._procs, **(getattr(self._pool, "_processes", None) or {})}.values()
+        procs = list({**self._procs, **(getattr(self._pool, "_processes", None) or {})}.values())
         self._procs = {}
         self._pool.shutdown(wait=False, cancel_futures=True)
         for proc in procs:
@@ -154,6 +154,11 @@ class LocalProcesses:
                 proc.terminate()
         for proc in procs:
             proc.join(timeout=10)  # reaped: no zombie, their CPU time counted as ours
+        # the pool's own thread may reap a dead worker at the same moment (its waitpid
+        # wins, ours finds no child): the exit code is then set a moment later
+        deadline = time.monotonic() + 2.0
+        while any(p.exitcode is None for p in procs) and time.monotonic() < deadline:
+            time.sleep(0.01)
         return [proc.exitcode for proc in procs if proc.exitcode]
 
     def close(self) -> None:

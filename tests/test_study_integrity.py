@@ -201,7 +201,8 @@ def _start_two_workers(tmp_path: Path, tag: str, ignore_sigint: bool = False):
     study, name = cheap_copy(tmp_path, tag)
     out = tmp_path / "out"
     out.mkdir()
-    cmd = [*TUNE, str(study), "--trials", "500", "--out", str(out), "--workers", "2"]
+    # trials enough that the run cannot end (about 70 trials/s here) before the signal lands
+    cmd = [*TUNE, str(study), "--trials", "5000", "--out", str(out), "--workers", "2"]
 
     def background() -> None:  # a job started with `&` by a non-interactive shell
         signal.signal(signal.SIGINT, signal.SIG_IGN if ignore_sigint else signal.SIG_DFL)

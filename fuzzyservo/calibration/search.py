@@ -149,6 +149,14 @@ class _Space:
     bounds: list[tuple[float, float]]
     log: list[bool]
 
+    def subset(self, keep: Sequence[int]) -> _Space:
+        """The parameters at positions ``keep``, in that order."""
+        return _Space(
+            [self.names[j] for j in keep],
+            [self.bounds[j] for j in keep],
+            [self.log[j] for j in keep],
+        )
+
     def _geometric(self, j: int) -> bool:
         """Positive bounds spanning more than two decades map geometrically."""
         lo, hi = self.bounds[j]
@@ -362,11 +370,8 @@ def fit(
 
 def _only(space: _Space, effect: str | None) -> _Space:
     """``space`` cut to ``effect``'s own parameters (the rest held as they are)."""
-    keep = [j for j, (owner, _) in enumerate(space.names) if effect and owner == effect]
-    return _Space(
-        [space.names[j] for j in keep],
-        [space.bounds[j] for j in keep],
-        [space.log[j] for j in keep],
+    return space.subset(
+        [j for j, (owner, _) in enumerate(space.names) if effect and owner == effect]
     )
 
 
@@ -480,17 +485,12 @@ def _minimise_nested(
     held, and the best of those points joins the starts of the whole law's own search
     (:func:`_minimise`; its grid only if one of those points beats the nested fit).
     Returns the best point, the nested law's fit and the replays that fit took; the
-    first is never worse on the training part than the second: adding a parameter cannot lose to the model it extends (the issue-40
-    invariant, one level down). The caller keeps the optional parts only where they
+    first is never worse on the training part than the second: adding a parameter
+    cannot lose to the model it extends (the issue-40 invariant, one level down). The caller keeps the optional parts only where they
     also predict the held-out part better (on the Festo record, a pre-sliding distance
     on its bound fits the training part better and the held-out part worse)."""
     keep = [j for j in range(z_start.size) if j not in optional]
-    sub_space = _Space(
-        [space.names[j] for j in keep],
-        [space.bounds[j] for j in keep],
-        [space.log[j] for j in keep],
-    )
-    sub = _Objective(replay, base, effect, sub_space)
+    sub = _Objective(replay, base, effect, space.subset(keep))
     nested = z_start.copy()
     nested[keep] = _minimise(sub, z_start[keep], n_effect - len(optional), budget)
     starts = [nested]

@@ -421,7 +421,7 @@ def margins(
         gain = gain_margin(rig, controller, sc, **options)
         delay = delay_margin(rig, controller, sc, **options)
     else:
-        rig.plant.loop  # noqa: B018  (import the compiled loop here, not in both threads)
+        rig.plant.for_params(rig.params).loop  # noqa: B018  (import it here, not in both threads)
         with ThreadPoolExecutor(max_workers=2) as pool:
             gain_run = pool.submit(gain_margin, rig, controller, sc, **options)
             delay_run = pool.submit(delay_margin, rig, controller, sc, **options)

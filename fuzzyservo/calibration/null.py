@@ -80,7 +80,7 @@ from dataclasses import dataclass, field
 from typing import Protocol
 
 import numpy as np
-from scipy.stats import norm
+from scipy.special import ndtri
 
 from fuzzyservo.calibration.decision import ALPHA, held_out_lags, long_run_variance, threshold
 from fuzzyservo.calibration.replay import Replay
@@ -372,7 +372,7 @@ def assess(
         # z grows in proportion to the size (the log-likelihood ratio with its square,
         # its spread with the size): found in REQUIRED of the records where its expected
         # z is the threshold plus that quantile of the null's spread of z
-        needed = null.threshold + float(norm.ppf(REQUIRED)) * float(np.std(zs))
+        needed = null.threshold + float(ndtri(REQUIRED)) * float(np.std(zs))
         limit = max(limit, needed / z if z > 0.0 else math.inf)
     if z <= null.threshold:
         verdict = "not established"

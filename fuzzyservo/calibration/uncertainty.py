@@ -68,7 +68,7 @@ from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.stats import t as t_dist
+from scipy.special import stdtrit  # Student's t quantile: stdtrit(dof, q)
 
 from fuzzyservo.calibration.replay import DIVERGED_COST, Replay
 
@@ -179,7 +179,7 @@ def profile_interval(
     minima = _Envelope.resampled_minima(x / scale, cumulative, block, seed)
     bottom = envelope.bottom
     lo, hi = np.percentile(minima, [2.5, 97.5])
-    rough = t_dist.ppf(0.975, envelope.dof) * envelope.error  # its spread over the grid
+    rough = stdtrit(envelope.dof, 0.975) * envelope.error  # its spread over the grid
     lo = bottom - math.hypot(max(bottom - lo, 0.0), rough)
     hi = bottom + math.hypot(max(hi - bottom, 0.0), rough)
     # where the envelope rises less than the costs scatter about it, a value is as good
@@ -238,7 +238,7 @@ class _Envelope:
         quantile of the scatter, but never below the floor (a model cannot beat the
         noise, so where the cubic bottoms out at the floor no needle is deeper)."""
         lowest = float(np.polyval(self.coef, self.bottom))
-        depth = t_dist.ppf(0.975, self.dof) * self.roughness if self.dof > 0 else 0.0
+        depth = stdtrit(self.dof, 0.975) * self.roughness if self.dof > 0 else 0.0
         return min(depth, max(lowest - self.floor, 0.0))
 
     def below(self, rise: float) -> tuple[float, float]:
@@ -258,7 +258,7 @@ class _Envelope:
         by more than that scatter before each end of the grid (or the end is a bound)."""
         if not self.interior:
             return lower_is_bound if self.at_lower else upper_is_bound
-        t = t_dist.ppf(0.975, self.dof)
+        t = stdtrit(self.dof, 0.975)
         near = self.below(self.needle())
         if (near[0] <= self.span[0] and not lower_is_bound) or (
             near[1] >= self.span[1] and not upper_is_bound

@@ -55,7 +55,10 @@ ROLES: dict[str, tuple[int, int]] = {
 
 # State groups, in the order the composed state vector lists them (the seed plants'
 # order: motion first, then the supply side, the chambers, lines, the valve's spool).
-STATE_GROUPS = ("motion", "supply", "chamber", "line", "valve")
+# ``bristles`` (LuGre friction's bristle deflection) comes last and only in a composition
+# that carries it (compose's ``bristles``: a friction effect with a pre-sliding distance);
+# without it every other state keeps its place and no run pays for a state held at 0.
+STATE_GROUPS = ("motion", "supply", "chamber", "line", "valve", "bristles")
 
 
 @dataclass(frozen=True)
@@ -114,6 +117,8 @@ class Component:
     components/effects.py its code reads; ``initial_keys``: rig-file initial keys ->
     (circuit name, SI unit); ``end_stop``: an expression true beyond a mechanical stop;
     ``check``: a problem with the values as ``"key: what is wrong; the fix"``, or None.
+    ``bristle_code``: the phases whose code differs in a composition that carries the
+    ``bristles`` states (LuGre friction), in place of ``code``'s.
     """
 
     type: str
@@ -124,6 +129,7 @@ class Component:
     states: tuple[State, ...] = ()
     signals: tuple[Signal, ...] = ()
     code: Mapping[str, str] = field(default_factory=dict)
+    bristle_code: Mapping[str, str] = field(default_factory=dict)
     effects: tuple[str, ...] = ()
     initial: Callable[[dict[str, float], dict[str, float]], dict[str, float]] | None = None
     initial_keys: Mapping[str, tuple[str, str]] = field(default_factory=dict)
@@ -142,7 +148,7 @@ class Component:
     def __post_init__(self) -> None:
         if self.role not in ROLES:
             raise ValueError(f"component {self.type!r}: role {self.role!r} not in {list(ROLES)}")
-        for phase in self.code:
+        for phase in (*self.code, *self.bristle_code):
             if phase not in PHASES:
                 raise ValueError(f"component {self.type!r}: phase {phase!r} not in {PHASES}")
         for state in self.states:

@@ -499,6 +499,13 @@ def presliding(p: Any) -> float:
     return p[E.coulomb_presliding_si] + p[E.stribeck_presliding_si]
 
 
+def has_bristles(params: Any) -> bool:
+    """Whether the parameters ``params`` (an :class:`EffectParams`) give a friction
+    effect a pre-sliding distance (:func:`presliding` > 0): the LuGre law, whose bristle
+    state a composition then carries (``compose``'s ``bristles``)."""
+    return params.coulomb_presliding_si + params.stribeck_presliding_si > 0.0
+
+
 @njit(cache=True, inline="always")
 def bristle_rate(v: float, z: float, p: Any) -> float:
     """dz/dt of the LuGre bristles' mean deflection ``z`` [m or rad] at velocity ``v``:

@@ -14,7 +14,7 @@ from typing import Any
 
 import numpy as np
 
-from fuzzyservo.components.effects import Scales
+from fuzzyservo.components.effects import Scales, has_bristles
 
 
 @dataclass(frozen=True)
@@ -45,6 +45,9 @@ class PlantModel:
     null_input: Callable[[Any], float]
     effect_scales: Callable[[Any, float, float], Any] | None
     components: tuple[tuple[str, str], ...] = ()  # (instance, type) of a composition
+    # a composition with LuGre friction's bristle states: whether this form carries them
+    # (compose's ``bristles``); None where no component declares them
+    bristles: bool | None = None
     # gauge chamber pressures [Pa] among the signals: checked against the vapour
     # pressure after every run (simulation/validity.py)
     pressures: tuple[str, ...] = ()
@@ -56,8 +59,19 @@ class PlantModel:
         if self.components:
             from fuzzyservo.plants.composed import compose
 
-            return compose, (self.components,)
+            return compose, (self.components, bool(self.bristles))
         return super().__reduce_ex__(protocol)
+
+    def for_params(self, params: Any) -> PlantModel:
+        """The form of this plant that simulates ``params``: a composition carries LuGre
+        friction's bristle states only where a friction effect has a pre-sliding distance
+        (:func:`~fuzzyservo.components.effects.has_bristles`); both forms give the same
+        run for any other parameters, the one without them faster."""
+        if self.bristles is None or self.bristles == has_bristles(params):
+            return self
+        from fuzzyservo.plants.composed import compose
+
+        return compose(self.components, not self.bristles)
 
     @property
     def loop(self) -> ModuleType:

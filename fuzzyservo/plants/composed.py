@@ -52,13 +52,22 @@ def _resolve_unit(unit: str, mechanics: Mapping[str, str], input_unit: str) -> s
     return _TOKENS.sub(lambda m: f"({table[m.group(1)]})", unit)
 
 
-@cache
-def compose(parts: tuple[tuple[str, str], ...]) -> Any:
+def compose(parts: tuple[tuple[str, str], ...], bristles: bool = False) -> Any:
     """The plant of the instances ``parts`` = ((instance name, component type), ...).
 
-    Cached: the same composition gives the same plant (and parameter class) every time.
-    Raises :class:`CompositionError` naming the instance when the circuit is incomplete.
+    ``bristles``: with the ``bristles`` states (LuGre friction's bristle deflection, last
+    in the state vector) and the components' ``bristle_code``; without them (the
+    default) every run is spared a state that would stay at 0. Both forms share one
+    parameter class; :meth:`~fuzzyservo.plants.PlantModel.for_params` picks the one a
+    parameter set needs. Cached: the same composition gives the same plant (and
+    parameter class) every time. Raises :class:`CompositionError` naming the instance
+    when the circuit is incomplete.
     """
+    return _compose(tuple(parts), bool(bristles))  # one cache key however it is called
+
+
+@cache
+def _compose(parts: tuple[tuple[str, str], ...], bristles: bool) -> Any:
     from fuzzyservo.plants import PlantModel
 
     types = registry()
@@ -126,25 +135,28 @@ def compose(parts: tuple[tuple[str, str], ...]) -> Any:
     # required fields before defaulted ones (dataclass rule); the order packs the vector
     fields.sort(key=lambda f: f[2].default is not dataclasses.MISSING)
     label = "_".join(t for _, t in parts)
-    params_cls = dataclasses.make_dataclass(
-        "ComposedParams",
-        fields,
-        bases=(EffectParams,),
-        frozen=True,
-        namespace={
-            "__doc__": f"Parameters of the composition {label} (SI).",
-            "__post_init__": _make_post_init(instances),
-            # pickled as its composition and values: the class is made here, at load time,
-            # so a worker process (calibration's candidate pool) rebuilds it with compose()
-            "__reduce__": lambda self: (
-                _composed_params,
-                (parts, {f.name: getattr(self, f.name) for f in dataclasses.fields(self)}),
-            ),
-            **_stroke(instances),
-        },
-    )
-    params_cls.__module__ = __name__
-    params_cls.__qualname__ = f"ComposedParams[{label}]"
+    if bristles:  # one parameter class for both forms: the same values run on either
+        params_cls = compose(parts).params_cls
+    else:
+        params_cls = dataclasses.make_dataclass(
+            "ComposedParams",
+            fields,
+            bases=(EffectParams,),
+            frozen=True,
+            namespace={
+                "__doc__": f"Parameters of the composition {label} (SI).",
+                "__post_init__": _make_post_init(instances),
+                # pickled as its composition and values: the class is made here, at load time,
+                # so a worker process (calibration's candidate pool) rebuilds it with compose()
+                "__reduce__": lambda self: (
+                    _composed_params,
+                    (parts, {f.name: getattr(self, f.name) for f in dataclasses.fields(self)}),
+                ),
+                **_stroke(instances),
+            },
+        )
+        params_cls.__module__ = __name__
+        params_cls.__qualname__ = f"ComposedParams[{label}]"
     # P.key: a scalar's entry p[i]; a vector's start in p (code passes p and it on)
     param_index = {
         (name, prm.key): (
@@ -157,7 +169,12 @@ def compose(parts: tuple[tuple[str, str], ...]) -> Any:
     }
 
     # states, grouped in STATE_GROUPS order
-    declared = [(name, comp, st) for name, comp in instances for st in comp.states]
+    declared = [
+        (name, comp, st)
+        for name, comp in instances
+        for st in comp.states
+        if bristles or st.group != "bristles"
+    ]
     declared.sort(key=lambda item: STATE_GROUPS.index(item[2].group))
     state_index = {(name, st.name): i for i, (name, _, st) in enumerate(declared)}
     state_names = tuple(st.name for _, _, st in declared)
@@ -176,7 +193,7 @@ def compose(parts: tuple[tuple[str, str], ...]) -> Any:
         if phase == "line_flow" and not has_line:
             body += ["q_a = q_va", "q_b = q_vb"]
         for name, comp in instances:
-            code = comp.code.get(phase)
+            code = (bristles and comp.bristle_code.get(phase)) or comp.code.get(phase)
             if code:
                 body.append(f"# {name} ({comp.type}): {phase}")
                 body += [line for line in subst(name, comp, _dedent(code)).splitlines()]
@@ -229,6 +246,9 @@ def compose(parts: tuple[tuple[str, str], ...]) -> Any:
         null_input=lambda params: _null(valve, instances, params),
         effect_scales=lambda params, rated, dt: _scales(instances, params, rated, dt),
         components=tuple((n, c.type) for n, c in instances),
+        bristles=bristles
+        if any(st.group == "bristles" for _, c in instances for st in c.states)
+        else None,
         # every pressure a component declares is a node pressure against the tank
         pressures=tuple(name for name in signal_names if units[name] == "Pa"),
     )

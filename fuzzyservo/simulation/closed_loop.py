@@ -13,6 +13,7 @@ import numpy as np
 from fuzzyservo.components.effects import E
 from fuzzyservo.controllers.base import Controller
 from fuzzyservo.controllers.classical import OpenLoop
+from fuzzyservo.plants import PlantModel
 from fuzzyservo.rig import Rig, Scenario
 from fuzzyservo.simulation import _loop
 from fuzzyservo.simulation.result import SimResult
@@ -44,6 +45,7 @@ class Prepared:
     scenario: Scenario
     controller: Controller
     params: object
+    plant: PlantModel  # the rig's plant in the form these parameters need (for_params)
     p: np.ndarray
     x0: np.ndarray
     t: np.ndarray
@@ -57,7 +59,7 @@ class Prepared:
     @property
     def plant_states(self) -> int:
         """How many of the states are the plant's (``valve_lag`` appends the spool)."""
-        return len(self.rig.plant.states)
+        return len(self.plant.states)
 
 
 def prepare(
@@ -84,7 +86,7 @@ def prepare(
     n = round(duration / rig.sample_time_s)
     t = np.arange(n) * rig.sample_time_s
     initial = {**rig.initial, **sc.initial}
-    plant = rig.plant
+    plant = rig.plant.for_params(params)
     x0 = np.asarray(plant.initial_state(params, **initial), dtype=np.float64)
     scale = np.asarray(plant.state_scale(params), dtype=np.float64)
     typical = np.asarray(plant.typical_state(params), dtype=np.float64)
@@ -111,6 +113,7 @@ def prepare(
         scenario=sc,
         controller=controller,
         params=params,
+        plant=plant,
         p=p,
         x0=x0,
         t=t,
@@ -156,7 +159,7 @@ def simulate(
     actuator = np.empty(n)
     saturated = np.zeros(n, dtype=np.bool_)
     cp, cs = _initial_state(prep.controller, rig.sample_time_s)
-    status, where, steps = rig.plant.loop.closed_loop(
+    status, where, steps = prep.plant.loop.closed_loop(
         prep.p,
         prep.null,
         prep.x0,
@@ -207,7 +210,7 @@ def simulate_batch(
     dt = first.rig.sample_time_s
     cp, cs = _initial_state(first.controller, dt)
     if len(preps) == 1 or not all(
-        p.rig.plant.loop is first.rig.plant.loop
+        p.plant.loop is first.plant.loop
         and p.rig.sample_time_s == dt
         and p.controller.kind == first.controller.kind
         and np.array_equal(_initial_state(p.controller, dt)[0], cp)
@@ -226,7 +229,7 @@ def simulate_batch(
     actuator = np.empty((b, n))
     saturated = np.zeros((b, n), dtype=np.bool_)
     out = np.zeros((b, 3), dtype=np.int64)
-    first.rig.plant.loop.closed_loop_batch(
+    first.plant.loop.closed_loop_batch(
         np.stack([p.p for p in preps]),
         np.array([p.null for p in preps]),
         np.stack([p.x0 for p in preps]),
@@ -300,8 +303,7 @@ def assemble(
 
     ``feedback`` is the true reading of the feedback sensor, ``measured`` the noisy,
     quantised one the controller saw; extra sensors are recorded true (noise-free)."""
-    rig = prep.rig
-    plant = rig.plant
+    rig, plant = prep.rig, prep.plant
     n = prep.t.size
     values = np.empty((n, len(plant.signals)))
     states = np.ascontiguousarray(states[:, : prep.plant_states])
@@ -393,7 +395,7 @@ def simulate_stepped(
     delays. A native controller run this way gives the compiled loop's numbers."""
     prep = prepare(rig, controller, scenario, duration_s, noise=noise, noise_seed=noise_seed)
     c = prep.controller
-    loop, p, settings = rig.plant.loop, prep.p, loop_settings(rig, tol)
+    loop, p, settings = prep.plant.loop, prep.p, loop_settings(rig, tol)
     dt = rig.sample_time_s
     n, x = prep.t.size, prep.x0.copy()
     states = np.full((n, x.size), np.nan)

@@ -38,7 +38,7 @@ def simulate_reference(
     equivalent: ``state_scale`` times 1e3).
     """
     prep = prepare(rig, controller, scenario, duration_s, noise=noise, noise_seed=noise_seed)
-    loop = rig.plant.loop
+    loop = prep.plant.loop
     p = prep.p
     n = prep.t.size
     x = prep.x0.copy()

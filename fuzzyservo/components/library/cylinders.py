@@ -12,8 +12,8 @@ pressures ``p_a`` (piston side, +y extends) and ``p_b`` [Pa]:
 ``m`` is the piston's mass plus every ``mass`` load; F_loads every load's force and
 the scenario's; F_stop a stiff spring-damper beyond 0 and the stroke L (the seeds are
 silent; docs/modelling.md "chamber volumes must never reach zero"). Effects: friction
-(``coulomb_friction``, ``stribeck_friction``; LuGre's bristle state ``z`` stays at 0
-unless the latter has a pre-sliding distance), ``internal_leakage`` q_leak = K_l·(p_a − p_b),
+(``coulomb_friction``, ``stribeck_friction``; LuGre's bristle state ``z`` exists only
+where one of them has a pre-sliding distance), ``internal_leakage`` q_leak = K_l·(p_a − p_b),
 ``external_leakage`` K_e·p out of each chamber.
 """
 
@@ -22,7 +22,7 @@ from __future__ import annotations
 import math
 
 from fuzzyservo.components.declare import Component, Param, Signal, State
-from fuzzyservo.components.library.oil import CHAMBER_EFFECTS, two_chambers
+from fuzzyservo.components.library.oil import CHAMBER_EFFECTS, actuator_motion
 
 _COMMON = (
     Param("stroke", "m", "stroke L", positive=True),
@@ -41,10 +41,10 @@ _COMMON = (
 _STATES = (
     State("y", "m", "piston position from the retracted end", "motion", 1e-6, 1e-3),
     State("v", "m/s", "piston velocity", "motion", 1e-3, 0.1),
-    # LuGre friction's bristles (stribeck_friction's pre-sliding distance; else held at 0)
-    State("z", "m", "friction bristles' mean deflection", "motion", 1e-8, 1e-5),
     State("p_a", "Pa", "pressure in chamber A (piston side)", "chamber", 1e3, 1e6),
     State("p_b", "Pa", "pressure in chamber B", "chamber", 1e3, 1e6),
+    # LuGre friction's bristles: only with a friction effect's pre-sliding distance
+    State("z", "m", "friction bristles' mean deflection", "bristles", 1e-8, 1e-5),
 )
 _SIGNALS = (
     Signal("y", "m", "pos"),
@@ -76,12 +76,9 @@ _ACTUATOR = """
         )
     L.q_leak = E.internal_leakage_m3_s_pa * (p_a - p_b)
 """
-_MOTION = """
-L.f_fric = actuator_friction(vel, X.z, mass, p)
-DX.y = vel
-DX.z = bristle_rate(vel, X.z, p)
-DX.v = (p_a * area_a - p_b * area_b - L.f_fric - f_load + f_stop) / mass
-""" + two_chambers("L.va", "L.vb")
+# the motion phase, with and without LuGre friction's bristle state
+_ACCELERATION = "(p_a * area_a - p_b * area_b - L.f_fric - f_load + f_stop) / mass"
+_VOLUMES = ("L.va", "L.vb")
 
 
 def _areas(v: dict[str, float], double: bool) -> tuple[float, float]:
@@ -136,8 +133,9 @@ def _cylinder(type_name: str, double: bool, doc: str) -> Component:
         code={
             "actuator": _ACTUATOR.format(area_a=area_a, area_b=area_b),
             "mass": "mass += P.piston_mass",
-            "motion": _MOTION,
+            "motion": actuator_motion("y", "v", _ACCELERATION, _VOLUMES, bristles=False),
         },
+        bristle_code={"motion": actuator_motion("y", "v", _ACCELERATION, _VOLUMES, bristles=True)},
         effects=CHAMBER_EFFECTS,
         initial=_initial(double),
         initial_keys={

@@ -17,7 +17,7 @@ from each port) and ``entrained_air`` (E_a, E_b = E_mix(p) instead of E).
 from __future__ import annotations
 
 from fuzzyservo.components.declare import Component, Param, Signal, State
-from fuzzyservo.components.library.oil import CHAMBER_EFFECTS, two_chambers
+from fuzzyservo.components.library.oil import CHAMBER_EFFECTS, actuator_motion
 
 
 def _initial(v: dict[str, float], ctx: dict[str, float]) -> dict[str, float]:
@@ -33,6 +33,11 @@ def _initial(v: dict[str, float], ctx: dict[str, float]) -> dict[str, float]:
         pa = p_t + 0.5 * (p_s - p_t) + 0.5 * dp
         pb = pa - dp
     return {"theta": ctx.get("angle", 0.0), "w": ctx.get("speed", 0.0), "p_a": pa, "p_b": pb}
+
+
+# the motion phase, with and without LuGre friction's bristle state
+_ACCELERATION = "(P.hydromechanical_efficiency * (p_a - p_b) * area_a - L.f_fric - f_load) / mass"
+_VOLUMES = ("P.volume_a", "P.volume_b")
 
 
 COMPONENTS = (
@@ -58,10 +63,10 @@ COMPONENTS = (
         states=(
             State("theta", "rad", "shaft angle", "motion", 1e-3, 1.0),
             State("w", "rad/s", "shaft speed", "motion", 1e-2, 10.0),
-            # LuGre friction's bristles (stribeck_friction's pre-sliding distance)
-            State("z", "rad", "friction bristles' mean deflection", "motion", 1e-7, 1e-3),
             State("p_a", "Pa", "pressure at port A", "chamber", 1e3, 1e6),
             State("p_b", "Pa", "pressure at port B", "chamber", 1e3, 1e6),
+            # LuGre friction's bristles: only with a friction effect's pre-sliding distance
+            State("z", "rad", "friction bristles' mean deflection", "bristles", 1e-7, 1e-3),
         ),
         signals=(
             Signal("theta", "rad", "pos"),
@@ -83,13 +88,10 @@ COMPONENTS = (
                 L.q_leak = E.internal_leakage_m3_s_pa * (p_a - p_b)
             """,
             "mass": "mass += P.inertia",
-            "motion": """
-L.f_fric = actuator_friction(vel, X.z, mass, p)
-DX.theta = vel
-DX.z = bristle_rate(vel, X.z, p)
-DX.w = (P.hydromechanical_efficiency * (p_a - p_b) * area_a - L.f_fric - f_load) / mass
-"""
-            + two_chambers("P.volume_a", "P.volume_b"),
+            "motion": actuator_motion("theta", "w", _ACCELERATION, _VOLUMES, bristles=False),
+        },
+        bristle_code={
+            "motion": actuator_motion("theta", "w", _ACCELERATION, _VOLUMES, bristles=True)
         },
         effects=CHAMBER_EFFECTS,
         initial=_initial,

@@ -36,6 +36,22 @@ DX.p_b = (L.eb * L.nb + L.mb * (L.eb / beta)) / {volume_b}
 """
 
 
+def actuator_motion(
+    position: str, velocity: str, acceleration: str, volumes: tuple[str, str], bristles: bool
+) -> str:
+    """Source lines of an actuator's motion phase: its friction ``L.f_fric`` (the
+    static law, or with ``bristles`` LuGre's, which reads and moves the bristle state
+    ``z``), ``DX.<position> = vel``, ``DX.<velocity> = <acceleration>`` (an expression that
+    subtracts ``L.f_fric``) and the two chambers (:func:`two_chambers` on ``volumes``).
+    Cylinders and motors share it."""
+    friction = "actuator_friction(vel, X.z, mass, p)" if bristles else "friction_force(vel, p)"
+    rate = "DX.z = bristle_rate(vel, X.z, p)\n" if bristles else ""
+    return (
+        f"L.f_fric = {friction}\nDX.{position} = vel\n{rate}DX.{velocity} = {acceleration}\n"
+        + two_chambers(*volumes)
+    )
+
+
 COMPONENTS = (
     Component(
         type="oil",

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import pickle
 from pathlib import Path
 
 import numpy as np
@@ -122,6 +123,21 @@ def test_lugre_friction_sticks_where_the_static_law_creeps() -> None:
     ref = simulate_reference(lugre, ctrl, "steps", duration_s=4.0, rtol=1e-8)
     fast = simulate(lugre, ctrl, "steps", duration_s=4.0)
     assert np.max(np.abs(fast.signals["y"] - ref.signals["y"])) < 5e-6  # 4.0 µm measured
+
+
+def test_the_bristle_state_is_carried_only_where_friction_sticks() -> None:
+    # a run without a pre-sliding distance is spared the state; with one, the plant's
+    # other form carries it last, every other state where it was, one parameter class
+    rig = rig_named("dinca_cylinder")
+    static = rig.with_effect("coulomb_friction", force=300.0)
+    lugre = rig.with_effect("coulomb_friction", force=300.0, presliding_distance=2e-5)
+    compact = static.plant.for_params(static.params)
+    carried = lugre.plant.for_params(lugre.params)
+    assert compact is rig.plant and "z" not in compact.states
+    assert carried.states == (*compact.states, "z")
+    assert carried.params_cls is compact.params_cls
+    assert carried.for_params(static.params) is compact  # and back
+    assert pickle.loads(pickle.dumps(carried)) is carried  # compose() is cached per form
 
 
 def test_deadband_around_the_null() -> None:

@@ -421,7 +421,9 @@ def margins(
         gain = gain_margin(rig, controller, sc, **options)
         delay = delay_margin(rig, controller, sc, **options)
     else:
-        rig.plant.for_params(rig.params).loop  # noqa: B018  (import it here, not in both threads)
+        # the loop the runs will use (the scenario's parameters pick the plant's form),
+        # imported here, not in both threads
+        rig.plant.for_params(rig.params_for(sc)).loop  # noqa: B018
         with ThreadPoolExecutor(max_workers=2) as pool:
             gain_run = pool.submit(gain_margin, rig, controller, sc, **options)
             delay_run = pool.submit(delay_margin, rig, controller, sc, **options)

@@ -465,7 +465,7 @@ def _interruptible():
 
     Yields a function telling whether such a signal came: the exception can be lost
     where it is raised (a Ctrl-C during the sampler's first import of scipy.stats,
-    about 1 in 15 runs of the background-Ctrl-C test under load, ended nowhere and
+    about 1 in 12 runs of the background-Ctrl-C test under load, ended nowhere and
     the study ran on), so the batch loop checks it too."""
     import signal
     import threading

@@ -42,6 +42,7 @@ from fuzzyservo.calibration.replay import DIVERGED_COST, Replay
 from fuzzyservo.calibration.residuals import fit_percent
 from fuzzyservo.calibration.uncertainty import (
     Estimate,
+    at_bound,
     correlated,
     effective_samples,
     estimates,
@@ -861,8 +862,10 @@ def _uncertainty(
         trial = z.copy()
         trial[j] = v
         r = objective.residuals(trial)
-        others = follows[j]
-        if others.size:  # the parameters it trades with follow it down the valley
+        # the values it trades with follow it down the valley; all others where it sits
+        # on a bound (a one-sided Jacobian there tells little of correlation)
+        others = np.flatnonzero(np.arange(z.size) != j) if at_bound(z[j]) else follows[j]
+        if others.size:
             moved = trial.copy()
             moved[others] = gauss_newton_step(jac[:, others], r, z[others])
             r_moved = objective.residuals(moved)

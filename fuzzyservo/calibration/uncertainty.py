@@ -40,7 +40,10 @@ Every fitted value gets two intervals, and the one reported spans both (and the 
   take one Gauss-Newton step from there (:func:`gauss_newton_step`), kept where it
   lowers the cost. That follows a curved valley, as a profile likelihood does, where
   holding them cuts across it (a second-order spool's two time constants trade along
-  one). Its spacing
+  one). Where the parameter sits on a bound of the box (an optional part off: a
+  spool's second time constant at 0) every other one takes that step: a one-sided
+  Jacobian there says little about correlation (the time constants share the lag, so
+  the first must shorten as the second grows from 0). Its spacing
   starts at half the sandwich's half-width, never under the search's Jacobian step, and
   doubles (``DOUBLINGS`` times at most) until the bottom lies inside the grid, or at a
   bound of the box, the scatter places it within ``SETTLED`` of the grid's half-span,
@@ -256,15 +259,14 @@ class _Envelope:
         """The grid shows the bottom: inside it (or at a bound of the box), placed by
         the costs' scatter to within ``SETTLED`` of its half-span; and the cubic rises
         by more than that scatter before each end of the grid (or the end is a bound)."""
-        if not self.interior:
-            return lower_is_bound if self.at_lower else upper_is_bound
-        t = stdtrit(self.dof, 0.975)
         near = self.below(self.needle())
         if (near[0] <= self.span[0] and not lower_is_bound) or (
             near[1] >= self.span[1] and not upper_is_bound
         ):
             return False
-        return t * self.error <= SETTLED
+        if not self.interior:
+            return lower_is_bound if self.at_lower else upper_is_bound
+        return stdtrit(self.dof, 0.975) * self.error <= SETTLED
 
     @staticmethod
     def resampled_minima(
@@ -315,6 +317,11 @@ def correlated(jacobian: np.ndarray) -> list[np.ndarray]:
     for a, j in enumerate(idx):
         out[j] = idx[(corr[a] >= CORRELATED) & (idx != j)]
     return out
+
+
+def at_bound(z: float) -> bool:
+    """A unit-box coordinate within ``AT_BOUND`` of a bound."""
+    return z <= AT_BOUND or z >= 1.0 - AT_BOUND
 
 
 def gauss_newton_step(columns: np.ndarray, residuals: np.ndarray, start: np.ndarray) -> np.ndarray:

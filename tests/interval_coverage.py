@@ -15,11 +15,16 @@ Run from the repository root (a few seconds per draw; one process at a time on a
 machine, niced):
 
     PYTHONPATH=. nice python tests/interval_coverage.py [draws=50] [effect ...] [--from-truth]
+        [--in-loop] [--open-loop]
 
 An effect may name a variant of :data:`VARIANTS` (``valve_lag:second_order``).
 
 ``--from-truth`` refines each fit from the true values instead of searching: the
-intervals' coverage apart from a search that ends in the wrong valley.
+intervals' coverage apart from a search that ends in the wrong valley. ``--in-loop``:
+the rig's own feedback noise (1 mV, about 52 µm) is in the loop, as on a rig, and the
+record's position is what the controller read (synthetic_run's ``in_loop``); the
+pressures keep their recorded noise. ``--open-loop``: the record is replayed from its
+valve current, not through the controller.
 """
 
 from __future__ import annotations
@@ -93,7 +98,13 @@ def effects() -> tuple[str, ...]:
 
 
 def draw(
-    rig: Rig, effect: str, k: int, *, from_truth: bool = False
+    rig: Rig,
+    effect: str,
+    k: int,
+    *,
+    from_truth: bool = False,
+    in_loop: bool = False,
+    open_loop: bool = False,
 ) -> tuple[dict[str, float], dict[str, Estimate]]:
     """Draw ``k`` of ``effect``: its true parameters (key -> SI) and the fitted
     parameters' estimates (key -> Estimate). ``from_truth``: the fit refines from the
@@ -108,8 +119,9 @@ def draw(
         if param.optional:
             truth.setdefault(param.key, 0.0)
     controller = controller_named("p_k10")
-    data = synthetic_run(rig, controller, "pulses", {effect: truth}, NOISE, seed=seed)
-    replay = make_replay(rig, data, controller)
+    data = synthetic_run(rig, controller, "pulses", {effect: truth}, NOISE, seed=seed,
+                         in_loop=in_loop)  # fmt: skip
+    replay = make_replay(rig, data, None if open_loop else controller)
     start = None
     if from_truth:  # a candidate at the truth (nothing to fit) to start from
         _, start = search.fit(replay, rig.with_effect(effect, **truth), None)
@@ -124,14 +136,22 @@ def covers(estimate: Estimate, truth: float) -> bool:
 
 
 def coverage(
-    rig: Rig, effect: str, draws: int, *, from_truth: bool = False, log=print
+    rig: Rig,
+    effect: str,
+    draws: int,
+    *,
+    from_truth: bool = False,
+    in_loop: bool = False,
+    open_loop: bool = False,
+    log=print,
 ) -> list[tuple[str, int, int, float]]:
     """(parameter, draws, covered, median half-width / truth) of each fitted parameter."""
     hits: dict[str, list[bool]] = {}
     widths: dict[str, list[float]] = {}
     for k in range(draws):
         start = time.perf_counter()
-        truth, found = draw(rig, effect, k, from_truth=from_truth)
+        truth, found = draw(rig, effect, k, from_truth=from_truth, in_loop=in_loop,
+                            open_loop=open_loop)  # fmt: skip
         words = []
         for key, est in found.items():
             hits.setdefault(key, []).append(covers(est, truth[key]))
@@ -149,11 +169,18 @@ def coverage(
     ]
 
 
-def main(draws: int = 50, names: tuple[str, ...] = (), *, from_truth: bool = False) -> None:
+def main(
+    draws: int = 50,
+    names: tuple[str, ...] = (),
+    *,
+    from_truth: bool = False,
+    in_loop: bool = False,
+    open_loop: bool = False,
+) -> None:
     rig = rig_named("dinca_cylinder")
     rows = []
     for effect in names or effects():
-        rows += coverage(rig, effect, draws, from_truth=from_truth,
+        rows += coverage(rig, effect, draws, from_truth=from_truth, in_loop=in_loop, open_loop=open_loop,
                          log=lambda line: print(line, flush=True))  # fmt: skip
     print("\n| effect parameter | draws | covered | median half-width / truth |")
     print("|---|---|---|---|")
@@ -164,5 +191,6 @@ def main(draws: int = 50, names: tuple[str, ...] = (), *, from_truth: bool = Fal
 
 
 if __name__ == "__main__":
-    args = [a for a in sys.argv[1:] if a != "--from-truth"]
-    main(int(args[0]) if args else 50, tuple(args[1:]), from_truth="--from-truth" in sys.argv)
+    args = [a for a in sys.argv[1:] if not a.startswith("--")]
+    main(int(args[0]) if args else 50, tuple(args[1:]), from_truth="--from-truth" in sys.argv,
+         in_loop="--in-loop" in sys.argv, open_loop="--open-loop" in sys.argv)  # fmt: skip

@@ -179,3 +179,19 @@ def test_a_load_in_the_wrong_unit_is_refused():
     )
     with pytest.raises(DataError, match=r"column 'load' is in Pa.*load_N"):
         make_replay(rig, data, P(gain=4.0))
+
+
+def test_a_synthetic_record_with_the_noise_in_the_loop_logs_what_the_controller_read():
+    """``in_loop``: the feedback sensor's declared noise (1 mV, about 52 µm on the seed-002
+    rig) is in the loop, so the current answers it, and the recorded position is the
+    reading the controller had: on the 16-bit converter's steps (0.31 mV, 16 µm)."""
+    rig = rig_named("dinca_cylinder")
+    controller = P(gain=10.0, u_min=-10, u_max=10)
+    clean = synthetic_run(rig, controller, "pulses", {}, {"y": 5e-6}, seed=1, duration_s=1.0)
+    noisy = synthetic_run(rig, controller, "pulses", {}, {"y": 5e-6}, seed=1, duration_s=1.0,
+                          in_loop=True)  # fmt: skip
+    y = np.asarray(noisy.signals["y"])
+    step = 20.0 / 2**16 / 0.1936 * 1e-2  # the converter's step in metres
+    assert np.allclose((y - y[0]) / step, np.round((y - y[0]) / step), atol=1e-6)
+    assert 30e-6 < np.std(y - clean.signals["y"]) < 80e-6
+    assert not np.allclose(noisy.signals["i"], clean.signals["i"])

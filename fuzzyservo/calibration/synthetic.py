@@ -23,15 +23,23 @@ def synthetic_run(
     *,
     seed: int = 0,
     duration_s: float | None = None,
+    in_loop: bool = False,
 ) -> Measured:
     """Simulate ``rig`` with ``effects`` (name -> parameter key -> SI value) and record
     ``ref`` (in the sensed signal's unit), the plant input (``i`` for a current,
     else ``u``) and every channel of ``noise`` (signal -> standard deviation, SI) with
-    that noise added. Raises ValueError if the run does not finish."""
+    that noise added. Raises ValueError if the run does not finish.
+
+    ``in_loop``: the feedback sensor's own noise (the rig's ``feedback.noise``, seeded
+    by ``seed``) is in the loop, as on a rig, and the feedback channel records what the
+    controller read (noisy and quantised; its entry in ``noise`` adds nothing). Else the
+    loop runs noise-free and the noise goes on the records only."""
     for name, values in effects.items():
         rig = rig.with_effect(name, **values)
-    # the loop runs noise-free, as a calibration replay does: the noise goes on the records
-    res = simulate(rig, controller, scenario, duration_s=duration_s, noise=False)
+    # the loop's noise from a stream of its own (the records' noise takes ``seed``'s)
+    loop_seed = int(np.random.SeedSequence([seed, 1]).generate_state(1)[0])
+    res = simulate(rig, controller, scenario, duration_s=duration_s, noise=in_loop,
+                   noise_seed=loop_seed)  # fmt: skip
     if not res.ok:
         raise ValueError(f"synthetic run failed: {res.message}")
     rng = np.random.default_rng(seed)
@@ -48,7 +56,10 @@ def synthetic_run(
             signals["load"], units["load"] = load, rig.plant.mechanics["force"]
     for name, sigma in noise.items():
         signal = rig.output if name == "y" else name
-        signals[name] = res.signals[signal] + rng.normal(0.0, sigma, res.t.size)
+        if in_loop and signal == fb.signal:  # what the controller read, in its unit
+            signals[name] = np.asarray(fb.invert(res.signal("measured")), dtype=float)
+        else:
+            signals[name] = res.signals[signal] + rng.normal(0.0, sigma, res.t.size)
         units[name] = rig.plant.signal_units[signal]
     return Measured(
         t=res.t,

@@ -18,7 +18,7 @@ from support import DATA
 
 from fuzzyservo.designer.files import Folders
 from fuzzyservo.designer.session import Session, metrics_rows
-from fuzzyservo.errors import ConfigError
+from fuzzyservo.errors import ConfigError, FuzzyservoError
 from fuzzyservo.io.controllers import load_controller
 from fuzzyservo.io.fuzzy import fuzzy_controller_data
 
@@ -230,11 +230,17 @@ def test_the_dashboard_link_serves_optuna_dashboard_on_the_same_storage(study_ou
     from fuzzyservo.designer.app import start_dashboard
     from fuzzyservo.designer.guard import Guard
 
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        port = s.getsockname()[1]
     url = f"sqlite:///{study_out / 'dinca_flc' / 'dinca_flc.db'}"
-    link = start_dashboard(url, Guard.make(port, "127.0.0.1"))
+    for attempt in range(5):  # a port free a moment ago may be taken by another worker
+        with socket.socket() as s:
+            s.bind(("127.0.0.1", 0))
+            port = s.getsockname()[1]
+        try:
+            link = start_dashboard(url, Guard.make(port, "127.0.0.1"))
+            break
+        except FuzzyservoError as exc:
+            if "already in use" not in str(exc) or attempt == 4:
+                raise
     port = urllib.parse.urlsplit(link).port  # the next one when this process runs another
     assert link.startswith(f"http://127.0.0.1:{port}/?token=")
     opener = urllib.request.build_opener(

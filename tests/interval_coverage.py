@@ -180,8 +180,8 @@ def main(
     rig = rig_named("dinca_cylinder")
     rows = []
     for effect in names or effects():
-        rows += coverage(rig, effect, draws, from_truth=from_truth, in_loop=in_loop, open_loop=open_loop,
-                         log=lambda line: print(line, flush=True))  # fmt: skip
+        rows += coverage(rig, effect, draws, from_truth=from_truth, in_loop=in_loop,
+                         open_loop=open_loop, log=lambda line: print(line, flush=True))  # fmt: skip
     print("\n| effect parameter | draws | covered | median half-width / truth |")
     print("|---|---|---|---|")
     for name, n, hit, width in rows:

@@ -389,8 +389,8 @@ def _estimate(
     a, b = to_value(zl), to_value(zh)
     lo, hi = min(a, b, value), max(a, b, value)
     # an effect parameter at 0 is "off": a bound only when 0 is not its natural floor
-    at_bound = (z <= AT_BOUND and bounds[0] != 0.0) or z >= 1.0 - AT_BOUND
-    return Estimate(float(value), (float(lo), float(hi)), bounds, bool(at_bound))
+    flagged = (z <= AT_BOUND and bounds[0] != 0.0) or z >= 1.0 - AT_BOUND
+    return Estimate(float(value), (float(lo), float(hi)), bounds, bool(flagged))
 
 
 def effective_samples(replay: Replay, model: dict[str, np.ndarray]) -> tuple[int, float]:

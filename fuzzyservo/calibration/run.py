@@ -21,7 +21,7 @@ from fuzzyservo.results import Result, json_ready
 
 if TYPE_CHECKING:
     from fuzzyservo.controllers.base import Controller
-    from fuzzyservo.io.measured import Measured
+    from fuzzyservo.measured import Measured
     from fuzzyservo.rig import Rig
 
 

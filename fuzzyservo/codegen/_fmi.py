@@ -26,6 +26,7 @@ import re
 from dataclasses import dataclass
 from xml.sax.saxutils import quoteattr
 
+from fuzzyservo.codegen._c import c_sources, identifier, system_c_sources
 from fuzzyservo.codegen._fmi_api import FMI2, FMI3
 from fuzzyservo.controllers.fuzzy.controller import FUZZY_PARAMS, FuzzyController
 from fuzzyservo.controllers.fuzzy.system import FuzzySystem
@@ -75,8 +76,6 @@ class FmuModel:
 def fmu_model(target: FuzzyController | FuzzySystem, sample_time_s: float) -> FmuModel:
     """The FMU of a controller (its control law) or of an inference system (any inputs and
     outputs); ``sample_time_s`` the controller's sample period, the default step."""
-    from fuzzyservo.codegen import c_sources, identifier, system_c_sources
-
     if not (math.isfinite(sample_time_s) and sample_time_s > 0):
         raise ValueError(f"the sample time must be > 0 s, got {sample_time_s}")
     time = FmuVariable("time", "independent", "continuous", None, "simulation time [s]",

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import math
 
+from fuzzyservo.codegen._lut import lut_table
 from fuzzyservo.controllers.fuzzy.controller import FORMS, FUZZY_STATE, FuzzyController
 from fuzzyservo.controllers.layout import slots
 
@@ -32,8 +33,6 @@ def st_source(
     controller: FuzzyController, sample_time_s: float, name: str, lut: int | None = None
 ) -> tuple[str, int]:
     """The function block's text, and the table size used."""
-    from fuzzyservo.codegen import lut_table
-
     n_in = len(controller.system.inputs)
     n = lut or ST_POINTS[n_in]
     grids, table = lut_table(controller, n)

@@ -51,15 +51,16 @@ class PlantModel:
     # gauge chamber pressures [Pa] among the signals: checked against the vapour
     # pressure after every run (simulation/validity.py)
     pressures: tuple[str, ...] = ()
+    # how a composition is made again from its parts and bristle form (compose itself:
+    # a module-level function, so a plant pickles as its parts); None for any other plant
+    rebuild: Callable[[tuple[tuple[str, str], ...], bool], PlantModel] | None = None
 
     def __reduce_ex__(self, protocol: int) -> Any:
         """A composition pickles as its parts (its functions are closures made at load
         time; :func:`~fuzzyservo.plants.composed.compose` rebuilds the same plant), any
         other plant as its fields."""
-        if self.components:
-            from fuzzyservo.plants.composed import compose
-
-            return compose, (self.components, bool(self.bristles))
+        if self.rebuild is not None:
+            return self.rebuild, (self.components, bool(self.bristles))
         return super().__reduce_ex__(protocol)
 
     def for_params(self, params: Any) -> PlantModel:
@@ -67,11 +68,9 @@ class PlantModel:
         friction's bristle states only where a friction effect has a pre-sliding distance
         (:func:`~fuzzyservo.components.effects.has_bristles`); both forms give the same
         run for any other parameters, the one without them faster."""
-        if self.bristles is None or self.bristles == has_bristles(params):
+        if self.rebuild is None or self.bristles is None or self.bristles == has_bristles(params):
             return self
-        from fuzzyservo.plants.composed import compose
-
-        return compose(self.components, not self.bristles)
+        return self.rebuild(self.components, not self.bristles)
 
     @property
     def loop(self) -> ModuleType:

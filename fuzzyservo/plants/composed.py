@@ -32,6 +32,7 @@ from fuzzyservo.components.declare import (
 )
 from fuzzyservo.components.effects import INPUT_EFFECTS, LIBRARY, E, EffectParams, Scales
 from fuzzyservo.params import index_of, pack, quantity, vector, vector_offset
+from fuzzyservo.plants import PlantModel
 from fuzzyservo.plants._jacobian import jacobian_source
 
 _STATIC_FORCE = "static_force"
@@ -52,7 +53,7 @@ def _resolve_unit(unit: str, mechanics: Mapping[str, str], input_unit: str) -> s
     return _TOKENS.sub(lambda m: f"({table[m.group(1)]})", unit)
 
 
-def compose(parts: tuple[tuple[str, str], ...], bristles: bool = False) -> Any:
+def compose(parts: tuple[tuple[str, str], ...], bristles: bool = False) -> PlantModel:
     """The plant of the instances ``parts`` = ((instance name, component type), ...).
 
     ``bristles``: with the ``bristles`` states (LuGre friction's bristle deflection, last
@@ -67,9 +68,7 @@ def compose(parts: tuple[tuple[str, str], ...], bristles: bool = False) -> Any:
 
 
 @cache
-def _compose(parts: tuple[tuple[str, str], ...], bristles: bool) -> Any:
-    from fuzzyservo.plants import PlantModel
-
+def _compose(parts: tuple[tuple[str, str], ...], bristles: bool) -> PlantModel:
     types = registry()
     instances: list[tuple[str, Component]] = []
     for name, type_name in parts:
@@ -251,6 +250,7 @@ def _compose(parts: tuple[tuple[str, str], ...], bristles: bool) -> Any:
         else None,
         # every pressure a component declares is a node pressure against the tank
         pressures=tuple(name for name in signal_names if units[name] == "Pa"),
+        rebuild=compose,
     )
     return model
 

@@ -105,8 +105,9 @@ def cases(draws: int) -> list[tuple[str, str | None, str, tuple[int, ...]]]:
 def _fit_round(args) -> list[Path]:
     """Simulate one case's records and fit round 1's candidates on each; pickled."""
     kind, effect, mismatch, seeds, cache = args
+    from fuzzyservo.calibration.candidates import candidate_effects, fit
     from fuzzyservo.calibration.replay import make_replay
-    from fuzzyservo.calibration.search import _candidate, candidate_effects, fit
+    from fuzzyservo.calibration.search import _candidate
     from fuzzyservo.io.rigs import load_rig
 
     rig = load_rig(power_rig(Path(tempfile.mkdtemp()), declared=kind != "fixed"))

@@ -7,8 +7,8 @@ range (tests/independent_rig.py's MIDDLE, mapped to this library's parameters) t
 factor drawn uniformly in 0.8-1.2 for each parameter (a physical difference between
 draws, not only the noise), recorded with the example's noise (5 µm position, 0.05 bar
 pressures) from a seed of its own. The effect is fitted on the closed-loop replay
-(search.fit) and its intervals computed as the final calibration computes them
-(search._uncertainty with the fitted candidate added). Prints each draw and the table
+(candidates.fit) and its intervals computed as the final calibration computes them
+(intervals.fitted_intervals with the fitted candidate added). Prints each draw and the table
 docs/calibration.md shows ("Coverage of the 95 % intervals").
 
 Run from the repository root (a few seconds per draw; one process at a time on a shared
@@ -41,7 +41,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 from support import controller_named, rig_named
 
-from fuzzyservo.calibration import search
+from fuzzyservo.calibration import candidates, intervals
 from fuzzyservo.calibration.replay import make_replay
 from fuzzyservo.calibration.synthetic import synthetic_run
 from fuzzyservo.calibration.uncertainty import Estimate
@@ -124,9 +124,9 @@ def draw(
     replay = make_replay(rig, data, None if open_loop else controller)
     start = None
     if from_truth:  # a candidate at the truth (nothing to fit) to start from
-        _, start = search.fit(replay, rig.with_effect(effect, **truth), None)
-    fitted, candidate = search.fit(replay, rig, effect, start_from=start)
-    found = search._uncertainty(replay, fitted, [candidate], candidate.model)
+        _, start = candidates.fit(replay, rig.with_effect(effect, **truth), None)
+    fitted, candidate = candidates.fit(replay, rig, effect, start_from=start)
+    found = intervals.fitted_intervals(replay, fitted, [candidate], candidate.model)
     keys = {p.field: p.key for p in LIBRARY[effect].fitted}
     return truth, {keys[f]: e for f, e in found.items() if f in keys}
 

@@ -20,8 +20,8 @@ from support import DATA, controller_named, rig_named
 
 from fuzzyservo.calibration.identifiability import Separation, excitations
 from fuzzyservo.calibration.replay import make_replay
-from fuzzyservo.calibration.report import experiment_words, ranking_line, verdict_lines
 from fuzzyservo.calibration.run import prepare, skipped_effects
+from fuzzyservo.calibration.verdict import experiment_words, ranking_line, verdict_lines
 from fuzzyservo.cli import main
 from fuzzyservo.components.effects import LIBRARY
 from fuzzyservo.display import quantity_text, unit_text
@@ -270,7 +270,7 @@ def test_values_print_in_the_unit_an_engineer_reads() -> None:
 
 def test_the_ranking_names_a_failed_fit_as_such() -> None:
     """A candidate whose fit ended above the starting model (status ``failed fit: ...``,
-    search.fit) is ranked as a failed fit, not by the cost its failed fit reached."""
+    candidates.fit) is ranked as a failed fit, not by the cost its failed fit reached."""
     summary = {"rounds": [{"start_cost": 9.5, "candidates": [
         {"name": "coulomb_friction", "score": 1.2, "status": "ok"},
         {"name": "valve_lag", "score": 12.0,

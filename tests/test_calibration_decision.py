@@ -20,11 +20,12 @@ import pytest
 from support import controller_named
 from test_calibration import NOISE, old_loop
 
+from fuzzyservo.calibration.candidates import fit
 from fuzzyservo.calibration.decision import held_out_evidence, threshold
 from fuzzyservo.calibration.detection import false_positive_rate
 from fuzzyservo.calibration.replay import make_replay
 from fuzzyservo.calibration.residuals import noise_floor, quantisation_step
-from fuzzyservo.calibration.search import calibrate, fit
+from fuzzyservo.calibration.search import calibrate
 from fuzzyservo.calibration.significance import SIZE_FLOOR
 from fuzzyservo.calibration.synthetic import synthetic_run
 from fuzzyservo.io.rigs import load_rig
@@ -60,7 +61,7 @@ def test_noise_floor_of_quantised_data_is_at_least_the_quantisation_noise() -> N
 
 
 def test_held_and_coarsely_quantised_channels_are_reported_as_warnings() -> None:
-    from fuzzyservo.calibration.report import data_warnings
+    from fuzzyservo.calibration.summary import data_warnings
     from fuzzyservo.io.measured import Measured
 
     rng = np.random.default_rng(3)
@@ -102,7 +103,7 @@ def test_scan_refined_around_its_best_points_finds_a_valley_between_grid_points(
     point lands in the wrong valley, refining the best three finds the deepest."""
     from scipy.optimize import minimize_scalar
 
-    from fuzzyservo.calibration.search import SCAN_FINE, _scan
+    from fuzzyservo.calibration.candidates import SCAN_FINE, _scan
 
     def cost(z: float) -> float:
         return 2 * (z - 0.62) ** 2 + 0.5 * (1 - math.cos(2 * math.pi * (z - 0.62) / 0.15))
@@ -193,7 +194,7 @@ def test_fitted_values_carry_intervals_and_at_bound_flags_into_the_rig(rig, tmp_
     flagged, in the report's warnings and in the calibrated rig file, which loads."""
     import yaml
 
-    from fuzzyservo.io.calibration_report import write_outputs
+    from fuzzyservo.io.calibration_report import write_calibration_report
 
     ctl = controller_named("p_k10")
     true = {"coulomb_friction": {"force": 300.0}, "valve_bias": {"offset": 0.5e-3}}
@@ -209,7 +210,7 @@ def test_fitted_values_carry_intervals_and_at_bound_flags_into_the_rig(rig, tmp_
     outcome = calibrate(replay, rig, effects=["valve_bias"])
     bias = outcome.uncertainty["valve_bias_si"]
     assert bias.at_bound and bias.value == pytest.approx(1.5e-3, rel=1e-3)
-    _, summary = write_outputs(outcome, replay, tmp_path / "d.csv", tmp_path / "out")
+    _, summary = write_calibration_report(outcome, replay, tmp_path / "d.csv", tmp_path / "out")
     assert any("valve_bias.offset" in w and "bound" in w for w in summary["warnings"])
     text = yaml.safe_load(Path(summary["calibrated_rig"]).read_text(encoding="utf-8"))
     entry = text["effects"]["valve_bias"]["offset"]
@@ -362,7 +363,7 @@ def test_a_detection_limit_reads_as_a_magnitude_and_says_when_the_range_cannot_r
     """The Festo record printed "offset ≥ -0.433" for a null shift fitted below 0 and
     "delay ≥ 1.97" for a delay the fit may not take beyond 0.05 s: a limit reads as a
     magnitude in the parameter's unit, and a limit beyond the range says so."""
-    from fuzzyservo.calibration.report import verdict_lines
+    from fuzzyservo.calibration.verdict import verdict_lines
 
     def weak(name: str, param: str, value: float, limit: float, lo: float, hi: float,
              unit: str, verdict: str = "not established") -> dict:  # fmt: skip

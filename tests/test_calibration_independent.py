@@ -110,7 +110,7 @@ def test_a_sensor_lag_comes_back_as_a_delay_and_the_verdict_says_what_else_it_ma
     says that a sensor's or converter's lag looks the same (effects.py ``lookalike``)."""
     from independent_rig import SENSOR_TAU_S
 
-    from fuzzyservo.calibration.report import summary_data
+    from fuzzyservo.calibration.summary import calibration_summary
 
     rig = load_rig(old_loop(tmp_path))
     data = independent_run(None, NOISE, seed=11, mismatch="sensor_filter")
@@ -118,5 +118,5 @@ def test_a_sensor_lag_comes_back_as_a_delay_and_the_verdict_says_what_else_it_ma
     outcome = calibrate(replay, rig, max_effects=1)
     assert [c.name for c in outcome.added] == ["transport_delay"]
     assert outcome.added[0].params["delay"] == pytest.approx(SENSOR_TAU_S, rel=0.05)
-    verdict = summary_data(outcome, replay)["verdict"]
+    verdict = calibration_summary(outcome, replay)["verdict"]
     assert any(line.startswith("transport_delay may also be a first-order lag") for line in verdict)

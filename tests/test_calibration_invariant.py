@@ -2,7 +2,7 @@
 
 Every candidate of the library is the starting model with one more effect; with the
 effect off (size 0) it is the starting model. Its fit starts from several points, that
-one among them (search._minimise), so on the part it is fitted on its training cost
+one among them (candidates._minimise), so on the part it is fitted on its training cost
 never ends above the starting model's. Checked for every library effect the record's
 rig can take, on synthetic, independent-generator and real records (the FASTER record's
 in tests/test_calibration_faster.py, on its whole calibration).
@@ -17,8 +17,9 @@ from independent_rig import independent_run
 from support import DATA, SHARED, controller_named, rig_named
 from test_calibration import NOISE, old_loop
 
+from fuzzyservo.calibration.candidates import candidate_effects
 from fuzzyservo.calibration.replay import make_replay
-from fuzzyservo.calibration.search import calibrate, candidate_effects
+from fuzzyservo.calibration.search import calibrate
 from fuzzyservo.io.measured import read_rig_data
 from fuzzyservo.io.rigs import load_rig
 

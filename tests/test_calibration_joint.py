@@ -18,8 +18,8 @@ from test_calibration import NOISE, old_loop
 from fuzzyservo.calibration import calibrate as api_calibrate
 from fuzzyservo.calibration.joint import joint_replay
 from fuzzyservo.calibration.replay import make_replay
-from fuzzyservo.calibration.report import summary_data
 from fuzzyservo.calibration.search import calibrate
+from fuzzyservo.calibration.summary import calibration_summary
 from fuzzyservo.calibration.synthetic import synthetic_run
 from fuzzyservo.errors import DataError
 from fuzzyservo.io.rigs import load_rig
@@ -61,7 +61,7 @@ def test_shared_effect_and_per_record_null_from_two_records(records) -> None:
     fitted = np.array(outcome.per_record["valve__bias_current"]) - bias
     assert fitted == pytest.approx(DRIFT, abs=2e-5)
     assert outcome.cost_final < 1.2  # both records to the noise floor
-    summary = summary_data(outcome, joint)
+    summary = calibration_summary(outcome, joint)
     assert summary["per_record"]["valve.bias_current"] == pytest.approx(
         [bias + d for d in DRIFT], abs=2e-5
     )

@@ -10,8 +10,8 @@ import numpy as np
 import pytest
 from support import rig_named, shipped
 
+from fuzzyservo.calibration.candidates import fit_table
 from fuzzyservo.calibration.replay import make_replay
-from fuzzyservo.calibration.search import fit_table
 from fuzzyservo.calibration.synthetic import synthetic_run
 from fuzzyservo.cli import main
 from fuzzyservo.controllers.classical import P

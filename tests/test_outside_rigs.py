@@ -7,8 +7,9 @@ from __future__ import annotations
 import pytest
 from support import SHARED, controller_named, rig_named
 
+from fuzzyservo.calibration.candidates import fit_table
 from fuzzyservo.calibration.replay import make_replay
-from fuzzyservo.calibration.search import calibrate, fit_table
+from fuzzyservo.calibration.search import calibrate
 from fuzzyservo.io.measured import read_rig_data
 
 FESTO = SHARED / "data" / "festo_hanging_load" / "HangingLoad.csv"

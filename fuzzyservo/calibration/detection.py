@@ -20,10 +20,11 @@ from __future__ import annotations
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 
+from fuzzyservo.calibration.candidates import candidate_effects, fit
 from fuzzyservo.calibration.decision import held_out_evidence
 from fuzzyservo.calibration.null import assess, null_round
 from fuzzyservo.calibration.replay import make_replay
-from fuzzyservo.calibration.search import calibrate, candidate_effects, fit
+from fuzzyservo.calibration.search import calibrate
 from fuzzyservo.calibration.synthetic import synthetic_run
 from fuzzyservo.controllers.base import Controller
 from fuzzyservo.rig import Rig

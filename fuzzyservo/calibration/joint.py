@@ -7,7 +7,7 @@ their channels end to end, training parts first, held-out parts after::
 
     [train 1 | train 2 | … | train K | held-out 1 | held-out 2 | … | held-out K]
 
-so the search, the held-out test and the intervals (search.py, decision.py,
+so the search, the held-out test and the intervals (candidates.py, decision.py,
 uncertainty.py) see one training part and one held-out part, as for a single record.
 The rig's parameters, its declared unknowns and every effect are shared by all
 records; a declared unknown named in ``per_record`` (e.g. a valve null that drifts

@@ -11,9 +11,10 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
 
+from fuzzyservo.calibration.candidates import candidate_effects
 from fuzzyservo.calibration.null import DRAWS
 from fuzzyservo.calibration.replay import Replay
-from fuzzyservo.calibration.search import Outcome, candidate_effects
+from fuzzyservo.calibration.search import SearchOutcome
 from fuzzyservo.components.effects import LIBRARY
 from fuzzyservo.display import quantity_text
 from fuzzyservo.errors import ConfigError, DataError, did_you_mean
@@ -27,12 +28,12 @@ if TYPE_CHECKING:
 
 @dataclass(frozen=True)
 class CalibrationResult(Result):
-    """What a calibration concluded (:class:`~fuzzyservo.calibration.search.Outcome`,
+    """What a calibration concluded (:class:`~fuzzyservo.calibration.search.SearchOutcome`,
     whose attributes read through: ``result.added``, ``result.calibrated`` ...) and the
     replay it was fitted on. ``to_dict()`` is ``summary.json`` (without the written
     rig's path); :func:`fuzzyservo.io.calibration_report.write_calibration` writes the report."""
 
-    outcome: Outcome
+    outcome: SearchOutcome
     replay: Replay = field(repr=False)
     # effects asked for that were not tried, with why (:func:`skipped_effects`)
     skipped: dict[str, str] = field(default_factory=dict)
@@ -43,14 +44,14 @@ class CalibrationResult(Result):
         return getattr(self.outcome, name)
 
     def to_dict(self) -> dict[str, Any]:
-        from fuzzyservo.calibration.report import summary_data
+        from fuzzyservo.calibration.summary import calibration_summary
 
-        return summary_data(self.outcome, self.replay, self.skipped)
+        return calibration_summary(self.outcome, self.replay, self.skipped)
 
     def text(self) -> str:
         """Warnings, the first round's ranking, then the verdict (report.verdict_lines):
         what an engineer reads first is last on the console."""
-        from fuzzyservo.calibration.report import ranking_line
+        from fuzzyservo.calibration.verdict import ranking_line
 
         summary = json_ready(self.to_dict())  # as in summary.json: non-finite numbers are null
         lines = [f"warning: {w}" for w in summary["warnings"]]

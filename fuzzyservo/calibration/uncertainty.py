@@ -60,7 +60,7 @@ within 0.1 % of the box of a bound is flagged ``at_bound``: the data wanted it f
 out, and its interval is one-sided. docs/calibration.md gives their coverage.
 
 :func:`held_interval` is the cheaper interval the decision's prediction band uses
-(search._frozen_ends, null.py): one parameter with the others held, ``(JᵀJ)⁻¹`` inflated
+(search.frozen_ends, null.py): one parameter with the others held, ``(JᵀJ)⁻¹`` inflated
 by the training cost and by the residual's lag-one autocorrelation (:func:`effective_samples`).
 """
 

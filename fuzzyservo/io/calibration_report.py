@@ -1,7 +1,7 @@
 """A calibration's files: the calibrated rig, figures, ``report.md`` and ``summary.json``.
 
-The numbers and the report's text come from :mod:`fuzzyservo.calibration.report`; this
-module only writes them (files are the edge of the package).
+The numbers and the report's text come from :mod:`fuzzyservo.calibration.summary` and
+:mod:`fuzzyservo.calibration.report`; this module only writes them (files are the edge of the package).
 """
 
 from __future__ import annotations
@@ -14,28 +14,28 @@ from typing import Any
 import numpy as np
 
 from fuzzyservo.atomic import ensure_folder, write_text
+from fuzzyservo.calibration.candidates import fit_table
 from fuzzyservo.calibration.joint import split_field
 from fuzzyservo.calibration.replay import Replay
-from fuzzyservo.calibration.report import (
-    ZOOM_S,
-    input_signal,
-    report_markdown,
-    residual_analysis,
-    signature_table,
-    summary_data,
-)
+from fuzzyservo.calibration.report import ZOOM_S, report_markdown
 from fuzzyservo.calibration.residuals import (
     autocorrelation,
     confidence_band,
     cross_correlation,
 )
-from fuzzyservo.calibration.search import Outcome, fit_table
+from fuzzyservo.calibration.search import SearchOutcome
+from fuzzyservo.calibration.summary import (
+    calibration_summary,
+    input_signal,
+    residual_analysis,
+    signature_table,
+)
 from fuzzyservo.components.effects import LIBRARY
 from fuzzyservo.display import display_scale
 
 
-def write_outputs(
-    outcome: Outcome,
+def write_calibration_report(
+    outcome: SearchOutcome,
     replay: Replay,
     data_path: str | Path,
     out_dir: Path,
@@ -95,7 +95,7 @@ def write_outputs(
             header=header,
             intervals=intervals,
         )
-    summary = summary_data(outcome, replay, skipped)
+    summary = calibration_summary(outcome, replay, skipped)
     if "rig" in paths:
         summary["calibrated_rig"] = str(paths["rig"])
 
@@ -168,10 +168,10 @@ def write_outputs(
 def write_calibration(result: Any, out_dir: str | Path, data_label: str) -> dict[str, Path]:
     """Write a :class:`~fuzzyservo.calibration.CalibrationResult` into ``out_dir``
     (``data_label`` names the data in the files); returns the files by role."""
-    paths, _ = write_outputs(
+    paths, _ = write_calibration_report(
         result.outcome, result.replay, data_label, Path(out_dir), result.skipped
     )
     return paths
 
 
-__all__ = ["write_calibration", "write_outputs"]
+__all__ = ["write_calibration", "write_calibration_report"]

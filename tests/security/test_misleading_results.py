@@ -22,7 +22,7 @@ from support import DATA, controller_named, ideal_sensor, rig_named
 
 import fuzzyservo
 from fuzzyservo.calibration import prepare
-from fuzzyservo.calibration.search import fit_table
+from fuzzyservo.calibration.candidates import fit_table
 from fuzzyservo.calibration.synthetic import synthetic_run
 from fuzzyservo.cli import main
 from fuzzyservo.io.measured import read_rig_data, write_measured

@@ -191,7 +191,7 @@ def run_calibrate_case(root: Path | None = None, *, workers: int = 2) -> BenchRe
     default is one per core; the result is the same on any number); the issue's budget
     is 120 s on this 2-core machine."""
     from fuzzyservo.calibration.replay import make_replay
-    from fuzzyservo.calibration.search import calibrate
+    from fuzzyservo.calibration.search import search_effects
     from fuzzyservo.calibration.synthetic import synthetic_run
     from fuzzyservo.io.controllers import load_controller
     from fuzzyservo.io.rigs import load_rig
@@ -205,7 +205,7 @@ def run_calibrate_case(root: Path | None = None, *, workers: int = 2) -> BenchRe
     )
     t0 = time.perf_counter()
     replay = make_replay(rig, data, controller)
-    outcome = calibrate(replay, rig, workers=workers)
+    outcome = search_effects(replay, rig, workers=workers)
     wall = time.perf_counter() - t0
     runs = sum(c.evaluations for r in outcome.rounds for c in r.candidates)
     return BenchResult.once(

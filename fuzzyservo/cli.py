@@ -181,7 +181,7 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
 
 def cmd_tune(args: argparse.Namespace) -> int:
     from fuzzyservo.io.studies import load_study, with_warm_start
-    from fuzzyservo.io.study_report import tuning_text, write_outputs
+    from fuzzyservo.io.study_report import tuning_text, write_study_report
     from fuzzyservo.tuning.runner import run_study
     from fuzzyservo.tuning.spec import storage_problem
 
@@ -215,7 +215,7 @@ def cmd_tune(args: argparse.Namespace) -> int:
         n = spec.uncertainty.samples if check is None else check
         print(f"checking the best against the baseline and the template on {n} fresh samples")
         bar = progress_bar((3 - (spec.template == spec.baseline)) * n, "check")  # best, base, tpl
-    paths = write_outputs(outcome, out, check_samples=check, progress=bar and bar.update)
+    paths = write_study_report(outcome, out, check_samples=check, progress=bar and bar.update)
     if bar is not None:
         bar.close()
     summary = read_json(paths["summary"])  # as written
@@ -610,6 +610,18 @@ def _took(seconds: float | None = None) -> str:
     return elapsed_text(time.perf_counter() - _STARTED[0] if seconds is None else seconds)
 
 
+#: options whose name is not the Python argument's with dashes (errors.ConfigError.argument)
+_OPTIONS = {"sample_time_s": "--sample-time", "c_dir": "--c", "real": "--float"}
+
+
+def _with_option(exc: ConfigError) -> str:
+    """The error's text with the Python argument it names shown as its option."""
+    if exc.argument is None or exc.file or exc.key:
+        return str(exc)
+    option = _OPTIONS.get(exc.argument, "--" + exc.argument.replace("_", "-"))
+    return f"{option}: {exc.detail}"
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     _STARTED[0] = time.perf_counter()
     parser = build_parser()
@@ -620,6 +632,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     try:
         with warnings_as_lines():
             return args.func(args)
+    except ConfigError as exc:
+        print(f"fuzzyservo: error: {_with_option(exc)}", file=sys.stderr)
+        return EXIT_USAGE
     except FuzzyservoError as exc:
         print(f"fuzzyservo: error: {exc}", file=sys.stderr)
         return EXIT_USAGE

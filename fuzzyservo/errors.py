@@ -93,15 +93,26 @@ class ConfigError(FuzzyservoError, ValueError):
         The file the value came from, if any.
     key:
         Dotted path of the key inside the file, e.g. ``plant.parameters.bulk_modulus``.
+    argument:
+        The Python argument the value came from, e.g. ``effects``: the message starts with
+        its name (the command line shows the option it maps to, ``--effects``, instead).
     """
 
-    def __init__(self, message: str, *, file: str | None = None, key: str | None = None):
+    def __init__(
+        self,
+        message: str,
+        *,
+        file: str | None = None,
+        key: str | None = None,
+        argument: str | None = None,
+    ):
         self.file = file
         self.key = key
+        self.argument = argument
         self.detail = message
         # a key path is the file's own text: an unknown key may be megabytes long
         shown = key if key is None or len(key) <= 2 * EXCERPT else f"{key[: 2 * EXCERPT - 1]}…"
-        where = ": ".join(part for part in (file, shown) if part)
+        where = ": ".join(part for part in (file, shown, argument) if part)
         super().__init__(f"{where}: {message}" if where else message)
 
 

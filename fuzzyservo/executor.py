@@ -173,7 +173,7 @@ class DaskCluster:
     """The workers of the Dask scheduler at ``address`` (``tcp://HOST:PORT``)."""
 
     def __init__(self, address: str, timeout_s: float = 30.0):
-        require("distributed", "cluster", f"--cluster {address} (Dask distributed)")
+        require("distributed", "cluster", f"the Dask cluster {address}")
         from distributed import Client
 
         try:
@@ -181,8 +181,9 @@ class DaskCluster:
         except (OSError, TimeoutError) as exc:
             reason = (str(exc).strip().splitlines() or [type(exc).__name__])[0]
             raise ConfigError(
-                f"--cluster {address}: cannot reach the Dask scheduler ({reason}); start "
-                "`dask scheduler` there and `dask worker ADDRESS` on the machines that compute"
+                f"{address}: cannot reach the Dask scheduler ({reason}); start "
+                "`dask scheduler` there and `dask worker ADDRESS` on the machines that compute",
+                argument="cluster",
             ) from None
         self.address = address
         self._client.wait_for_workers(1, timeout=timeout_s)
@@ -228,7 +229,7 @@ def make_executor(workers: int = 1, cluster: str | None = None) -> Executor:
     if cluster:
         problem = cluster_problem(cluster)
         if problem:
-            raise ConfigError(f"--cluster: {problem}")
+            raise ConfigError(problem, argument="cluster")
         return DaskCluster(cluster)
     if workers <= 1:
         return Inline()

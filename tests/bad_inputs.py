@@ -280,7 +280,7 @@ def _cases() -> list[Case]:
             "cli calibrate --effects unknown",
             (*CAL, "--effects", "nope"),
             {"d.csv": measured()},
-            ("nope",),
+            ("--effects: unknown effect 'nope'",),
         )
     )
     add(

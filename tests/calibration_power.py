@@ -126,7 +126,7 @@ def _fit_round(args) -> list[Path]:
         nominal = rig
         model, _ = replay.run(rig)
         cost = replay.cost(model, slice(replay.split, None))
-        if rig.unknowns:  # as search.calibrate fits them first
+        if rig.unknowns:  # as search.search_effects fits them first
             nominal, fitted = fit(replay, rig, None, max_evaluations=120)
             model, cost = fitted.model, fitted.cost_val
         results = [_candidate(replay, nominal, model, name) for name in candidate_effects(rig)]

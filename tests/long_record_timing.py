@@ -23,7 +23,7 @@ import yaml
 
 from fuzzyservo.bench import data_root
 from fuzzyservo.calibration.replay import make_replay
-from fuzzyservo.calibration.search import calibrate
+from fuzzyservo.calibration.search import search_effects
 from fuzzyservo.calibration.synthetic import synthetic_run
 from fuzzyservo.io.controllers import load_controller
 from fuzzyservo.io.rigs import load_rig
@@ -52,7 +52,7 @@ def main(workers: int) -> None:
     data = synthetic_run(rig, controller, "pulses", friction, NOISE, duration_s=50.0)
     print(f"{data.t.size} samples; load average {os.getloadavg()}", flush=True)
     cpu0, t0 = cpu_s(), time.perf_counter()
-    outcome = calibrate(
+    outcome = search_effects(
         make_replay(rig, data, controller),
         rig,
         workers=workers,

@@ -23,7 +23,7 @@ from support import controller_named
 from test_calibration import NOISE, old_loop
 
 from fuzzyservo.calibration.replay import make_replay
-from fuzzyservo.calibration.search import calibrate
+from fuzzyservo.calibration.search import search_effects
 from fuzzyservo.io.rigs import load_rig
 
 
@@ -36,7 +36,7 @@ def main(draws: int = 20, mismatches: tuple[str, ...] = MISMATCHES) -> None:
         records = independent_draws(None, NOISE, tuple(range(100, 100 + draws)), mismatch=mismatch)
         for k, data in enumerate(records):
             start = time.perf_counter()
-            outcome = calibrate(make_replay(rig, data, controller), rig)
+            outcome = search_effects(make_replay(rig, data, controller), rig)
             names = [c.name for c in outcome.added]
             added += bool(names)
             null = outcome.rounds[0].null

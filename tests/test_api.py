@@ -93,7 +93,7 @@ def test_a_study_written_in_python_runs_resumes_and_reports(tmp_path: Path) -> N
     file; only the SQLite storage the user names) runs, resumes with its finished trials
     kept, and reports like one read from a file."""
     from fuzzyservo import PI, Objective, P, Parameter, Study, tune
-    from fuzzyservo.io.study_report import write_outputs
+    from fuzzyservo.io.study_report import write_study_report
 
     study = Study(
         name="lift_in_code",
@@ -120,7 +120,7 @@ def test_a_study_written_in_python_runs_resumes_and_reports(tmp_path: Path) -> N
     before = {h["number"]: h["values"] for h in first.history}
     assert all(h["values"] == before[h["number"]] for h in again.history if h["number"] in before)
     assert len(before) == 3
-    paths = write_outputs(again, tmp_path / "report")
+    paths = write_study_report(again, tmp_path / "report")
     from fuzzyservo import load_controller
 
     best = load_controller(paths["controller"])

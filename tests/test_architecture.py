@@ -99,3 +99,30 @@ def test_no_import_cycles_between_modules() -> None:
             edges.add_edge(module, imported)
     cycles = [sorted(c) for c in nx.strongly_connected_components(edges) if len(c) > 1]
     assert not cycles, cycles
+
+
+MODULE_LINES = 700  # a module that grows past this holds more than one job
+
+
+def test_no_module_is_over_the_line_limit() -> None:
+    long = {
+        str(path.relative_to(PACKAGE.parent)): n
+        for _, path in _modules()
+        if (n := len(path.read_text(encoding="utf-8").splitlines())) > MODULE_LINES
+    }
+    assert not long, f"split by job: {long}"
+
+
+def test_one_name_for_each_report_step() -> None:
+    """A reader who meets ``Outcome`` or ``write_outputs`` knows which one it is."""
+    defined: dict[str, list[str]] = {}
+    for _, path in _modules():
+        for node in ast.parse(path.read_text(encoding="utf-8")).body:
+            if isinstance(node, ast.ClassDef | ast.FunctionDef):
+                defined.setdefault(node.name, []).append(str(path.relative_to(PACKAGE.parent)))
+    shared = {
+        name: homes
+        for name in ("Outcome", "write_outputs", "summary_data", "calibrate", "Result")
+        if len(homes := defined.get(name, [])) > 1
+    }
+    assert not shared, shared

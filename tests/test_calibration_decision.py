@@ -25,7 +25,7 @@ from fuzzyservo.calibration.decision import held_out_evidence, threshold
 from fuzzyservo.calibration.detection import false_positive_rate
 from fuzzyservo.calibration.replay import make_replay
 from fuzzyservo.calibration.residuals import noise_floor, quantisation_step
-from fuzzyservo.calibration.search import calibrate
+from fuzzyservo.calibration.search import search_effects
 from fuzzyservo.calibration.significance import SIZE_FLOOR
 from fuzzyservo.calibration.synthetic import synthetic_run
 from fuzzyservo.io.rigs import load_rig
@@ -124,7 +124,7 @@ def test_a_long_record_is_screened_on_its_first_samples_and_the_best_refitted(ri
     data = synthetic_run(rig, ctl, "pulses", {"coulomb_friction": {"force": 300.0}}, NOISE, seed=4)
     replay = make_replay(rig, data, ctl)
     effects = ["coulomb_friction", "valve_bias"]
-    outcome = calibrate(replay, rig, effects=effects, max_effects=1, screen_samples=500)
+    outcome = search_effects(replay, rig, effects=effects, max_effects=1, screen_samples=500)
     assert [c.name for c in outcome.added] == ["coulomb_friction"]
     # the screening fit alone gives 299.2 N; refitted on all: 299.6 N (its pre-sliding
     # distance, an optional part, refitted with it)
@@ -167,7 +167,7 @@ def test_leakage_and_null_shift_are_ambiguous_and_the_suggested_experiment_separ
     ctl = controller_named("p_k10")
     leak = {"internal_leakage": {"coefficient": 5e-14}}
     data = synthetic_run(rig, ctl, "pulses", leak, {"y": NOISE["y"]}, seed=7)
-    outcome = calibrate(make_replay(rig, data, ctl), rig, max_effects=1)
+    outcome = search_effects(make_replay(rig, data, ctl), rig, max_effects=1)
     first = outcome.rounds[0]
     assert first.added in ("internal_leakage", "valve_bias")
     tied = {first.added, *first.ambiguous_with}
@@ -179,7 +179,7 @@ def test_leakage_and_null_shift_are_ambiguous_and_the_suggested_experiment_separ
     # run the suggested experiment on the "real" rig (the one with the leakage); the
     # question is which of the tied candidates it names, so only they are fitted
     data2 = synthetic_run(rig, ctl, best.scenario, leak, {"y": NOISE["y"]}, seed=8)
-    second = calibrate(make_replay(rig, data2, ctl), rig, effects=sorted(tied), max_effects=1)
+    second = search_effects(make_replay(rig, data2, ctl), rig, effects=sorted(tied), max_effects=1)
     second = second.rounds[0]
     assert second.added == "internal_leakage"
     assert "valve_bias" not in second.ambiguous_with
@@ -199,7 +199,7 @@ def test_fitted_values_carry_intervals_and_at_bound_flags_into_the_rig(rig, tmp_
     ctl = controller_named("p_k10")
     true = {"coulomb_friction": {"force": 300.0}, "valve_bias": {"offset": 0.5e-3}}
     data = synthetic_run(rig, ctl, "pulses", true, NOISE, seed=4)
-    outcome = calibrate(make_replay(rig, data, ctl), rig, effects=list(true))
+    outcome = search_effects(make_replay(rig, data, ctl), rig, effects=list(true))
     for field, value in (("coulomb_force_si", 300.0), ("valve_bias_si", 0.5e-3)):
         est = outcome.uncertainty[field]
         assert est.interval[0] <= est.value <= est.interval[1] and not est.at_bound
@@ -207,7 +207,7 @@ def test_fitted_values_carry_intervals_and_at_bound_flags_into_the_rig(rig, tmp_
         assert est.interval[1] - est.interval[0] < 0.2 * value
     data = synthetic_run(rig, ctl, "pulses", {"valve_bias": {"offset": 2e-3}}, NOISE, seed=4)
     replay = make_replay(rig, data, ctl)
-    outcome = calibrate(replay, rig, effects=["valve_bias"])
+    outcome = search_effects(replay, rig, effects=["valve_bias"])
     bias = outcome.uncertainty["valve_bias_si"]
     assert bias.at_bound and bias.value == pytest.approx(1.5e-3, rel=1e-3)
     _, summary = write_calibration_report(outcome, replay, tmp_path / "d.csv", tmp_path / "out")

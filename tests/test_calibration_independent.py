@@ -25,7 +25,7 @@ from support import controller_named
 from test_calibration import NOISE, old_loop
 
 from fuzzyservo.calibration.replay import make_replay
-from fuzzyservo.calibration.search import calibrate
+from fuzzyservo.calibration.search import search_effects
 from fuzzyservo.io.rigs import load_rig
 
 # effect -> why it is not found (an xfail). None now: the second-order spool, which came
@@ -50,7 +50,7 @@ def test_independent_formulation_is_named_first_and_added(tmp_path: Path, effect
     ctl = controller_named("p_k10")
     data = independent_run(effect, NOISE, seed=11)
     rig = load_rig(old_loop(tmp_path))
-    outcome = calibrate(make_replay(rig, data, ctl), rig, max_effects=1)
+    outcome = search_effects(make_replay(rig, data, ctl), rig, max_effects=1)
     assert outcome.rounds[0].candidates[0].name == effect
     assert [c.name for c in outcome.added] == [effect]
 
@@ -60,7 +60,7 @@ def test_independent_null_run_adds_nothing(tmp_path: Path) -> None:
     rig = load_rig(old_loop(tmp_path))
     ctl = controller_named("p_k10")
     data = independent_run(None, NOISE, seed=11)
-    assert calibrate(make_replay(rig, data, ctl), rig).added == ()
+    assert search_effects(make_replay(rig, data, ctl), rig).added == ()
 
 
 @pytest.mark.slow
@@ -75,7 +75,7 @@ def test_an_established_special_case_goes_before_an_unestablished_generalisation
     (held-out cost 1.31 against Stribeck's 1.85)."""
     rig = load_rig(old_loop(tmp_path))
     data = independent_run("coulomb_friction", NOISE, seed=100)
-    outcome = calibrate(make_replay(rig, data, controller_named("p_k10")), rig, max_effects=1)
+    outcome = search_effects(make_replay(rig, data, controller_named("p_k10")), rig, max_effects=1)
     first = outcome.rounds[0].candidates
     assert first[0].name == "coulomb_friction" and first[1].name == "stribeck_friction"
     assert [c.name for c in outcome.added] == ["coulomb_friction"]
@@ -98,7 +98,7 @@ def test_model_mismatch_alone_adds_nothing(tmp_path: Path, mismatch: str) -> Non
     here; tests/mismatch_null.py measures the rate over 20 (docs/calibration.md)."""
     rig = load_rig(old_loop(tmp_path))
     data = independent_run(None, NOISE, seed=11, mismatch=mismatch)
-    outcome = calibrate(make_replay(rig, data, controller_named("p_k10")), rig, max_effects=1)
+    outcome = search_effects(make_replay(rig, data, controller_named("p_k10")), rig, max_effects=1)
     assert outcome.added == ()
 
 
@@ -115,7 +115,7 @@ def test_a_sensor_lag_comes_back_as_a_delay_and_the_verdict_says_what_else_it_ma
     rig = load_rig(old_loop(tmp_path))
     data = independent_run(None, NOISE, seed=11, mismatch="sensor_filter")
     replay = make_replay(rig, data, controller_named("p_k10"))
-    outcome = calibrate(replay, rig, max_effects=1)
+    outcome = search_effects(replay, rig, max_effects=1)
     assert [c.name for c in outcome.added] == ["transport_delay"]
     assert outcome.added[0].params["delay"] == pytest.approx(SENSOR_TAU_S, rel=0.05)
     verdict = calibration_summary(outcome, replay)["verdict"]

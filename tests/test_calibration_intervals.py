@@ -11,7 +11,7 @@ from interval_coverage import covers, draw
 from support import TESTS, controller_named, rig_named
 
 from fuzzyservo.calibration.replay import make_replay
-from fuzzyservo.calibration.search import calibrate
+from fuzzyservo.calibration.search import search_effects
 from fuzzyservo.calibration.uncertainty import long_run_lags, profile_interval, sandwich
 from fuzzyservo.io.measured import read_measured
 
@@ -62,7 +62,7 @@ def test_the_friction_examples_interval_holds_the_300_n_it_was_made_with(control
     rig = rig_named("dinca_cylinder")
     data = read_measured(TESTS.parent / "examples" / "run_dinca_friction.csv")
     ctl = controller_named(controller) if controller else None
-    outcome = calibrate(make_replay(rig, data, ctl), rig, effects=["coulomb_friction"])
+    outcome = search_effects(make_replay(rig, data, ctl), rig, effects=["coulomb_friction"])
     assert [c.name for c in outcome.added] == ["coulomb_friction"]
     force = outcome.uncertainty["coulomb_force_si"]
     assert force.interval[0] <= 300.0 <= force.interval[1], force

@@ -19,7 +19,7 @@ from test_calibration import NOISE, old_loop
 
 from fuzzyservo.calibration.candidates import candidate_effects
 from fuzzyservo.calibration.replay import make_replay
-from fuzzyservo.calibration.search import calibrate
+from fuzzyservo.calibration.search import search_effects
 from fuzzyservo.io.measured import read_rig_data
 from fuzzyservo.io.rigs import load_rig
 
@@ -36,7 +36,7 @@ def _needs(path: Path):
 def _check(replay, rig) -> None:
     """Round 1 of a calibration: every library candidate's training cost at most the
     starting model's (up to rounding), and none of them reported as a failed fit."""
-    outcome = calibrate(replay, rig, max_effects=1, bootstrap_draws=20)
+    outcome = search_effects(replay, rig, max_effects=1, bootstrap_draws=20)
     first = outcome.rounds[0]
     assert {c.name for c in first.candidates} == set(candidate_effects(rig))
     for c in first.candidates:
@@ -131,7 +131,7 @@ def test_a_long_records_delay_is_found_and_no_screened_fit_loses(tmp_path: Path)
     ctl = controller_named("p_servo_lift")
     delay = {"transport_delay": {"delay": 3.7e-3}}
     data = synthetic_run(truth, ctl, "long", delay, {"y": 20e-6}, seed=1)
-    outcome = calibrate(make_replay(rig, data, ctl), rig, max_effects=1, bootstrap_draws=40)
+    outcome = search_effects(make_replay(rig, data, ctl), rig, max_effects=1, bootstrap_draws=40)
     first = outcome.rounds[0]
     for c in first.candidates:
         assert c.cost_train <= first.start_cost_train * (1 + 1e-9), c.name

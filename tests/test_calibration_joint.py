@@ -18,7 +18,7 @@ from test_calibration import NOISE, old_loop
 from fuzzyservo.calibration import calibrate as api_calibrate
 from fuzzyservo.calibration.joint import joint_replay
 from fuzzyservo.calibration.replay import make_replay
-from fuzzyservo.calibration.search import calibrate
+from fuzzyservo.calibration.search import search_effects
 from fuzzyservo.calibration.summary import calibration_summary
 from fuzzyservo.calibration.synthetic import synthetic_run
 from fuzzyservo.errors import DataError
@@ -66,7 +66,7 @@ def test_shared_effect_and_per_record_null_from_two_records(records) -> None:
         [bias + d for d in DRIFT], abs=2e-5
     )
     # one null shared by both records cannot follow the drift
-    shared = calibrate(joint_replay(replays, rig), rig, max_effects=0)
+    shared = search_effects(joint_replay(replays, rig), rig, max_effects=0)
     assert shared.cost_nominal > 10 * outcome.cost_final
 
 

@@ -96,6 +96,18 @@ def test_a_library_error_is_one_line_from_both(capsys):
     assert len(err) == 1 and "unknown scenario 'nope'" in err[0] and "dinca_cylinder" in err[0]
 
 
+def test_a_library_error_names_the_argument_and_the_shell_its_option():
+    """The library speaks of its own arguments, the command line of its options."""
+    from fuzzyservo.executor import make_executor
+    from fuzzyservo.io.export import export_file
+
+    with pytest.raises(fuzzyservo.ConfigError, match=r"^cluster: 'nope' is not a Dask"):
+        make_executor(cluster="nope")
+    with pytest.raises(fuzzyservo.ConfigError, match=r"^fmi: must be 2 or 3, got 4"):
+        export_file("flc2_reshaped", fmu="x.fmu", fmi=4)
+    # the shell's side: bad_inputs.py's "cli calibrate --effects unknown" ("--effects: ...")
+
+
 def test_evaluate_and_describe_from_python(tmp_path):
     from fuzzyservo.io.paths import find_file
 

@@ -137,14 +137,14 @@ def test_tune_explains_the_brake_scenarios_n_a_and_counts_its_trials(tmp_path):
 
     from fuzzyservo.io.jsonfile import read_json
     from fuzzyservo.io.studies import load_study
-    from fuzzyservo.io.study_report import tuning_text, write_outputs
+    from fuzzyservo.io.study_report import tuning_text, write_study_report
     from fuzzyservo.tuning.runner import run_study
 
     spec = dataclasses.replace(
         load_study(DATA / "studies" / "ehs160_flc.yaml"), scenarios=("steps", "brake")
     )
     outcome = run_study(spec, tmp_path, trials=2, workers=1, progress=False)
-    paths = write_outputs(outcome, tmp_path)
+    paths = write_study_report(outcome, tmp_path)
     text = tuning_text(outcome, read_json(paths["summary"]))
     report = paths["report"].read_text(encoding="utf-8")
     for shown in (text, report):

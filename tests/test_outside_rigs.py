@@ -9,7 +9,7 @@ from support import SHARED, controller_named, rig_named
 
 from fuzzyservo.calibration.candidates import fit_table
 from fuzzyservo.calibration.replay import make_replay
-from fuzzyservo.calibration.search import calibrate
+from fuzzyservo.calibration.search import search_effects
 from fuzzyservo.io.measured import read_rig_data
 
 FESTO = SHARED / "data" / "festo_hanging_load" / "HangingLoad.csv"
@@ -69,5 +69,5 @@ def test_festo_unknowns_fitted():
     rig = rig_named("festo_hanging_load")
     data = read_rig_data(FESTO, rig.measured)
     replay = make_replay(rig, data, controller_named("p_festo_hanging_load"))
-    outcome = calibrate(replay, rig, max_effects=0)
+    outcome = search_effects(replay, rig, max_effects=0)
     assert fit_table(replay, outcome.models["nominal"])["y"] > 90

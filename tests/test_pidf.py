@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from fuzzyservo.calibration.replay import make_replay
-from fuzzyservo.calibration.search import calibrate
+from fuzzyservo.calibration.search import search_effects
 from fuzzyservo.calibration.synthetic import synthetic_run
 from fuzzyservo.controllers.classical import PI, PIDF
 from fuzzyservo.errors import ConfigError
@@ -127,7 +127,7 @@ def test_closed_loop_replay_recovers_unknown_pid_gains():
         u_max=10,
         unknowns=(("kp", 0.5, 8.0), ("ki", 0.1, 8.0), ("kd", 0.0, 0.04)),
     )
-    outcome = calibrate(make_replay(rig, data, unknown), rig, max_effects=0)
+    outcome = search_effects(make_replay(rig, data, unknown), rig, max_effects=0)
     fitted = outcome.controller
     assert fitted.kp == pytest.approx(3.0, rel=0.05)
     assert fitted.ki == pytest.approx(2.0, rel=0.05)

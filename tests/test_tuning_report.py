@@ -18,7 +18,7 @@ from support import DATA
 
 from fuzzyservo.io.controllers import load_controller, write_controller_file
 from fuzzyservo.io.studies import load_study
-from fuzzyservo.io.study_report import write_outputs
+from fuzzyservo.io.study_report import write_study_report
 from fuzzyservo.tuning.runner import build_evaluator, run_study
 
 SUMMARY_KEYS = {
@@ -32,7 +32,7 @@ BASELINE_KEYS = {"controller", "objective", "metrics", "scenarios"}
 
 def _run(study: Path, out: Path, trials: int):
     outcome = run_study(load_study(study), out, trials=trials, workers=1, progress=False)
-    return outcome, write_outputs(outcome, out)
+    return outcome, write_study_report(outcome, out)
 
 
 @pytest.fixture(scope="module")

@@ -24,7 +24,7 @@ from fuzzyservo.calibration.candidates import candidate_effects, fit
 from fuzzyservo.calibration.decision import held_out_evidence
 from fuzzyservo.calibration.null import assess, null_round
 from fuzzyservo.calibration.replay import make_replay
-from fuzzyservo.calibration.search import calibrate
+from fuzzyservo.calibration.search import search_effects
 from fuzzyservo.calibration.synthetic import synthetic_run
 from fuzzyservo.controllers.base import Controller
 from fuzzyservo.rig import Rig
@@ -61,7 +61,7 @@ def false_positive_rate(
     added = []
     for k in range(draws):
         data = synthetic_run(rig, controller, scenario, {}, noise, seed=first_seed + k)
-        outcome = calibrate(make_replay(rig, data, controller), rig)
+        outcome = search_effects(make_replay(rig, data, controller), rig)
         added.append([c.name for c in outcome.added])
         if progress:
             progress(f"null draw {k + 1}/{draws}: added {added[-1] or 'none'}")

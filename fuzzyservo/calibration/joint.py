@@ -189,8 +189,9 @@ def per_record_fields(rig: Rig, keys: Sequence[str]) -> list[str]:
         if name is None or name not in rig.unknowns:
             declared = ", ".join(fields[f].metadata["key"] for f in rig.unknowns) or "none"
             raise ConfigError(
-                f"--per-record: {key!r} is not an unknown of rig {rig.name} (declared "
-                f"unknowns: {declared}); give it fit: [lower, upper] in the rig file"
+                f"{key!r} is not an unknown of rig {rig.name} (declared "
+                f"unknowns: {declared}); give it fit: [lower, upper] in the rig file",
+                argument="per_record",
             )
         out.append(name)
     return out

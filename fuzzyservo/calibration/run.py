@@ -112,10 +112,10 @@ class Calibration:
         (``tcp://HOST:PORT``) fit a round's candidates (the same result).
         ``bootstrap_draws``: surrogate records of each round's null (null.py; no
         simulation; None: DRAWS; 0: decision.py's Bonferroni threshold alone)."""
-        from fuzzyservo.calibration.search import calibrate as search
+        from fuzzyservo.calibration.search import search_effects
 
         effects = None if self.effects is None else list(self.effects)
-        outcome = search(self.replay, self.rig, effects=effects, max_effects=max_effects,
+        outcome = search_effects(self.replay, self.rig, effects=effects, max_effects=max_effects,
                          progress=progress, workers=workers, cluster=cluster,
                          bootstrap_draws=DRAWS if bootstrap_draws is None else bootstrap_draws)  # fmt: skip
         return CalibrationResult(outcome, self.replay, self.skipped)
@@ -178,8 +178,8 @@ def prepare(
     for e in effects or ():
         if e not in LIBRARY:
             raise ConfigError(
-                f"--effects: unknown effect {e!r}; {did_you_mean(e, LIBRARY)}"
-                f"choose from {', '.join(LIBRARY)}"
+                f"unknown effect {e!r}; {did_you_mean(e, LIBRARY)}choose from {', '.join(LIBRARY)}",
+                argument="effects",
             )
     effects = None if effects is None else tuple(dict.fromkeys(effects))  # each once
     replays = [make_replay(rig, d, controller) for d in records]

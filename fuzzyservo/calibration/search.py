@@ -91,7 +91,7 @@ class SearchOutcome:
     per_record: dict[str, tuple[float, ...]] = field(default_factory=dict)
 
 
-def calibrate(
+def search_effects(
     replay: Replay,
     rig: Rig,
     *,

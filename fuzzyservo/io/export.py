@@ -84,9 +84,9 @@ def export_file(
     if (lut is not None and not (c_dir or st)) or (real == "float" and not c_dir):
         raise ConfigError("--lut shapes the code of --c DIR or --st FILE, --float that of --c")
     if not (math.isfinite(sample_time_s) and sample_time_s > 0):
-        raise ConfigError(f"--sample-time must be > 0 s, got {sample_time_s}")
+        raise ConfigError(f"must be > 0 s, got {sample_time_s}", argument="sample_time_s")
     if fmi not in (2, 3):
-        raise ConfigError(f"--fmi must be 2 or 3, got {fmi}")
+        raise ConfigError(f"must be 2 or 3, got {fmi}", argument="fmi")
     for option, value in (("fis", fis), ("fcl", fcl), ("st", st), ("fmu", fmu)):
         if value is not None and Path(value).is_dir():
             raise ConfigError(f"--{option} {value}: is a folder; give a file name")

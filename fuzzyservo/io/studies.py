@@ -287,7 +287,7 @@ def with_warm_start(study: Study, files: list[str], patience: int | None = None)
     from fuzzyservo.io.paths import find_file
 
     if patience is not None and patience < 1:
-        raise ConfigError(f"--patience must be >= 1, got {patience}")
+        raise ConfigError(f"must be >= 1, got {patience}", argument="patience")
     paths = [str(find_file(f, "studies/controllers", "controller")) for f in files]
     points = tuple(warm_start_point(study.parameters, f) for f in paths)
     study = dataclasses.replace(study, warm_start=(*study.warm_start, *points))

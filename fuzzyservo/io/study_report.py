@@ -1,6 +1,6 @@
 """What a finished study leaves in its output folder: the best controller, a summary, figures, a report.
 
-:func:`write_outputs` turns an :class:`~fuzzyservo.tuning.runner.Outcome` into
+:func:`write_study_report` turns an :class:`~fuzzyservo.tuning.runner.StudyOutcome` into
 
 - ``best_controller.yaml``: the template with the best parameters, a controller file
   ``fuzzyservo simulate``/``compare`` take as it is (and ``best_controller.fis`` for a
@@ -11,7 +11,7 @@
 - ``report.md``: all of it on one page, figures linked relatively.
 
 The best controller file is read back and simulated again before the report claims it
-reproduces the study's objective. matplotlib is imported only inside :func:`write_outputs`.
+reproduces the study's objective. matplotlib is imported only inside :func:`write_study_report`.
 """
 
 from __future__ import annotations
@@ -40,7 +40,7 @@ from fuzzyservo.metrics import METRIC_DOCS, METRIC_NAMES, format_value
 from fuzzyservo.tuning.evaluation import Evaluation
 from fuzzyservo.tuning.objective import measured_margins
 from fuzzyservo.tuning.robust import Comparison, compare_controllers
-from fuzzyservo.tuning.runner import Outcome, build_evaluator
+from fuzzyservo.tuning.runner import StudyOutcome, build_evaluator
 
 CONTROLLER_FILE = "best_controller.yaml"
 FIS_FILE = "best_controller.fis"
@@ -48,8 +48,8 @@ SUMMARY_FILE = "summary.json"
 REPORT_FILE = "report.md"
 
 
-def write_outputs(
-    outcome: Outcome,
+def write_study_report(
+    outcome: StudyOutcome,
     out_dir: Path,
     *,
     check_samples: int | None = None,
@@ -103,7 +103,7 @@ def write_outputs(
     if spec.uncertainty is not None and check_samples != 0:
         comparison = _compare(evaluator, best_controller, check_samples, progress)
         paths["check"] = _check_figure(comparison, out_dir, units)
-    summary = summary_data(outcome, evaluator.baseline.name, trial)
+    summary = study_summary(outcome, evaluator.baseline.name, trial)
     measured = _measured_margins(evaluator, best_controller)
     if measured:
         summary["measured_margins"] = measured
@@ -122,7 +122,7 @@ def write_outputs(
     return paths
 
 
-def tuning_text(outcome: Outcome, summary: dict[str, Any]) -> str:
+def tuning_text(outcome: StudyOutcome, summary: dict[str, Any]) -> str:
     """What ``fuzzyservo tune`` prints when done: the trial counts, the metrics of the
     baseline and the best in display units (``n/a`` explained), the objective and, for a
     robust study, the comparison of its ``summary`` (as written)."""
@@ -241,7 +241,7 @@ def _comparison_lines(comparison: Comparison, link, units: MetricUnits) -> list[
     return lines
 
 
-def best_trial_number(outcome: Outcome) -> int | None:
+def best_trial_number(outcome: StudyOutcome) -> int | None:
     """The number of the trial the outcome reports as best (as :func:`runner.collect` picks it)."""
     if outcome.best_number is not None:
         return outcome.best_number
@@ -261,7 +261,7 @@ def best_trial_number(outcome: Outcome) -> int | None:
     return int(min(pool, key=lambda h: h["values"][0])["number"])
 
 
-def summary_data(outcome: Outcome, baseline_name: str, trial: int | None) -> dict[str, Any]:
+def study_summary(outcome: StudyOutcome, baseline_name: str, trial: int | None) -> dict[str, Any]:
     """The ``summary.json`` mapping (before NaN/inf become null)."""
     spec = outcome.spec
     best, base = outcome.best, outcome.baseline
@@ -329,7 +329,7 @@ def _si_note(spec, units: MetricUnits) -> str:
     return f"; over the metrics in SI: {', '.join(si)}" if si else ""
 
 
-def _counts(outcome: Outcome) -> str:
+def _counts(outcome: StudyOutcome) -> str:
     """Asked, complete, pruned and failed trials (a study collected before the asked
     and failed ones were counted: complete and pruned are all it asked)."""
     asked = outcome.trials_asked or outcome.trials_complete + outcome.trials_pruned
@@ -337,7 +337,7 @@ def _counts(outcome: Outcome) -> str:
                              outcome.trials_failed)  # fmt: skip
 
 
-def _trials_text(outcome: Outcome) -> str:
+def _trials_text(outcome: StudyOutcome) -> str:
     """Asked, complete, pruned and failed trials, and for a robust study its simulations
     and the sampled plants its trials skipped."""
     text = _counts(outcome)
@@ -348,7 +348,7 @@ def _trials_text(outcome: Outcome) -> str:
     return text
 
 
-def _split_text(outcome: Outcome) -> str:
+def _split_text(outcome: StudyOutcome) -> str:
     """The trials' time by what it went to (a study stored before the split was
     recorded: simulation and the rest)."""
     if not outcome.sampler_time_s:
@@ -358,7 +358,7 @@ def _split_text(outcome: Outcome) -> str:
     return ", ".join(f"{k} {elapsed_text(v)}" for k, v in time_split(outcome).items())
 
 
-def time_split(outcome: Outcome) -> dict[str, float]:
+def time_split(outcome: StudyOutcome) -> dict[str, float]:
     """The study's time by what it went to: the trials' simulations and controller
     building, the sampler's asks, and ``storage``: the parent writing the batches (batch
     mode), or the rest of each trial (``--async``: writing it, storage reads)."""
@@ -371,7 +371,7 @@ def time_split(outcome: Outcome) -> dict[str, float]:
     }
 
 
-def _selection_lines(outcome: Outcome) -> list[str]:
+def _selection_lines(outcome: StudyOutcome) -> list[str]:
     """The robust study's top trials on fresh samples (the winner first), values ± their
     standard errors over the samples."""
     if not outcome.selection:
@@ -406,7 +406,7 @@ def _objective_value(ev: Evaluation) -> float | list[float]:
 # -- figures ---------------------------------------------------------------------------
 
 
-def _figures(outcome: Outcome, out_dir: Path, best_controller, fuzzy: bool) -> dict[str, Path]:
+def _figures(outcome: StudyOutcome, out_dir: Path, best_controller, fuzzy: bool) -> dict[str, Path]:
     from fuzzyservo import plots
 
     spec = outcome.spec
@@ -478,7 +478,7 @@ def _file_part(name: str) -> str:
 
 
 def _report(
-    outcome: Outcome,
+    outcome: StudyOutcome,
     evaluator,
     trial: int | None,
     check: Evaluation,

@@ -2,7 +2,7 @@
 
 A study is a :class:`~fuzzyservo.tuning.spec.Study`, built in Python or read from a study
 file by :func:`fuzzyservo.io.studies.load_study`; :func:`tune` runs or resumes it and
-:func:`fuzzyservo.io.study_report.write_outputs` writes its report.
+:func:`fuzzyservo.io.study_report.write_study_report` writes its report.
 """
 
 from __future__ import annotations
@@ -12,7 +12,7 @@ from typing import TYPE_CHECKING
 
 if TYPE_CHECKING:
     from fuzzyservo.rig import Rig
-    from fuzzyservo.tuning.runner import Outcome
+    from fuzzyservo.tuning.runner import StudyOutcome
     from fuzzyservo.tuning.spec import Study
 
 #: the shipped study the README's first command runs: `tune`'s default, the one the
@@ -32,13 +32,13 @@ def tune(
     cluster: str | None = None,
     batch_size: int | None = None,
     asynchronous: bool = False,
-) -> Outcome:
+) -> StudyOutcome:
     """Run (or resume: finished trials are kept, only the rest run) a :class:`Study`.
 
     The Optuna storage is ``storage`` (an SQLAlchemy URL: ``sqlite:///path.db``,
     ``postgresql://…``), else the study's ``storage``, else SQLite in ``out_dir`` (default
     ``out/<study name>``); ``rig`` tunes on another rig than the study's own. Write the
-    report with :func:`fuzzyservo.io.study_report.write_outputs`.
+    report with :func:`fuzzyservo.io.study_report.write_study_report`.
 
     Trials are asked ``batch_size`` at a time (default: the study's) and scored by
     ``workers`` local processes or on the Dask ``cluster`` (``tcp://HOST:PORT``): the

@@ -61,7 +61,7 @@ GRACE_S = 15
 
 
 @dataclass
-class Outcome:
+class StudyOutcome:
     """What a finished (or stopped) study produced."""
 
     spec: Study
@@ -389,7 +389,7 @@ def run_study(
     cluster: str | None = None,
     batch_size: int | None = None,
     asynchronous: bool = False,
-) -> Outcome:
+) -> StudyOutcome:
     """Run (or resume) the study until it holds ``trials`` complete trials; return the outcome.
 
     Batch-synchronous (the default; :func:`run_batches`): the same seeded study gives the
@@ -773,7 +773,7 @@ def _trial_time(trial) -> float:
 
 
 def collect(spec: Study, url: str, *, wall_s: float = 0.0, executor=None,
-            study=None) -> Outcome:  # fmt: skip
+            study=None) -> StudyOutcome:  # fmt: skip
     """Read the study back: best (feasible) trial or Pareto front, history, importances.
     A robust study's best is chosen among its top trials on fresh samples
     (:func:`select_on_fresh_samples`, scored by ``executor``, default this process).
@@ -841,7 +841,7 @@ def collect(spec: Study, url: str, *, wall_s: float = 0.0, executor=None,
     sim = sum(t.user_attrs.get("sim_time_s", 0.0) for t in finished)
     worker_time = sum(_trial_time(t) for t in finished)
     counts = trial_counts(study)
-    return Outcome(
+    return StudyOutcome(
         spec=spec,
         storage_url=url,
         trials_complete=len(trials),

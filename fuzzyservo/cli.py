@@ -181,7 +181,7 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
 
 def cmd_tune(args: argparse.Namespace) -> int:
     from fuzzyservo.io.studies import load_study, with_warm_start
-    from fuzzyservo.io.study_report import tuning_text, write_study_report
+    from fuzzyservo.io.study_report import write_study_report
     from fuzzyservo.tuning.runner import run_study
     from fuzzyservo.tuning.spec import storage_problem
 
@@ -215,14 +215,14 @@ def cmd_tune(args: argparse.Namespace) -> int:
         n = spec.uncertainty.samples if check is None else check
         print(f"checking the best against the baseline and the template on {n} fresh samples")
         bar = progress_bar((3 - (spec.template == spec.baseline)) * n, "check")  # best, base, tpl
-    paths = write_study_report(outcome, out, check_samples=check, progress=bar and bar.update)
+    report, paths = write_study_report(outcome, out, check_samples=check,
+                                       progress=bar and bar.update)  # fmt: skip
     if bar is not None:
         bar.close()
-    summary = read_json(paths["summary"])  # as written
-    print(tuning_text(outcome, summary))
+    print(report.text())
     print(f"report: {paths['report']}")
     print(f"the command took {_took()} (the optimisation {_took(outcome.wall_s)})")
-    _json(args.json, summary)
+    _json(args.json, report.to_dict())
     return 0
 
 

@@ -120,7 +120,7 @@ def test_a_study_written_in_python_runs_resumes_and_reports(tmp_path: Path) -> N
     before = {h["number"]: h["values"] for h in first.history}
     assert all(h["values"] == before[h["number"]] for h in again.history if h["number"] in before)
     assert len(before) == 3
-    paths = write_study_report(again, tmp_path / "report")
+    _, paths = write_study_report(again, tmp_path / "report")
     from fuzzyservo import load_controller
 
     best = load_controller(paths["controller"])

@@ -135,17 +135,16 @@ def test_tune_explains_the_brake_scenarios_n_a_and_counts_its_trials(tmp_path):
     in report.md; the trials read asked / complete / pruned / failed."""
     from support import DATA
 
-    from fuzzyservo.io.jsonfile import read_json
     from fuzzyservo.io.studies import load_study
-    from fuzzyservo.io.study_report import tuning_text, write_study_report
+    from fuzzyservo.io.study_report import write_study_report
     from fuzzyservo.tuning.runner import run_study
 
     spec = dataclasses.replace(
         load_study(DATA / "studies" / "ehs160_flc.yaml"), scenarios=("steps", "brake")
     )
     outcome = run_study(spec, tmp_path, trials=2, workers=1, progress=False)
-    paths = write_study_report(outcome, tmp_path)
-    text = tuning_text(outcome, read_json(paths["summary"]))
+    result, paths = write_study_report(outcome, tmp_path)
+    text = result.text()
     report = paths["report"].read_text(encoding="utf-8")
     for shown in (text, report):
         assert "n/a (rise_time_s, settling_time_s" in shown and "brake" in shown

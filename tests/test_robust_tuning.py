@@ -305,7 +305,8 @@ def test_report_compares_best_baseline_and_template_nominal_and_monte_carlo(tmp_
     """A robust study's report: the tuned controller beside P K=10 and the template (FLC2)
     on the nominal plant and on fresh samples, each with its gain check."""
     from fuzzyservo.display import metric_units
-    from fuzzyservo.io.study_report import _comparison_lines, comparison_controllers
+    from fuzzyservo.io.study_report import _comparison_lines
+    from fuzzyservo.tuning.report import comparison_controllers
     from fuzzyservo.tuning.robust import CHECK_SEED, compare_controllers
 
     spec = dataclasses.replace(_small(tmp_path, samples=1), scenarios=("steps",))

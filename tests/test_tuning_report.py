@@ -32,7 +32,7 @@ BASELINE_KEYS = {"controller", "objective", "metrics", "scenarios"}
 
 def _run(study: Path, out: Path, trials: int):
     outcome = run_study(load_study(study), out, trials=trials, workers=1, progress=False)
-    return outcome, write_study_report(outcome, out)
+    return outcome, write_study_report(outcome, out)[1]
 
 
 @pytest.fixture(scope="module")
@@ -107,6 +107,23 @@ def test_best_controller_file_reproduces_the_objective(fuzzy_study):
     evaluation = build_evaluator(outcome.spec).evaluate(controller)
     assert evaluation.values == outcome.best.values  # exactly: the file holds every digit
     assert load_controller(paths["fis"]).system.inputs[0].name == "e"
+
+
+def test_the_report_object_is_what_the_files_say(fuzzy_study):
+    """Issue 38: tuning computes its report (tuning.report), io only writes it:
+    ``to_dict()`` is summary.json as written, and the report holds the best controller
+    as its file does, scored again."""
+    import json
+
+    from fuzzyservo.results import json_ready
+    from fuzzyservo.tuning.report import study_report
+
+    outcome, paths, _ = fuzzy_study
+    report = study_report(outcome, load_controller(paths["controller"]), check_samples=0)
+    written = json.loads(paths["summary"].read_text(encoding="utf-8"))
+    assert json_ready(report.to_dict()) == written
+    assert report.reproduces and report.trial == written["best"]["trial"]
+    assert report.text().startswith("trials: ") and "objective: best" in report.text()
 
 
 def test_report_links_resolve_and_state_the_reproduction(fuzzy_study):

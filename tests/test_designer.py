@@ -227,8 +227,8 @@ def test_the_dashboard_link_serves_optuna_dashboard_on_the_same_storage(study_ou
     pytest.importorskip("optuna_dashboard", reason="pip install optuna-dashboard")
     import http.cookiejar
 
-    from fuzzyservo.designer.app import start_dashboard
     from fuzzyservo.designer.guard import Guard
+    from fuzzyservo.designer.web import start_dashboard
 
     url = f"sqlite:///{study_out / 'dinca_flc' / 'dinca_flc.db'}"
     for attempt in range(5):  # a port free a moment ago may be taken by another worker

@@ -5,7 +5,9 @@ browser session's state and does the work with the library's own functions (file
 :func:`~fuzzyservo.io.controllers.controller_from_data`, :func:`~fuzzyservo.simulate`,
 :func:`~fuzzyservo.metrics.result_metrics`); :mod:`.files` confines every file the app
 opens or writes to the project and output folders; :mod:`.guard` lets only local pages
-that know the launch's token drive it; :mod:`.app` is the page.
+that know the launch's token drive it, and :mod:`.web` puts it before the server's routes
+and optuna-dashboard; :mod:`.app` is the page and serves it (its figures in ``_views``,
+its widgets and edits in ``_controls``).
 """
 
 from __future__ import annotations

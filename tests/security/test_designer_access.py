@@ -167,7 +167,7 @@ def test_the_dashboard_refuses_foreign_pages_and_keeps_the_study(tmp_path):
     pytest.importorskip("optuna_dashboard", reason="pip install optuna-dashboard")
     import optuna
 
-    from fuzzyservo.designer.app import start_dashboard
+    from fuzzyservo.designer.web import start_dashboard
 
     optuna.logging.set_verbosity(optuna.logging.WARNING)
     url = f"sqlite:///{tmp_path / 'study.db'}"

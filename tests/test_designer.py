@@ -76,6 +76,10 @@ def test_a_slider_move_changes_the_loop_and_its_metrics(session):
     session.set_gain("output", 1.3)
     assert session.data["input"]["increments"][3] == 2.0
     assert session.data["gains"]["output"] == 1.3
+    # a slider moves the number a study searches, by its path, through the design itself
+    tuned = load_controller(FLC2).with_params(**{"input.reshape": 1.2, "input.increments[3]": 2.0,
+                                                 "output.translate": 0.1, "gains.output": 1.3})  # fmt: skip
+    assert session.controller.params() == tuned.params()
     rows = metrics_rows([after, *session.baseline_runs()])
     assert [r[0] for r in rows][:2] == ["rise_time_s", "settling_time_s"]
     assert all(len(r) == 4 for r in rows)

@@ -151,24 +151,29 @@ class Session:
         """Move one seven-term number: ``increments[index]``, ``reshape`` or ``translate``."""
         if key not in DESIGN_KEYS:
             raise ConfigError(f"unknown design number {key!r}; choose one of {list(DESIGN_KEYS)}")
-        design = self.design(role)
-        if design is None:
+        if self.design(role) is None:
             raise ConfigError(
                 f"{role} has explicit terms; edit its breakpoints, or go back to the seven-term design"
             )
-        data = self.edited()
-        node = data[role]
-        if key == "increments":
-            node["increments"] = list(design["increments"])
-            node["increments"][index] = float(value)
-        else:
-            node[key] = float(value)
-        self.apply(data)
+        self.set_number(f"{role}.{key}" + (f"[{index}]" if key == "increments" else ""), value)
 
     def set_gain(self, which: str, value: float) -> None:
-        data = self.edited()
-        data.setdefault("gains", {})[which] = float(value)
-        self.apply(data)
+        self.set_number(f"gains.{which}", value)
+
+    def set_number(self, path: str, value: float) -> None:
+        """Change one searchable number by its parameter path (``input.increments[3]``,
+        ``gains.output``: the names a study searches, :meth:`FuzzyDesign.params`) through
+        the design itself (:meth:`FuzzyDesign.with_params`): no mapping is copied and
+        parsed again. On a bad value nothing changes (a ``ConfigError``)."""
+        from fuzzyservo.io.fuzzy import design_data
+
+        if self.controller.design is None:
+            raise ConfigError(f"{self.controller.name} has no design whose {path} to move")
+        try:
+            controller = self.controller.with_params(**{path: float(value)})
+        except ValueError as exc:
+            raise ConfigError(str(exc)) from None
+        self.data, self.controller = design_data(controller.design), controller
 
     def set_breakpoints(self, role: str, term: str, params: list[float]) -> None:
         """Give one term new parameters; the variable is written with explicit terms from then on."""

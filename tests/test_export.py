@@ -18,14 +18,13 @@ from support import SHARED, controller_named, rig_named
 
 from fuzzyservo.analysis.compare import compare
 from fuzzyservo.cli import main
-from fuzzyservo.codegen import identifier
+from fuzzyservo.codegen import c_compiler, identifier
 from fuzzyservo.controllers.fuzzy.evaluate import evaluate_inputs
 from fuzzyservo.controllers.fuzzy.system import FuzzySystem
 from fuzzyservo.io.controllers import load_controller
 from fuzzyservo.io.export import export
 from fuzzyservo.io.fcl import read_fcl
 from fuzzyservo.io.fis import parse_fis, read_fis
-from fuzzyservo.io.fmu import c_compiler
 
 
 def test_flc2_from_its_fis_and_fcl_gives_identical_metrics(tmp_path):

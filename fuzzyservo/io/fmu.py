@@ -12,7 +12,6 @@ extra). Without a C compiler the FMU is written with its sources only and
 from __future__ import annotations
 
 import platform
-import shutil
 import subprocess
 import sys
 import tempfile
@@ -20,24 +19,14 @@ import zipfile
 from pathlib import Path
 
 from fuzzyservo.atomic import atomic_write
-from fuzzyservo.codegen import fmu_model, fmu_sources, model_description
+from fuzzyservo.codegen import c_compiler, fmu_model, fmu_sources, model_description
 from fuzzyservo.controllers.fuzzy.controller import FuzzyController
 from fuzzyservo.controllers.fuzzy.system import FuzzySystem
 from fuzzyservo.errors import ConfigError, require
 
-__all__ = ["c_compiler", "fmi_headers", "write_fmu"]
+__all__ = ["fmi_headers", "write_fmu"]
 
 _EXTENSIONS = {"darwin": ".dylib", "win32": ".dll"}
-
-
-def c_compiler() -> str | None:
-    """The system C compiler (``$CC``, else cc, gcc or clang on PATH), or None."""
-    import os
-
-    for name in (os.environ.get("CC"), "cc", "gcc", "clang"):
-        if name and shutil.which(name):
-            return shutil.which(name)
-    return None
 
 
 def fmi_headers(fmi: int) -> Path:

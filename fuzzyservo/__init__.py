@@ -66,6 +66,8 @@ _LAZY = {
     "BenchReport": ("fuzzyservo.bench", "BenchReport"),
     "describe_fuzzy": ("fuzzyservo.controllers.fuzzy.describe", "describe_fuzzy"),
     "evaluate": ("fuzzyservo.io.evaluation", "evaluate"),
+    "load_reproduction": ("fuzzyservo.io.reproduction", "load_reproduction"),
+    "Reproduction": ("fuzzyservo.analysis.reproduction", "Reproduction"),
     "export": ("fuzzyservo.io.export", "export"),
     "fit_valve": ("fuzzyservo.io.valve_data", "fit_valve"),
     "SimResult": ("fuzzyservo.simulation", "SimResult"),

@@ -258,11 +258,11 @@ def cmd_robustness(args: argparse.Namespace) -> int:
 
 
 def cmd_reproduce(args: argparse.Namespace) -> int:
-    from fuzzyservo.io.reproduction import reproduce, write_reproduction
+    from fuzzyservo.io.reproduction import load_reproduction, write_reproduction
 
     json_path, markdown = _out_file(args.json, "--json"), _out_file(args.markdown, "--markdown")
     note_compiling()
-    result = reproduce(args.seeds or None, sensitivity=not args.rows_only)
+    result = load_reproduction().run(args.seeds or None, sensitivity=not args.rows_only)
     print(result.text())
     for path in write_reproduction(result, json_path=json_path, markdown_path=markdown):
         print(f"written to {path}")

@@ -22,7 +22,7 @@ from fuzzyservo.analysis.reproduction import (
 )
 from fuzzyservo.cli import main
 from fuzzyservo.errors import ConfigError
-from fuzzyservo.io.reproduction import load_reproduction_spec, reproduce, rig_assumptions
+from fuzzyservo.io.reproduction import load_reproduction, load_reproduction_spec, rig_assumptions
 
 DOCS = Path(__file__).resolve().parent.parent / "docs" / "reproduction.md"
 
@@ -30,7 +30,7 @@ DOCS = Path(__file__).resolve().parent.parent / "docs" / "reproduction.md"
 @pytest.fixture(scope="module")
 def seed002():
     """Seed 002 in full (rows, sensitivity, explanations): one rig, compiled once."""
-    return reproduce(["002"])
+    return load_reproduction().run(["002"])
 
 
 def _consistent(row: dict) -> bool:
@@ -233,7 +233,7 @@ def _assert_the_same_page(stored: str, made: str) -> None:
 @pytest.mark.slow  # every seed with its sensitivity: about 30 s, and compiles seed 003's other valves
 def test_docs_reproduction_md_is_the_commands_markdown():
     """docs/reproduction.md is generated: `fuzzyservo reproduce --markdown docs/reproduction.md`."""
-    result = reproduce()
+    result = load_reproduction().run()
     _assert_the_same_page(DOCS.read_text(encoding="utf-8"), result.to_markdown())
     rows = [r for r in result.rows if r["status"] != STATUS_VALIDITY]
     assert len(rows) >= 20 and all(_consistent(r) for r in rows)

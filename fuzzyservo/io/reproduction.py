@@ -1,5 +1,7 @@
-"""``fuzzyservo reproduce``: the seeds' observations (``data/reproduction.yaml``) run on
-the shipped rigs and controllers, with the rig files' assumptions.
+"""``fuzzyservo reproduce``'s files: the seeds' observations (``data/reproduction.yaml``)
+read with the shipped rigs, controllers and the rig files' assumptions
+(:func:`load_reproduction`; :mod:`fuzzyservo.analysis.reproduction` runs them), and the
+result written as JSON and Markdown.
 
 Layout of the observation file::
 
@@ -39,11 +41,11 @@ from fuzzyservo.analysis.reproduction import (
     Change,
     Explanation,
     Observation,
+    Reproduction,
     ReproductionResult,
     ReproductionSpec,
     Run,
     Variant,
-    run_reproduction,
 )
 from fuzzyservo.atomic import write_text
 from fuzzyservo.errors import ConfigError, excerpt
@@ -106,12 +108,11 @@ def _variant_data(node: Node) -> tuple[dict[str, Any], str]:
     return data, str(path)
 
 
-def reproduce(
-    seeds: list[str] | None = None, *, sensitivity: bool = True, spec: str | Path | None = None
-) -> ReproductionResult:
-    """Run every observation of ``seeds`` ("000" … "003"; default all) on the shipped
-    rigs, with the assumptions' sensitivity and the explanation runs (``sensitivity=False``:
-    the rows only). ``spec``: another observation file."""
+def load_reproduction(spec: str | Path | None = None) -> Reproduction:
+    """What ``fuzzyservo reproduce`` runs: the observation file ``spec`` (default: the
+    shipped one), its shipped rigs and variants, its controllers and each rig's other
+    assumptions; ``.run(seeds)`` measures them
+    (:meth:`~fuzzyservo.analysis.reproduction.Reproduction.run`)."""
     loaded, rigs, variants = _load_spec(spec)
     controllers = {
         name: load_controller(data_root() / "studies" / "controllers" / f"{name}.yaml")
@@ -126,11 +127,7 @@ def reproduce(
         for name in sorted(rigs)
         if name in variants or (data_root() / "rigs" / f"{name}.yaml").is_file()
     }
-    try:
-        return run_reproduction(loaded, rigs, controllers, seeds, sensitivity=sensitivity,
-                                other_assumptions=others)  # fmt: skip
-    except ValueError as exc:
-        raise ConfigError(str(exc)) from None
+    return Reproduction(loaded, rigs, controllers, others)
 
 
 def write_reproduction(

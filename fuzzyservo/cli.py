@@ -18,7 +18,7 @@ from pathlib import Path
 from typing import NoReturn
 
 from fuzzyservo.errors import ConfigError, FuzzyservoError
-from fuzzyservo.io.jsonfile import read_json, write_json
+from fuzzyservo.io.jsonfile import write_json
 from fuzzyservo.io.paths import find_file as resolve  # a path, or a name under rigs/, studies/
 from fuzzyservo.io.paths import output_dir as _out_dir
 from fuzzyservo.io.paths import output_file as _out_file
@@ -48,8 +48,7 @@ def _load_fuzzy(name: str):
 
 
 def _checked_duration(rig, duration: float | None) -> float | None:
-    """``--duration`` checked against the rig's sample time (at least one sample, at most
-    what a run holds in memory)."""
+    """``--duration`` against the rig's sample time (>= a sample, <= what a run holds)."""
     from fuzzyservo.limits import duration_problem
 
     if duration is not None and duration_problem(duration, rig.sample_time_s):
@@ -337,7 +336,8 @@ def cmd_calibrate(args: argparse.Namespace) -> int:
     print(f"report: {paths['report']}")
     if "rig" in paths:
         print(f"calibrated rig: {paths['rig']}")
-    _json(args.json, read_json(paths["summary"]))  # summary.json as written
+    rig_path = {"calibrated_rig": str(paths["rig"])} if "rig" in paths else {}
+    _json(args.json, result.to_dict() | rig_path)  # summary.json
     print(f"the command took {_took()} (the search {_took(result.outcome.seconds)})")
     print(result.text())  # the verdict last: what an engineer reads first
     return 0
@@ -610,18 +610,6 @@ def _took(seconds: float | None = None) -> str:
     return elapsed_text(time.perf_counter() - _STARTED[0] if seconds is None else seconds)
 
 
-#: options whose name is not the Python argument's with dashes (errors.ConfigError.argument)
-_OPTIONS = {"sample_time_s": "--sample-time", "c_dir": "--c", "real": "--float"}
-
-
-def _with_option(exc: ConfigError) -> str:
-    """The error's text with the Python argument it names shown as its option."""
-    if exc.argument is None or exc.file or exc.key:
-        return str(exc)
-    option = _OPTIONS.get(exc.argument, "--" + exc.argument.replace("_", "-"))
-    return f"{option}: {exc.detail}"
-
-
 def main(argv: Sequence[str] | None = None) -> int:
     _STARTED[0] = time.perf_counter()
     parser = build_parser()
@@ -632,11 +620,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     try:
         with warnings_as_lines():
             return args.func(args)
-    except ConfigError as exc:
-        print(f"fuzzyservo: error: {_with_option(exc)}", file=sys.stderr)
-        return EXIT_USAGE
     except FuzzyservoError as exc:
-        print(f"fuzzyservo: error: {exc}", file=sys.stderr)
+        print(f"fuzzyservo: error: {exc.as_option()}", file=sys.stderr)
         return EXIT_USAGE
     except KeyboardInterrupt:
         print("fuzzyservo: interrupted", file=sys.stderr)

@@ -81,6 +81,15 @@ def _size(value: object) -> str:
 class FuzzyservoError(Exception):
     """Base class of the errors the command line turns into one line and exit status 2."""
 
+    def as_option(self) -> str:
+        """The line the command line prints: a :class:`ConfigError` about a Python argument
+        names its option instead (``sample_time_s`` as ``--sample-time``: dashes for
+        underscores, no unit suffix)."""
+        argument = getattr(self, "argument", None)
+        if not argument or getattr(self, "file", None) or getattr(self, "key", None):
+            return str(self)
+        return f"--{argument.removesuffix('_s').replace('_', '-')}: {self.detail}"
+
 
 class ConfigError(FuzzyservoError, ValueError):
     """A rig, controller or study file (or a value in it) that cannot be used.

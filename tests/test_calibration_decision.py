@@ -192,9 +192,12 @@ def test_fitted_values_carry_intervals_and_at_bound_flags_into_the_rig(rig, tmp_
     """A 300 N friction and a 0.5 mA null bias lie inside their intervals; a null bias of
     2 mA, beyond the library's ±1.5 mA (5 % of rated), is fitted on the bound and
     flagged, in the report's warnings and in the calibrated rig file, which loads."""
+    import json
+
     import yaml
 
-    from fuzzyservo.io.calibration_report import write_calibration_report
+    from fuzzyservo.calibration import CalibrationResult
+    from fuzzyservo.io.calibration_report import write_calibration
 
     ctl = controller_named("p_k10")
     true = {"coulomb_friction": {"force": 300.0}, "valve_bias": {"offset": 0.5e-3}}
@@ -210,7 +213,8 @@ def test_fitted_values_carry_intervals_and_at_bound_flags_into_the_rig(rig, tmp_
     outcome = search_effects(replay, rig, effects=["valve_bias"])
     bias = outcome.uncertainty["valve_bias_si"]
     assert bias.at_bound and bias.value == pytest.approx(1.5e-3, rel=1e-3)
-    _, summary = write_calibration_report(outcome, replay, tmp_path / "d.csv", tmp_path / "out")
+    paths = write_calibration(CalibrationResult(outcome, replay), tmp_path / "out", "d.csv")
+    summary = json.loads(paths["summary"].read_text(encoding="utf-8"))
     assert any("valve_bias.offset" in w and "bound" in w for w in summary["warnings"])
     text = yaml.safe_load(Path(summary["calibrated_rig"]).read_text(encoding="utf-8"))
     entry = text["effects"]["valve_bias"]["offset"]

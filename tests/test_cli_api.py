@@ -105,7 +105,11 @@ def test_a_library_error_names_the_argument_and_the_shell_its_option():
         make_executor(cluster="nope")
     with pytest.raises(fuzzyservo.ConfigError, match=r"^fmi: must be 2 or 3, got 4"):
         export_file("flc2_reshaped", fmu="x.fmu", fmi=4)
-    # the shell's side: bad_inputs.py's "cli calibrate --effects unknown" ("--effects: ...")
+    with pytest.raises(fuzzyservo.ConfigError) as caught:
+        export_file("flc2_reshaped", fmu="x.fmu", sample_time_s=0.0)
+    assert str(caught.value) == "sample_time_s: must be > 0 s, got 0.0"
+    assert caught.value.as_option() == "--sample-time: must be > 0 s, got 0.0"  # what main prints
+    # and bad_inputs.py's "cli calibrate --effects unknown" ("--effects: ...")
 
 
 def test_evaluate_and_describe_from_python(tmp_path):

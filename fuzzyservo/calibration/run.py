@@ -7,6 +7,7 @@ together), the candidate effects, the search, and what it concluded as a result 
 
 from __future__ import annotations
 
+import functools
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
@@ -31,7 +32,7 @@ class CalibrationResult(Result):
     """What a calibration concluded (:class:`~fuzzyservo.calibration.search.SearchOutcome`,
     whose attributes read through: ``result.added``, ``result.calibrated`` ...) and the
     replay it was fitted on. ``to_dict()`` is ``summary.json`` (without the written
-    rig's path); :func:`fuzzyservo.io.calibration_report.write_calibration` writes the report."""
+    rig's path) and what ``--json`` writes; :func:`fuzzyservo.io.calibration_report.write_calibration` writes the report."""
 
     outcome: SearchOutcome
     replay: Replay = field(repr=False)
@@ -39,14 +40,23 @@ class CalibrationResult(Result):
     skipped: dict[str, str] = field(default_factory=dict)
 
     def __getattr__(self, name: str) -> Any:
-        if name.startswith("__") or name in ("outcome", "replay", "skipped"):
+        if name.startswith("__") or name in ("outcome", "replay", "skipped", "diagnostics"):
             raise AttributeError(name)
         return getattr(self.outcome, name)
 
     def to_dict(self) -> dict[str, Any]:
         from fuzzyservo.calibration.summary import calibration_summary
 
-        return calibration_summary(self.outcome, self.replay, self.skipped)
+        return {**calibration_summary(self.outcome, self.replay, self.skipped),
+                **self.diagnostics}  # fmt: skip
+
+    @functools.cached_property
+    def diagnostics(self) -> dict[str, Any]:
+        """The residual analysis and the signatures' R² (summary.diagnostics), computed
+        once: they simulate."""
+        from fuzzyservo.calibration.summary import diagnostics
+
+        return diagnostics(self.outcome, self.replay)
 
     def text(self) -> str:
         """Warnings, the first round's ranking, then the verdict (report.verdict_lines):

@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import dataclasses
 from collections.abc import Iterable, Mapping
+from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -15,6 +16,9 @@ from fuzzyservo.calibration.joint import split_field
 from fuzzyservo.calibration.null import Assessment, Null
 from fuzzyservo.calibration.replay import Replay
 from fuzzyservo.calibration.residuals import (
+    autocorrelation,
+    confidence_band,
+    cross_correlation,
     noise_floor,
     quantisation_step,
     signature_regression,
@@ -52,6 +56,47 @@ def residual_analysis(replay: Replay, model: dict[str, np.ndarray]) -> dict[str,
         w = whiteness(e, u[part])
         out["channels"][channel] = dataclasses.asdict(w)
     return out
+
+
+def diagnostics(outcome: SearchOutcome, replay: Replay) -> dict[str, Any]:
+    """The parts of ``summary.json`` that analyse the residual: its whiteness and
+    independence before and after (``residual_analysis``, MATLAB ``resid``) and each
+    effect's signature R² on the nominal model's residual (``signature_r2``, a run of
+    the nominal rig)."""
+    models = outcome.models
+    analyses = {label: residual_analysis(replay, models[key])
+                for label, key in (("before", "nominal"), ("after", "calibrated"))}  # fmt: skip
+    sig_replay, sig_model = replay, models["nominal"]
+    if hasattr(replay, "records"):  # several records: the signatures of the first
+        sig_replay = replay.records[0]
+        sig_model = {c: replay.unjoin(v)[0] for c, v in sig_model.items()}
+    signature = signature_table(sig_replay, outcome.nominal, sig_model, outcome.controller)
+    return {"residual_analysis": analyses, "signature_r2": signature}
+
+
+@dataclass(frozen=True)
+class Correlations:
+    """A channel's held-out residual correlations as ``resid`` plots them: lags and
+    values of its autocorrelation and of its cross-correlation with the input."""
+
+    acf: tuple[np.ndarray, np.ndarray]
+    xcf: tuple[np.ndarray, np.ndarray]
+
+
+def residual_correlations(
+    replay: Replay, model: dict[str, np.ndarray]
+) -> tuple[str, float, dict[str, Correlations]]:
+    """The input the residuals are correlated with, the band a white residual stays
+    inside, and each channel's correlations on the held-out part (channels whose
+    residual is not finite there left out)."""
+    name, u = input_signal(replay)
+    part = slice(replay.split, None)
+    out = {}
+    for channel in replay.channels:
+        e = (replay.measured(channel) - model[channel])[part]
+        if np.isfinite(e).all():
+            out[channel] = Correlations(autocorrelation(e), cross_correlation(e, u[part]))
+    return name, confidence_band(replay.t.size - replay.split), out
 
 
 def signature_table(

@@ -1,58 +1,41 @@
 """A calibration's files: the calibrated rig, figures, ``report.md`` and ``summary.json``.
 
 The numbers and the report's text come from :mod:`fuzzyservo.calibration.summary` and
-:mod:`fuzzyservo.calibration.report`; this module only writes them (files are the edge of the package).
+:mod:`fuzzyservo.calibration.report`; this module only draws and writes them (files are
+the edge of the package).
 """
 
 from __future__ import annotations
 
 import datetime as _dt
-from collections.abc import Mapping
 from pathlib import Path
-from typing import Any
-
-import numpy as np
 
 from fuzzyservo.atomic import ensure_folder, write_text
-from fuzzyservo.calibration.candidates import fit_table
+from fuzzyservo.calibration import CalibrationResult
 from fuzzyservo.calibration.joint import split_field
-from fuzzyservo.calibration.replay import Replay
 from fuzzyservo.calibration.report import ZOOM_S, report_markdown
-from fuzzyservo.calibration.residuals import (
-    autocorrelation,
-    confidence_band,
-    cross_correlation,
-)
-from fuzzyservo.calibration.search import SearchOutcome
-from fuzzyservo.calibration.summary import (
-    calibration_summary,
-    input_signal,
-    residual_analysis,
-    signature_table,
-)
+from fuzzyservo.calibration.summary import residual_correlations
 from fuzzyservo.components.effects import LIBRARY
 from fuzzyservo.display import display_scale
 
 
-def write_calibration_report(
-    outcome: SearchOutcome,
-    replay: Replay,
-    data_path: str | Path,
-    out_dir: Path,
-    skipped: Mapping[str, str] | None = None,
-) -> tuple[dict[str, Path], dict[str, Any]]:
-    """Write the calibrated rig, figures, report and summary into ``out_dir``; return
-    the paths and the summary (as written to ``summary.json``); ``skipped``: the
-    effects asked for and not tried, with why (calibration/run.skipped_effects)."""
+def write_calibration(
+    result: CalibrationResult, out_dir: str | Path, data_label: str
+) -> dict[str, Path]:
+    """Write a :class:`~fuzzyservo.calibration.CalibrationResult` into ``out_dir``: the
+    calibrated rig, figures, ``report.md`` and ``summary.json`` (``result.to_dict()`` and
+    the calibrated rig's path); ``data_label`` names the data in the files. Returns the
+    files by role."""
     from fuzzyservo.io.jsonfile import write_json
     from fuzzyservo.io.rigs import write_calibrated_rig
     from fuzzyservo.plots import candidates_figure, overlay_figure, residual_figure, save
 
-    out_dir = ensure_folder(out_dir)
+    outcome, replay = result.outcome, result.replay
+    out_dir = ensure_folder(Path(out_dir))
     rig = outcome.calibrated
     paths: dict[str, Path] = {}
     stamp = _dt.date.today().isoformat()
-    origin = f"fuzzyservo calibrate on {Path(data_path).name} ({stamp})"
+    origin = f"fuzzyservo calibrate on {Path(data_label).name} ({stamp})"
     parameters = {}
     for f in outcome.declared.unknowns:
         meta = type(rig.params).__dataclass_fields__[f].metadata
@@ -95,7 +78,7 @@ def write_calibration_report(
             header=header,
             intervals=intervals,
         )
-    summary = calibration_summary(outcome, replay, skipped)
+    summary = result.to_dict()
     if "rig" in paths:
         summary["calibrated_rig"] = str(paths["rig"])
 
@@ -108,7 +91,7 @@ def write_calibration_report(
         measured[channel] = k * replay.measured(channel)
         before[channel] = k * outcome.models["nominal"][channel]
         after[channel] = k * outcome.models["calibrated"][channel]
-    fit_before = fit_table(replay, outcome.models["nominal"])
+    fit_before = summary.get("fit_nominal_pct", summary["fit_before_pct"])
     fit_after = summary["fit_after_pct"]
     title = f"{outcome.declared.name}: {replay.mode}"
     fig = overlay_figure(
@@ -121,34 +104,14 @@ def write_calibration_report(
         f"{title} (held-out part, first {zoom[1] - zoom[0]:.3g} s)", window=zoom,
     )  # fmt: skip
     paths["overlay_zoom"] = save(fig, out_dir / "overlay_zoom.png")
-    band = confidence_band(t.size - replay.split)
-    input_name, u = input_signal(replay)
-    part = slice(replay.split, None)
-    analyses = {}
-    for label, model in (
-        ("before", outcome.models["nominal"]),
-        ("after", outcome.models["calibrated"]),
-    ):
-        res, acf, xcf = {}, {}, {}
-        for channel in replay.channels:
-            e = measured[channel] - (before if label == "before" else after)[channel]
-            res[channel] = e
-            if np.isfinite(e[part]).all():
-                acf[channel] = autocorrelation(e[part])
-                xcf[channel] = cross_correlation(e[part], u[part])
-        fig = residual_figure(
-            t, res, units, acf, xcf, band, input_name, title=f"residuals {label}: {title}"
-        )
+    for label, fitted in (("before", before), ("after", after)):
+        model = outcome.models["nominal" if label == "before" else "calibrated"]
+        input_name, band, found = residual_correlations(replay, model)
+        res = {channel: measured[channel] - fitted[channel] for channel in replay.channels}
+        fig = residual_figure(t, res, units, {c: k.acf for c, k in found.items()},
+                              {c: k.xcf for c, k in found.items()}, band, input_name,
+                              title=f"residuals {label}: {title}")  # fmt: skip
         paths[f"residuals_{label}"] = save(fig, out_dir / f"residuals_{label}.png")
-        analyses[label] = residual_analysis(replay, model)
-    summary["residual_analysis"] = analyses
-    sig_replay, sig_model = replay, outcome.models["nominal"]
-    if hasattr(replay, "records"):  # several records: the signatures of the first
-        sig_replay = replay.records[0]
-        sig_model = {c: replay.unjoin(v)[0] for c, v in sig_model.items()}
-    summary["signature_r2"] = signature_table(
-        sig_replay, outcome.nominal, sig_model, outcome.controller
-    )
     for k, r in enumerate(outcome.rounds, start=1):
         fig = candidates_figure(
             [c.name for c in r.candidates],
@@ -161,17 +124,8 @@ def write_calibration_report(
         paths[f"candidates_{k}"] = save(fig, out_dir / f"candidates_{k}.png")
     paths["summary"] = write_json(out_dir / "summary.json", summary)
     paths["report"] = out_dir / "report.md"
-    write_text(paths["report"], report_markdown(outcome, replay, summary, paths, data_path))
-    return paths, summary
-
-
-def write_calibration(result: Any, out_dir: str | Path, data_label: str) -> dict[str, Path]:
-    """Write a :class:`~fuzzyservo.calibration.CalibrationResult` into ``out_dir``
-    (``data_label`` names the data in the files); returns the files by role."""
-    paths, _ = write_calibration_report(
-        result.outcome, result.replay, data_label, Path(out_dir), result.skipped
-    )
+    write_text(paths["report"], report_markdown(outcome, replay, summary, paths, data_label))
     return paths
 
 
-__all__ = ["write_calibration", "write_calibration_report"]
+__all__ = ["write_calibration"]

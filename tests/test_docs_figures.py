@@ -82,7 +82,7 @@ def agree(where: str, stated: float, measured: float, rel: float, floor: float) 
 def test_tuning_results_table_is_what_dinca_flc_scores():
     from fuzzyservo import load_controller
     from fuzzyservo.io.studies import load_study
-    from fuzzyservo.tuning.runner import build_evaluator
+    from fuzzyservo.tuning.objective import build_evaluator
 
     header, rows = table("docs/tuning.md", "scored by `dinca_flc`")
     names = controller_columns(header)

@@ -52,7 +52,7 @@ def test_a_missing_extra_is_named_in_one_line(monkeypatch, capsys) -> None:
 
 def test_a_postgres_storage_without_its_driver_names_the_extra(monkeypatch) -> None:
     from fuzzyservo.errors import MissingExtraError
-    from fuzzyservo.tuning.runner import _storage
+    from fuzzyservo.tuning.storage import _storage
 
     monkeypatch.setitem(sys.modules, "psycopg2", None)
     with pytest.raises(MissingExtraError, match=r"fuzzyservo\[postgres\]"):

@@ -15,7 +15,7 @@ from fuzzyservo.errors import ConfigError
 from fuzzyservo.io.controllers import load_controller
 from fuzzyservo.io.studies import load_study
 from fuzzyservo.tuning.integrity import fingerprint
-from fuzzyservo.tuning.runner import build_evaluator
+from fuzzyservo.tuning.objective import build_evaluator
 from fuzzyservo.tuning.uncertainty import Distribution, Uncertainty, aggregate
 
 ROBUST = DATA / "studies" / "dinca_robust.yaml"

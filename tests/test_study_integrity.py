@@ -29,8 +29,8 @@ from test_tuning_distributed import (
 from fuzzyservo.cli import main
 from fuzzyservo.errors import ConfigError
 from fuzzyservo.io.studies import load_study
-from fuzzyservo.tuning.runner import open_study
 from fuzzyservo.tuning.spec import Parameter
+from fuzzyservo.tuning.storage import open_study
 
 
 def cheap_copy(tmp_path: Path, tag: str) -> tuple[Path, str]:

@@ -13,7 +13,8 @@ from fuzzyservo.errors import ConfigError
 from fuzzyservo.io.studies import load_study, split_path
 from fuzzyservo.metrics import result_metrics
 from fuzzyservo.simulation import simulate
-from fuzzyservo.tuning.runner import build_evaluator, run_study
+from fuzzyservo.tuning.objective import build_evaluator
+from fuzzyservo.tuning.runner import run_study
 
 STUDIES = DATA / "studies"
 

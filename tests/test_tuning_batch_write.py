@@ -16,7 +16,7 @@ from optuna.distributions import CategoricalDistribution, FloatDistribution, Int
 from optuna.trial import TrialState, create_trial
 
 from fuzzyservo.tuning.batch_write import BatchWriter
-from fuzzyservo.tuning.runner import _storage
+from fuzzyservo.tuning.storage import _storage
 
 
 def _trials(objectives: int) -> list:

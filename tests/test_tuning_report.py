@@ -19,7 +19,8 @@ from support import DATA
 from fuzzyservo.io.controllers import load_controller, write_controller_file
 from fuzzyservo.io.studies import load_study
 from fuzzyservo.io.study_report import write_study_report
-from fuzzyservo.tuning.runner import build_evaluator, run_study
+from fuzzyservo.tuning.objective import build_evaluator
+from fuzzyservo.tuning.runner import run_study
 
 SUMMARY_KEYS = {
     "study", "trials", "objective", "best", "baseline", "pareto", "importances", "storage",

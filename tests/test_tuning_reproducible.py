@@ -34,7 +34,8 @@ from test_tuning_distributed import (
 
 from fuzzyservo.cli import main
 from fuzzyservo.io.studies import load_study
-from fuzzyservo.tuning.runner import open_study, run_study
+from fuzzyservo.tuning.runner import run_study
+from fuzzyservo.tuning.storage import open_study
 
 pytest.importorskip("distributed", reason="the cluster extra (dask[distributed]) is not installed")
 

@@ -377,44 +377,11 @@ class Session:
         given = (url or self.default_storage(study)).strip()
         named = (spec.storage,) if spec.storage else ()
         url, path = self.folders.storage_url(given, named, study=study)
-        import optuna
-        from optuna.exceptions import OptunaError
-        from optuna.trial import TrialState
-        from sqlalchemy.exc import SQLAlchemyError
+        from fuzzyservo.tuning.storage import read_trials
 
-        from fuzzyservo.tuning.runner import driver_url, trial_counts
-
-        optuna.logging.set_verbosity(optuna.logging.WARNING)
-        # a SQLite file is opened read-only: looking at a study never changes its database
-        if path is not None:
-            from urllib.parse import quote
-
-            opened = f"sqlite:///file:{quote(str(path))}?mode=ro&uri=true"
-        else:
-            opened = driver_url(url)
-        try:
-            loaded = optuna.load_study(study_name=spec.name, storage=opened)
-        except KeyError:
-            raise ConfigError(f"the storage holds no study named {spec.name!r}", file=url) from None
-        except (SQLAlchemyError, OptunaError, ValueError, ImportError) as exc:
-            first = (
-                str(exc).strip().splitlines()[0][:120] if str(exc).strip() else type(exc).__name__
-            )
-            raise ConfigError(
-                f"cannot open the storage ({first}); check that it is a study database "
-                "(fuzzyservo tune writes one) and that its server runs",
-                file=url,
-            ) from None
-        trials = loaded.get_trials(deepcopy=False, states=(TrialState.COMPLETE,))
-        ranked = sorted(
-            trials,
-            key=lambda t: (t.user_attrs.get("status", "ok") != "ok", t.values[0]),
-        )
-        best = [
-            Trial(t.number, list(t.values), dict(t.params), t.user_attrs.get("status", "?"))
-            for t in ranked[:top]
-        ]
-        return StudyView(spec, url, best, len(trials), trial_counts_text(**trial_counts(loaded)))
+        stored = read_trials(spec.name, url, sqlite_file=path, top=top)
+        best = [Trial(t.number, list(t.values), t.params, t.status) for t in stored.best]
+        return StudyView(spec, url, best, stored.complete, trial_counts_text(**stored.counts))
 
     def trial_data(self, view: StudyView, trial: Trial) -> dict[str, Any]:
         """The controller mapping of a trial: the study's template with the trial's numbers."""

@@ -1,6 +1,6 @@
 """What a finished study leaves in its output folder: the best controller, a summary, figures, a report.
 
-:func:`write_study_report` turns an :class:`~fuzzyservo.tuning.runner.StudyOutcome` into
+:func:`write_study_report` turns an :class:`~fuzzyservo.tuning.outcome.StudyOutcome` into
 
 - ``best_controller.yaml``: the template with the best parameters, a controller file
   ``fuzzyservo simulate``/``compare`` take as it is (and ``best_controller.fis`` for a
@@ -36,6 +36,7 @@ from fuzzyservo.display import (
 )
 from fuzzyservo.io.jsonfile import write_json
 from fuzzyservo.metrics import METRIC_DOCS, METRIC_NAMES
+from fuzzyservo.tuning.outcome import StudyOutcome
 from fuzzyservo.tuning.report import (
     StudyReport,
     best_controller,
@@ -50,7 +51,6 @@ from fuzzyservo.tuning.report import (
     values_text,
 )
 from fuzzyservo.tuning.robust import Comparison
-from fuzzyservo.tuning.runner import StudyOutcome
 
 CONTROLLER_FILE = "best_controller.yaml"
 FIS_FILE = "best_controller.fis"

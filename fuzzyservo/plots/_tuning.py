@@ -1,7 +1,7 @@
 """Figures of a tuning study: trial history, parameter importances, Pareto front.
 
 They take plain records (the trial history as ``{number, values, status, feasible}``
-mappings, as :class:`~fuzzyservo.tuning.runner.StudyOutcome` holds it), so they need no
+mappings, as :class:`~fuzzyservo.tuning.outcome.StudyOutcome` holds it), so they need no
 Optuna. A trial whose simulation failed carries the study's penalty instead of a
 measured value; it is drawn as a mark at the top of the panel, never at its value,
 which would flatten every real one.

@@ -12,7 +12,7 @@ from typing import TYPE_CHECKING
 
 if TYPE_CHECKING:
     from fuzzyservo.rig import Rig
-    from fuzzyservo.tuning.runner import StudyOutcome
+    from fuzzyservo.tuning.outcome import StudyOutcome
     from fuzzyservo.tuning.spec import Study
 
 #: the shipped study the README's first command runs: `tune`'s default, the one the

@@ -142,6 +142,11 @@ class Evaluator:
         return (sum(w * metrics[m] / self.scale[m] for m, w in obj.weights.items()),)
 
 
+def build_evaluator(spec: Study) -> Evaluator:
+    """The trial evaluator of a study (it scores the baseline first)."""
+    return Evaluator(spec)
+
+
 def margin_metrics(
     rig: Rig, controller: Controller, scenario: str, constraints: list[Constraint]
 ) -> dict[str, float]:

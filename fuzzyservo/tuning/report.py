@@ -28,9 +28,9 @@ from fuzzyservo.display import (
 from fuzzyservo.metrics import METRIC_NAMES, format_value
 from fuzzyservo.results import Result, json_ready
 from fuzzyservo.tuning.evaluation import Evaluation
-from fuzzyservo.tuning.objective import measured_margins
+from fuzzyservo.tuning.objective import build_evaluator, measured_margins
+from fuzzyservo.tuning.outcome import StudyOutcome
 from fuzzyservo.tuning.robust import Comparison, compare_controllers
-from fuzzyservo.tuning.runner import StudyOutcome, build_evaluator
 
 
 @dataclass(frozen=True)

@@ -1,0 +1,192 @@
+"""What a finished (or stopped) study produced: :class:`StudyOutcome`, read back from the
+storage by :func:`collect` (the best feasible trial or the Pareto front, re-scored with its
+results kept; history, importances, times), and a robust study's best chosen again among
+its top trials on fresh samples (:func:`select_on_fresh_samples`)."""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import math
+from dataclasses import dataclass, field
+from typing import Any
+
+from fuzzyservo.tuning.batches import STORAGE_ATTR
+from fuzzyservo.tuning.evaluation import Evaluation
+from fuzzyservo.tuning.objective import build_evaluator
+from fuzzyservo.tuning.spec import Study
+from fuzzyservo.tuning.storage import open_study
+from fuzzyservo.tuning.study_trials import finished_states, trial_counts
+from fuzzyservo.tuning.warmstart import is_feasible
+
+
+@dataclass
+class StudyOutcome:
+    """What a finished (or stopped) study produced."""
+
+    spec: Study
+    storage_url: str
+    trials_complete: int
+    best_params: dict[str, float]
+    best: Evaluation
+    baseline: Evaluation
+    pareto: list[dict[str, Any]] = field(default_factory=list)
+    history: list[dict[str, Any]] = field(default_factory=list)
+    importances: dict[str, float] = field(default_factory=dict)
+    wall_s: float = 0.0
+    sim_time_s: float = 0.0
+    worker_time_s: float = 0.0
+    simulations: int = 0
+    trials_pruned: int = 0
+    #: robust studies: the top trials scored again on fresh samples (tuning/noise.py), the
+    #: winner first; each {number, value, standard_error, fresh_value, fresh_standard_error,
+    #: fresh_feasible}
+    selection: list[dict[str, Any]] = field(default_factory=list)
+    best_number: int | None = None
+    samples_skipped: int = 0  # sampled plants the robust trials never ran (decided before)
+    sampler_time_s: float = 0.0  # the sampler's time (asking the trials)
+    trials_asked: int = 0  # every trial the sampler proposed (any state)
+    trials_failed: int = 0  # FAIL: an error or a killed worker (not counted)
+    build_time_s: float = 0.0  # in the trials: building controllers
+    storage_time_s: float = 0.0  # batch mode: the parent writing the batches
+
+
+def _trial_time(trial) -> float:
+    """A trial's own time (a batch's trials all start at its ask and end at its tell)."""
+    if "trial_time_s" in trial.user_attrs:
+        return trial.user_attrs["trial_time_s"]
+    if trial.datetime_complete and trial.datetime_start:
+        return (trial.datetime_complete - trial.datetime_start).total_seconds()
+    return 0.0
+
+
+def collect(spec: Study, url: str, *, wall_s: float = 0.0, executor=None,
+            study=None) -> StudyOutcome:  # fmt: skip
+    """Read the study back: best (feasible) trial or Pareto front, history, importances.
+    A robust study's best is chosen among its top trials on fresh samples
+    (:func:`select_on_fresh_samples`, scored by ``executor``, default this process).
+    ``study``: the study at ``url`` already open (default: open it)."""
+    import optuna
+    from optuna.trial import TrialState
+
+    study = study if study is not None else open_study(spec, url)
+    stored_time = float(study.user_attrs.get(STORAGE_ATTR, 0.0))
+    trials = study.get_trials(deepcopy=False, states=(TrialState.COMPLETE,))
+    if not trials:
+        raise RuntimeError(f"study {spec.name!r} has no complete trial yet in {url}")
+
+    pool = (
+        [t for t in trials if is_feasible(t)]
+        or [t for t in trials if t.user_attrs.get("status") == "ok"]
+        or trials
+    )
+    evaluator = build_evaluator(spec)
+    pareto = []
+    if spec.objective.pareto:
+        front = [t for t in study.best_trials if t in pool] or study.best_trials
+        pareto = [
+            {"number": t.number, "values": list(t.values), "params": dict(t.params)} for t in front
+        ]
+        # the reported "best": the member of the front closest to the origin, each
+        # objective measured in units of the baseline's value
+        scale = [
+            abs(v) if math.isfinite(v) and v != 0 else 1.0
+            for v in evaluator.baseline_evaluation.values
+        ]
+        best_trial = min(
+            front, key=lambda t: math.hypot(*(v / s for v, s in zip(t.values, scale, strict=True)))
+        )
+    else:
+        best_trial = min(pool, key=lambda t: t.value)
+    selection: list[dict[str, Any]] = []
+    if spec.uncertainty is not None and not spec.objective.pareto:
+        best_trial, selection = select_on_fresh_samples(spec, pool, executor)
+    best_params = dict(best_trial.params)
+    best = evaluator.evaluate(
+        evaluator.controller(best_params, name=f"{spec.name}_best"), keep_results=True
+    )
+    history = [
+        {"number": t.number, "values": list(t.values), "status": t.user_attrs.get("status", "?"),
+         "feasible": is_feasible(t)}
+        for t in trials
+    ]  # fmt: skip
+    importances: dict[str, float] = {}
+    if len(trials) >= 10 and len(spec.parameters) > 1:
+        import warnings
+
+        try:
+            with warnings.catch_warnings():
+                # PED-ANOVA reminds that it ranks for low targets: ours are all minimised
+                warnings.simplefilter("ignore", UserWarning)
+                importances = dict(
+                    optuna.importance.get_param_importances(
+                        study, target=(lambda t: t.values[0]) if spec.objective.pareto else None
+                    )
+                )
+        except (RuntimeError, ValueError, ZeroDivisionError):
+            importances = {}
+    finished = study.get_trials(deepcopy=False, states=finished_states())  # with pruned ones
+    sim = sum(t.user_attrs.get("sim_time_s", 0.0) for t in finished)
+    worker_time = sum(_trial_time(t) for t in finished)
+    counts = trial_counts(study)
+    return StudyOutcome(
+        spec=spec,
+        storage_url=url,
+        trials_complete=len(trials),
+        best_params=best_params,
+        best=best,
+        baseline=evaluator.baseline_evaluation,
+        pareto=pareto,
+        history=history,
+        importances=importances,
+        wall_s=wall_s,
+        sim_time_s=sim,
+        worker_time_s=worker_time,
+        simulations=sum(t.user_attrs.get("simulations", 0) for t in finished),
+        trials_pruned=len(finished) - len(trials),
+        selection=selection,
+        best_number=best_trial.number,
+        samples_skipped=sum(_work(t, "samples_skipped") for t in finished),
+        sampler_time_s=sum(_work(t, "sample_s") for t in finished),
+        trials_asked=counts["asked"],
+        trials_failed=counts["failed"],
+        build_time_s=sum(_work(t, "build_s") for t in finished),
+        storage_time_s=stored_time,
+    )
+
+
+def _work(trial, key: str) -> float:
+    """One figure of a stored trial's ``work`` record (0 for a study stored before it)."""
+    return trial.user_attrs.get("work", {}).get(key, 0)
+
+
+def select_on_fresh_samples(spec: Study, pool: list, executor=None) -> tuple[Any, list[dict]]:
+    """The best of the :data:`~fuzzyservo.tuning.noise.TOP` lowest trials of ``pool`` on
+    fresh samples (:func:`~fuzzyservo.tuning.noise.fresh_uncertainty`; feasible there
+    first, then by value), and every candidate's values with their standard errors."""
+    from fuzzyservo.executor import Inline
+    from fuzzyservo.tuning.integrity import fingerprint
+    from fuzzyservo.tuning.noise import TOP, fresh_uncertainty, standard_error
+    from fuzzyservo.tuning.trial import Task, TrialRunner
+
+    u = spec.uncertainty
+    top = sorted(pool, key=lambda t: (t.value, t.number))[:TOP]
+    fresh = dataclasses.replace(spec, uncertainty=fresh_uncertainty(u))
+    runner = TrialRunner(fresh, "fresh " + json.dumps(fingerprint(fresh), sort_keys=True))
+    results = (executor or Inline()).map(runner, [Task(t.number, dict(t.params)) for t in top])
+
+    def se(values) -> float | None:
+        value = standard_error([math.nan if v is None else v for v in values or ()],
+                               u.aggregate, u.alpha)  # fmt: skip
+        return value if math.isfinite(value) else None
+
+    rows = []
+    for t, r in zip(top, results, strict=True):
+        feasible = r.user_attrs.get("status") == "ok" and all(c <= 0 for c in r.constraints)
+        rows.append({"number": t.number, "value": t.value,
+                     "standard_error": se(t.user_attrs.get("sample_values")),
+                     "fresh_value": r.values[0], "fresh_standard_error":
+                     se(r.user_attrs.get("sample_values")), "fresh_feasible": feasible})  # fmt: skip
+    rows.sort(key=lambda row: (not row["fresh_feasible"], row["fresh_value"], row["number"]))
+    winner = next(t for t in top if t.number == rows[0]["number"])
+    return winner, rows

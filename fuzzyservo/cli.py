@@ -228,7 +228,7 @@ def cmd_tune(args: argparse.Namespace) -> int:
 def cmd_robustness(args: argparse.Namespace) -> int:
     """Monte Carlo of controllers on plants sampled from a study's ``uncertainty:``."""
     from fuzzyservo.io.studies import load_study
-    from fuzzyservo.tuning.montecarlo import plan
+    from fuzzyservo.tuning.uncertainty.montecarlo import plan
 
     _at_least(1, samples=args.samples, workers=args.workers)
     _plant_samples(samples=args.samples)

@@ -14,7 +14,6 @@ import pytest
 from support import controller_named, rig_named
 
 from fuzzyservo.analysis.compare import compare
-from fuzzyservo.analysis.robustness import SUMMARY_METRICS, comparison_text
 from fuzzyservo.display import MetricUnits, metric_units, metrics_table, undefined_note
 from fuzzyservo.metrics import (
     METRIC_NAMES,
@@ -25,6 +24,7 @@ from fuzzyservo.metrics import (
     metric_unit,
 )
 from fuzzyservo.tuning.spec import MARGIN_METRICS
+from fuzzyservo.tuning.uncertainty.robustness import SUMMARY_METRICS, comparison_text
 from fuzzyservo.units import parse_unit
 
 

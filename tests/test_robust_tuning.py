@@ -245,7 +245,7 @@ def test_uncertainty_reads_fitted_intervals_from_a_calibrated_rig(tmp_path):
     for s in spec.uncertainty.draws:
         assert 1.4e9 <= s.values["oil.bulk_modulus"] <= 1.6e9
         assert 20.0 <= s.values["coulomb_friction.force"] <= 40.0
-    from fuzzyservo.tuning.robust import sample_rigs
+    from fuzzyservo.tuning.uncertainty.robust import sample_rigs
 
     drawn = sample_rigs(spec.rig, spec)[0]
     assert drawn.effect_values("coulomb_friction")["force"] == pytest.approx(
@@ -307,7 +307,7 @@ def test_report_compares_best_baseline_and_template_nominal_and_monte_carlo(tmp_
     from fuzzyservo.display import metric_units
     from fuzzyservo.io.study_report import _comparison_lines
     from fuzzyservo.tuning.report import comparison_controllers
-    from fuzzyservo.tuning.robust import CHECK_SEED, compare_controllers
+    from fuzzyservo.tuning.uncertainty.robust import CHECK_SEED, compare_controllers
 
     spec = dataclasses.replace(_small(tmp_path, samples=1), scenarios=("steps",))
     evaluator = build_evaluator(spec)
@@ -330,8 +330,8 @@ def test_monte_carlo_in_batches_matches_one_by_one(tmp_path):
     """The batched, parallel Monte Carlo gives each sample exactly the runs and verdicts of
     run_sample and stable_at, one by one."""
     from fuzzyservo.analysis.margins import stable_at
-    from fuzzyservo.analysis.robustness import monte_carlo, run_sample
-    from fuzzyservo.tuning.robust import sample_rigs
+    from fuzzyservo.tuning.uncertainty.robust import sample_rigs
+    from fuzzyservo.tuning.uncertainty.robustness import monte_carlo, run_sample
 
     spec = _small(tmp_path, samples=3)
     rig = spec.rig
@@ -384,7 +384,7 @@ def test_tune_prints_and_reports_the_comparison(tmp_path, capsys):
 def test_standard_error_of_the_mean_and_of_the_worst():
     """Of the mean: s/sqrt(n) (here s = 1 for 1, 2, 3 and n = 3); of the worst: the bootstrap
     spread, zero when every sample gives the same value, a fraction of the range otherwise."""
-    from fuzzyservo.tuning.noise import fresh_uncertainty, standard_error
+    from fuzzyservo.tuning.uncertainty.noise import fresh_uncertainty, standard_error
 
     assert standard_error([1.0, 2.0, 3.0], "mean") == pytest.approx(1 / math.sqrt(3))
     assert standard_error([2.0] * 8, "worst") == 0.0
@@ -403,10 +403,10 @@ def test_lock_step_runs_equal_one_by_one(tmp_path):
     through one compiled call and each gets exactly the run it gets alone; so do the
     margin checks of a trial."""
     from fuzzyservo.analysis.margins import scaled
-    from fuzzyservo.analysis.robustness import margin_checks, margin_checks_batch
     from fuzzyservo.simulation import simulate
     from fuzzyservo.simulation.closed_loop import simulate_batch
-    from fuzzyservo.tuning.robust import sample_rigs
+    from fuzzyservo.tuning.uncertainty.robust import sample_rigs
+    from fuzzyservo.tuning.uncertainty.robustness import margin_checks, margin_checks_batch
 
     spec = _small(tmp_path, samples=3)
     rigs = sample_rigs(spec.rig, spec)

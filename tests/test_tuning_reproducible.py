@@ -215,7 +215,7 @@ def test_cluster_without_dask_names_the_extra(tmp_path, capsys, monkeypatch):
 
 def test_robustness_gives_the_same_numbers_on_workers_and_a_cluster(tmp_path, cluster, dinca,
                                                                     flc2, p_k10):  # fmt: skip
-    from fuzzyservo.tuning.montecarlo import CHUNK, plan
+    from fuzzyservo.tuning.uncertainty.montecarlo import CHUNK, plan
 
     study = load_study(DATA / "studies" / "dinca_robust.yaml")
     setup = plan(dinca, [flc2, p_k10], study, samples=CHUNK + 4, scenarios=["steps"])

@@ -18,7 +18,7 @@ if TYPE_CHECKING:
     from fuzzyservo.analysis.frequency import FrequencyResponse
     from fuzzyservo.controllers.fuzzy import FuzzyController
     from fuzzyservo.simulation import SimResult
-    from fuzzyservo.tuning.montecarlo import RobustnessResult
+    from fuzzyservo.tuning.uncertainty.montecarlo import RobustnessResult
 
 
 def write_signals_csv(path: str | Path, result: SimResult) -> Path:
@@ -79,7 +79,7 @@ def save_fuzzy_figures(
 def save_robustness(result: RobustnessResult, out: str | Path) -> list[Path]:
     """The metric distributions and, per controller, its worst sample's responses."""
     from fuzzyservo import plots
-    from fuzzyservo.analysis.robustness import SUMMARY_METRICS
+    from fuzzyservo.tuning.uncertainty.robustness import SUMMARY_METRICS
 
     out = ensure_folder(out)
     units = {m: result.units.unit(m) for m in SUMMARY_METRICS}

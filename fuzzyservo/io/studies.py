@@ -28,7 +28,7 @@ timeout_s: 600
 storage: null                      # default: SQLite in the output folder
 workers: 1                         # local worker processes (--workers overrides)
 batch_size: 4                      # trials asked at once; the result depends on it, not on workers
-uncertainty:                       # optional: tune on sampled plants (tuning/uncertainty.py)
+uncertainty:                       # optional: tune on sampled plants (tuning/uncertainty/sets.py)
   samples: 8                       # the same 8 plants and noise realisations for every trial
   seed: 1
   noise: true                      # a sensor-noise realisation per sample

@@ -23,7 +23,6 @@ import re
 from collections.abc import Callable
 from pathlib import Path
 
-from fuzzyservo.analysis.robustness import SUMMARY_METRICS
 from fuzzyservo.atomic import ensure_folder, write_text
 from fuzzyservo.display import (
     LOWER_IS_BETTER,
@@ -50,7 +49,8 @@ from fuzzyservo.tuning.report import (
     time_split,
     values_text,
 )
-from fuzzyservo.tuning.robust import Comparison
+from fuzzyservo.tuning.uncertainty.robust import Comparison
+from fuzzyservo.tuning.uncertainty.robustness import SUMMARY_METRICS
 
 CONTROLLER_FILE = "best_controller.yaml"
 FIS_FILE = "best_controller.fis"

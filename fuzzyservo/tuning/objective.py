@@ -17,8 +17,8 @@ from fuzzyservo.metrics import METRIC_NAMES, result_metrics
 from fuzzyservo.rig import Rig
 from fuzzyservo.simulation import SimResult, simulate
 from fuzzyservo.tuning.evaluation import Evaluation
-from fuzzyservo.tuning.robust import evaluate_samples, sample_rigs
 from fuzzyservo.tuning.spec import MARGIN_METRICS, Constraint, Study
+from fuzzyservo.tuning.uncertainty.robust import evaluate_samples, sample_rigs
 
 
 class Evaluator:
@@ -69,7 +69,7 @@ class Evaluator:
         self, controller: Controller, *, keep_results: bool = False, report=None
     ) -> Evaluation:
         """Simulate every scenario, aggregate the metrics, compute objective(s) and constraints
-        (on every sampled plant for a study with ``uncertainty``: tuning/robust.py)."""
+        (on every sampled plant for a study with ``uncertainty``: tuning/uncertainty/robust.py)."""
         spec = self.spec
         if spec.uncertainty is not None:
             return evaluate_samples(self, controller, keep_results=keep_results, report=report)

@@ -38,7 +38,7 @@ class StudyOutcome:
     worker_time_s: float = 0.0
     simulations: int = 0
     trials_pruned: int = 0
-    #: robust studies: the top trials scored again on fresh samples (tuning/noise.py), the
+    #: robust studies: the top trials scored again on fresh samples (tuning/uncertainty/noise.py), the
     #: winner first; each {number, value, standard_error, fresh_value, fresh_standard_error,
     #: fresh_feasible}
     selection: list[dict[str, Any]] = field(default_factory=list)
@@ -161,13 +161,13 @@ def _work(trial, key: str) -> float:
 
 
 def select_on_fresh_samples(spec: Study, pool: list, executor=None) -> tuple[Any, list[dict]]:
-    """The best of the :data:`~fuzzyservo.tuning.noise.TOP` lowest trials of ``pool`` on
-    fresh samples (:func:`~fuzzyservo.tuning.noise.fresh_uncertainty`; feasible there
+    """The best of the :data:`~fuzzyservo.tuning.uncertainty.noise.TOP` lowest trials of ``pool`` on
+    fresh samples (:func:`~fuzzyservo.tuning.uncertainty.noise.fresh_uncertainty`; feasible there
     first, then by value), and every candidate's values with their standard errors."""
     from fuzzyservo.executor import Inline
     from fuzzyservo.tuning.integrity import fingerprint
-    from fuzzyservo.tuning.noise import TOP, fresh_uncertainty, standard_error
     from fuzzyservo.tuning.trial import Task, TrialRunner
+    from fuzzyservo.tuning.uncertainty.noise import TOP, fresh_uncertainty, standard_error
 
     u = spec.uncertainty
     top = sorted(pool, key=lambda t: (t.value, t.number))[:TOP]

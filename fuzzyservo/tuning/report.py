@@ -15,7 +15,6 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
 
-from fuzzyservo.analysis.robustness import comparison_text
 from fuzzyservo.controllers.base import Controller
 from fuzzyservo.display import (
     LOWER_IS_BETTER,
@@ -30,7 +29,8 @@ from fuzzyservo.results import Result, json_ready
 from fuzzyservo.tuning.evaluation import Evaluation
 from fuzzyservo.tuning.objective import build_evaluator, measured_margins
 from fuzzyservo.tuning.outcome import StudyOutcome
-from fuzzyservo.tuning.robust import Comparison, compare_controllers
+from fuzzyservo.tuning.uncertainty.robust import Comparison, compare_controllers
+from fuzzyservo.tuning.uncertainty.robustness import comparison_text
 
 
 @dataclass(frozen=True)
@@ -129,7 +129,7 @@ def study_report(
     measure the margins its constraints bound and, for a robust study, compare it with
     the baseline and the template on ``check_samples`` plants drawn afresh from the
     study's uncertainty (default: as many as the study's own samples; 0: no comparison;
-    :func:`~fuzzyservo.tuning.robust.compare_controllers`, ``progress(1)`` per sampled
+    :func:`~fuzzyservo.tuning.uncertainty.robust.compare_controllers`, ``progress(1)`` per sampled
     plant and controller)."""
     spec = outcome.spec
     evaluator = build_evaluator(spec)
@@ -212,7 +212,7 @@ def _summary(outcome: StudyOutcome, baseline_name: str, trial: int | None) -> di
             "feasible": best.feasible,
             "violations": list(best.violations),
             # robust studies: the value's standard error over the samples, and its value
-            # on fresh samples (the winner of the top trials there: tuning/noise.py)
+            # on fresh samples (the winner of the top trials there: tuning/uncertainty/noise.py)
             **(
                 {
                     k: outcome.selection[0][k]

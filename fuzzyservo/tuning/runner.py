@@ -304,7 +304,7 @@ def _warm_kernels(spec: Study) -> None:
     simulate(rig, spec.template, spec.scenarios[0], duration_s=10 * rig.sample_time_s)
     if spec.uncertainty is not None:  # its trials run their samples' checks in lock-step
         from fuzzyservo.simulation.closed_loop import simulate_batch
-        from fuzzyservo.tuning.robust import sample_rigs
+        from fuzzyservo.tuning.uncertainty.robust import sample_rigs
 
         seeds = [d.noise_seed for d in spec.uncertainty.draws[:2]]
         simulate_batch(sample_rigs(rig, spec)[:2], spec.template, spec.scenarios[0], seeds)

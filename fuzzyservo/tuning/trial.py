@@ -3,7 +3,7 @@
 The same function scores a trial in the parent (one worker), in a local worker process
 and on a Dask worker (:mod:`fuzzyservo.executor`), so where a trial runs never changes
 its result. A trial uses no random number of its own: a robust study's plants and noise
-are the study's draws (:func:`~fuzzyservo.tuning.robust.sample_rigs`, fixed by the
+are the study's draws (:func:`~fuzzyservo.tuning.uncertainty.robust.sample_rigs`, fixed by the
 study's uncertainty seed), the same for every trial.
 
 Pruning (robust studies, one objective, ``worst`` aggregate): the trial stops once its

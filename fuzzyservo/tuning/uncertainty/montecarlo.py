@@ -2,7 +2,7 @@
 ``uncertainty:`` (what ``fuzzyservo robustness`` runs).
 
 :func:`plan` draws the plants, :meth:`RobustnessPlan.run` simulates every controller
-on each (:func:`~fuzzyservo.analysis.robustness.monte_carlo`); :func:`robustness`
+on each (:func:`~fuzzyservo.tuning.uncertainty.robustness.monte_carlo`); :func:`robustness`
 does both.
 """
 
@@ -14,7 +14,10 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from fuzzyservo.analysis.robustness import (
+from fuzzyservo.display import MetricUnits, metric_units
+from fuzzyservo.errors import ConfigError
+from fuzzyservo.results import Result
+from fuzzyservo.tuning.uncertainty.robustness import (
     SUMMARY_METRICS,
     MonteCarlo,
     monte_carlo,
@@ -22,9 +25,6 @@ from fuzzyservo.analysis.robustness import (
     summary,
     summary_text,
 )
-from fuzzyservo.display import MetricUnits, metric_units
-from fuzzyservo.errors import ConfigError
-from fuzzyservo.results import Result
 
 if TYPE_CHECKING:
     import numpy as np
@@ -33,7 +33,7 @@ if TYPE_CHECKING:
     from fuzzyservo.rig import Rig
     from fuzzyservo.simulation import SimResult
     from fuzzyservo.tuning.spec import Study
-    from fuzzyservo.tuning.uncertainty import Uncertainty
+    from fuzzyservo.tuning.uncertainty.sets import Uncertainty
 
 
 @dataclass(frozen=True)
@@ -190,7 +190,7 @@ def plan(
     """Draw ``samples`` plants of ``rig`` from the ``uncertainty:`` of ``study`` (a robust
     study of this rig), seeded ``seed`` (default: the seed a study report's check uses,
     so both draw the same plants); ``scenarios`` default: the study's."""
-    from fuzzyservo.tuning.robust import CHECK_SEED, sample_rigs
+    from fuzzyservo.tuning.uncertainty.robust import CHECK_SEED, sample_rigs
 
     if study.uncertainty is None:
         raise ConfigError("has no 'uncertainty:' section; name a robust study", file=study.path)

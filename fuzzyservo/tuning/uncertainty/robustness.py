@@ -77,7 +77,7 @@ def run_sample(
 
     ``stop(metrics)``, when given, is asked after each scenario but the last with the
     metrics aggregated over the scenarios run so far; True ends the sample there with
-    status ``pruned`` (a robust trial that is already lost: tuning/robust.py)."""
+    status ``pruned`` (a robust trial that is already lost: tuning/uncertainty/robust.py)."""
     per: dict[str, dict[str, float]] = {}
     results: dict[str, SimResult] = {}
     status, message = "ok", ""

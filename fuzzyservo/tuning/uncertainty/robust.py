@@ -6,7 +6,7 @@ mean or CVaR (:func:`~fuzzyservo.tuning.uncertainty.aggregate`). A trial where a
 diverges, fails a step or hits an end stop is infeasible with that sample as its reason
 (and the remaining samples are skipped); a constraint counts broken when it is broken on
 any sample; ``gain_margin >= g`` and ``delay_margin_s >= d`` are checked on every sample
-with one run each (:func:`~fuzzyservo.analysis.robustness.margin_checks`), once every
+with one run each (:func:`~fuzzyservo.tuning.uncertainty.robustness.margin_checks`), once every
 sample ran through: a trial pruned or failed on its k-th sample pays for no margin check
 (the checks decide neither, so the result is the same). The samples a trial never ran
 are counted (``Evaluation.samples_skipped``; the study's ``samples_skipped``).
@@ -21,7 +21,13 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
 from fuzzyservo.analysis.margins import stable_at
-from fuzzyservo.analysis.robustness import (
+from fuzzyservo.controllers.base import Controller
+from fuzzyservo.metrics import METRIC_NAMES
+from fuzzyservo.rig import Rig
+from fuzzyservo.simulation import simulate
+from fuzzyservo.tuning.evaluation import Evaluation, Scorer
+from fuzzyservo.tuning.spec import Study
+from fuzzyservo.tuning.uncertainty.robustness import (
     SUMMARY_METRICS,
     MonteCarlo,
     SampleRun,
@@ -31,13 +37,7 @@ from fuzzyservo.analysis.robustness import (
     run_samples,
     summary,
 )
-from fuzzyservo.controllers.base import Controller
-from fuzzyservo.metrics import METRIC_NAMES
-from fuzzyservo.rig import Rig
-from fuzzyservo.simulation import simulate
-from fuzzyservo.tuning.evaluation import Evaluation, Scorer
-from fuzzyservo.tuning.spec import Study
-from fuzzyservo.tuning.uncertainty import aggregate, sample_rig
+from fuzzyservo.tuning.uncertainty.sets import aggregate, sample_rig
 
 
 def sample_rigs(rig: Rig, spec: Study) -> list[Rig]:
@@ -232,7 +232,7 @@ class Comparison:
     uncertainty: str
 
     def rows(self) -> list[dict[str, object]]:
-        """Per controller: the Monte Carlo summary (:func:`analysis.robustness.summary`)
+        """Per controller: the Monte Carlo summary (:func:`.robustness.summary`)
         with the nominal metrics, objective and gain check beside it."""
         out = []
         for row, run, value in zip(summary(self.monte_carlo, self.gain), self.nominal,

@@ -19,7 +19,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from fuzzyservo.tuning.uncertainty import Uncertainty, aggregate
+from fuzzyservo.tuning.uncertainty.sets import Uncertainty, aggregate
 
 #: the best trials scored again on fresh samples before the winner is declared
 TOP = 5

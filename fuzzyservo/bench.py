@@ -263,7 +263,7 @@ def run_study_case(
     import tempfile
 
     from fuzzyservo.io.studies import load_study
-    from fuzzyservo.tuning.report import time_split
+    from fuzzyservo.tuning.outcome import time_split
     from fuzzyservo.tuning.runner import run_study
 
     root = root or data_root()

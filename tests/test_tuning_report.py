@@ -5,6 +5,7 @@ Studies are kept short (≤ 30 trials, one worker) and run once per module.
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import math
 import re
@@ -125,6 +126,12 @@ def test_the_report_object_is_what_the_files_say(fuzzy_study):
     assert json_ready(report.to_dict()) == written
     assert report.reproduces and report.trial == written["best"]["trial"]
     assert report.text().startswith("trials: ") and "objective: best" in report.text()
+    # what tune returns is a result too: its numbers are summary.json's, its text the start
+    outcome_dict = json_ready(outcome.to_dict())
+    assert {k: written[k] for k in outcome_dict} == outcome_dict
+    assert str(outcome) == report.text()  # a study without uncertainty: nothing to add
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        outcome.wall_s = 0.0
 
 
 def test_report_links_resolve_and_state_the_reproduction(fuzzy_study):

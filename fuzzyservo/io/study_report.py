@@ -35,18 +35,20 @@ from fuzzyservo.display import (
 )
 from fuzzyservo.io.jsonfile import write_json
 from fuzzyservo.metrics import METRIC_DOCS, METRIC_NAMES
-from fuzzyservo.tuning.outcome import StudyOutcome
+from fuzzyservo.tuning.outcome import (
+    StudyOutcome,
+    best_trial_number,
+    counts_text,
+    si_note,
+    status_text,
+    time_split,
+)
 from fuzzyservo.tuning.report import (
     StudyReport,
     best_controller,
     best_description,
-    best_trial_number,
-    counts_text,
     number_text,
-    si_note,
-    status_text,
     study_report,
-    time_split,
     values_text,
 )
 from fuzzyservo.tuning.uncertainty.robust import Comparison

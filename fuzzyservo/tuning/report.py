@@ -17,18 +17,16 @@ from typing import Any
 
 from fuzzyservo.controllers.base import Controller
 from fuzzyservo.display import (
-    LOWER_IS_BETTER,
-    MetricUnits,
     metric_units,
-    metrics_table,
-    trial_counts_text,
-    undefined_note,
 )
-from fuzzyservo.metrics import METRIC_NAMES, format_value
 from fuzzyservo.results import Result, json_ready
 from fuzzyservo.tuning.evaluation import Evaluation
 from fuzzyservo.tuning.objective import build_evaluator, measured_margins
-from fuzzyservo.tuning.outcome import StudyOutcome
+from fuzzyservo.tuning.outcome import (
+    StudyOutcome,
+    best_trial_number,
+    counts_text,
+)
 from fuzzyservo.tuning.uncertainty.robust import Comparison, compare_controllers
 from fuzzyservo.tuning.uncertainty.robustness import comparison_text
 
@@ -58,8 +56,9 @@ class StudyReport(Result):
         return _same(self.check.values, self.outcome.best.values)
 
     def to_dict(self) -> dict[str, Any]:
-        """The ``summary.json`` mapping (before NaN and inf become null)."""
-        summary = _summary(self.outcome, self.baseline_name, self.trial)
+        """The ``summary.json`` mapping (before NaN and inf become null): the outcome's
+        (:meth:`StudyOutcome.to_dict`), the measured margins and the comparison."""
+        summary = self.outcome.to_dict()
         if self.measured_margins:
             summary["measured_margins"] = self.measured_margins
         if self.comparison is not None:
@@ -73,31 +72,13 @@ class StudyReport(Result):
         return summary
 
     def text(self) -> str:
-        """What ``fuzzyservo tune`` prints when done: the trial counts, the metrics of the
-        baseline and the best in display units (``n/a`` explained), the objective and,
-        for a robust study, the comparison."""
-        outcome = self.outcome
-        units = metric_units(outcome.spec.rig)
-        best, base = outcome.best, outcome.baseline
-        rows = [base.metrics, best.metrics]
-        names = [f"baseline {outcome.spec.baseline.name}", "best"]
-        lines = [
-            f"trials: {counts_text(outcome)}",
-            f"metrics, worst over the scenarios{' and samples' if outcome.spec.uncertainty else ''}"
-            f" ({LOWER_IS_BETTER}; change: best against the baseline):",
-            metrics_table(names, rows, units, change=True),
-        ]
-        if note := undefined_note(METRIC_NAMES, rows):
-            lines.append(note)
-        values = [", ".join(format_value(v) for v in e.values) for e in (best, base)]
-        lines.append(f"objective: best {values[0]} against baseline {values[1]} "
-                     f"({outcome.spec.objective.describe()}{si_note(outcome.spec, units)})")  # fmt: skip
-        for who, e in (("best", best), ("baseline", base)):
-            if e.status != "ok":  # its objective is the penalty or undefined: say why
-                lines.append(f"{who}: status {status_text(e)}")
-        if self.comparison is not None:
-            lines.append(comparison_text(json_ready(self.to_dict())["comparison"], units))
-        return "\n".join(lines)
+        """What ``fuzzyservo tune`` prints when done: the outcome's lines
+        (:meth:`StudyOutcome.text`) and, for a robust study, the comparison."""
+        if self.comparison is None:
+            return self.outcome.text()
+        units = metric_units(self.outcome.spec.rig)
+        comparison = json_ready(self.to_dict())["comparison"]
+        return f"{self.outcome.text()}\n{comparison_text(comparison, units)}"
 
 
 def best_controller(outcome: StudyOutcome) -> Controller:
@@ -171,119 +152,6 @@ def _measured_margins(evaluator: Any, best: Controller) -> dict[str, dict[str, f
     return out
 
 
-def best_trial_number(outcome: StudyOutcome) -> int | None:
-    """The number of the trial the outcome reports as best (as the runner picks it)."""
-    if outcome.best_number is not None:
-        return outcome.best_number
-    if outcome.pareto:
-        for p in outcome.pareto:
-            if p["params"] == outcome.best_params:
-                return int(p["number"])
-        return None
-    history = outcome.history
-    pool = (
-        [h for h in history if h["feasible"]]
-        or [h for h in history if h["status"] == "ok"]
-        or history
-    )
-    if not pool:
-        return None
-    return int(min(pool, key=lambda h: h["values"][0])["number"])
-
-
-def _summary(outcome: StudyOutcome, baseline_name: str, trial: int | None) -> dict[str, Any]:
-    spec = outcome.spec
-    best, base = outcome.best, outcome.baseline
-    return {
-        "study": spec.name,
-        # every metric below is SI, in the unit this maps it to (the units schema,
-        # fuzzyservo.metrics.METRIC_UNITS, for this rig's output)
-        "units": metric_units(spec.rig).si_units(),
-        "trials": outcome.trials_complete,
-        "objective": spec.objective.describe(),
-        "best": {
-            "trial": trial,
-            "params": dict(outcome.best_params),
-            "objective": _objective_value(best),
-            "metrics": dict(best.metrics),
-            "scenarios": {s: dict(m) for s, m in best.scenario_metrics.items()},
-            "status": best.status,
-            "message": best.message,
-            "feasible": best.feasible,
-            "violations": list(best.violations),
-            # robust studies: the value's standard error over the samples, and its value
-            # on fresh samples (the winner of the top trials there: tuning/uncertainty/noise.py)
-            **(
-                {
-                    k: outcome.selection[0][k]
-                    for k in ("standard_error", "fresh_value", "fresh_standard_error")
-                }
-                if outcome.selection
-                else {}
-            ),
-        },
-        "selection": [dict(row) for row in outcome.selection],
-        "baseline": {
-            "controller": baseline_name,
-            "objective": _objective_value(base),
-            "metrics": dict(base.metrics),
-            "scenarios": {s: dict(m) for s, m in base.scenario_metrics.items()},
-            "status": base.status,
-            "feasible": base.feasible,
-        },
-        "constraints": [str(c) for c in spec.constraints],
-        "sampler": spec.sampler,
-        "pareto": [
-            {"number": p["number"], "values": list(p["values"]), "params": dict(p["params"])}
-            for p in outcome.pareto
-        ],
-        "importances": dict(outcome.importances),
-        "storage": outcome.storage_url,
-        "wall_s": outcome.wall_s,
-        "sim_time_s": outcome.sim_time_s,
-        "time_split_s": time_split(outcome),
-        "simulations": outcome.simulations,
-        "trials_asked": outcome.trials_asked,
-        "trials_pruned": outcome.trials_pruned,
-        "trials_failed": outcome.trials_failed,
-        # robust studies: sampled plants the trials never ran (pruned or failed before them)
-        "samples_skipped": outcome.samples_skipped,
-    }
-
-
-def time_split(outcome: StudyOutcome) -> dict[str, float]:
-    """The study's time by what it went to: the trials' simulations and controller
-    building, the sampler's asks, and ``storage``: the parent writing the batches (batch
-    mode), or the rest of each trial (``--async``: writing it, storage reads)."""
-    rest = outcome.worker_time_s - outcome.sim_time_s - outcome.sampler_time_s
-    return {
-        "simulation": outcome.sim_time_s,
-        "sampler": outcome.sampler_time_s,
-        "building": outcome.build_time_s,
-        "storage": outcome.storage_time_s or max(0.0, rest - outcome.build_time_s),
-    }
-
-
-def counts_text(outcome: StudyOutcome) -> str:
-    """Asked, complete, pruned and failed trials (a study collected before the asked
-    and failed ones were counted: complete and pruned are all it asked)."""
-    asked = outcome.trials_asked or outcome.trials_complete + outcome.trials_pruned
-    return trial_counts_text(asked, outcome.trials_complete, outcome.trials_pruned,
-                             outcome.trials_failed)  # fmt: skip
-
-
-def si_note(spec: Any, units: MetricUnits) -> str:
-    """The objective weighs metrics in SI: say so for those the tables show in another
-    unit (``sse_abs`` in m, shown in mm)."""
-    si = [f"{m} in {units.si(m)}" for m in spec.objective.metrics if units.unit(m) != units.si(m)]
-    return f"; over the metrics in SI: {', '.join(si)}" if si else ""
-
-
-def status_text(ev: Evaluation) -> str:
-    """A scored controller's status and why (an objective that is the penalty or n/a)."""
-    return ev.status + (f" ({ev.message})" if ev.message else "")
-
-
 def number_text(value: float | None, missing: str = "n/a") -> str:
     """A number for a report's table: four significant digits, ``missing`` for none."""
     if value is None or not math.isfinite(value):
@@ -297,10 +165,6 @@ def values_text(values: tuple[float, ...] | list[float]) -> str:
     """An objective's value, or its values in parentheses (a Pareto study)."""
     text = ", ".join(number_text(v) for v in values)
     return text if len(values) == 1 else f"({text})"
-
-
-def _objective_value(ev: Evaluation) -> float | list[float]:
-    return ev.values[0] if len(ev.values) == 1 else list(ev.values)
 
 
 def _same(a: tuple[float, ...], b: tuple[float, ...]) -> bool:

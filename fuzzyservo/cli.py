@@ -118,6 +118,7 @@ def cmd_margins(args: argparse.Namespace) -> int:
 
 def cmd_frequency(args: argparse.Namespace) -> int:
     from fuzzyservo.analysis import frequency_response
+    from fuzzyservo.io.outputs import save_bode
 
     out, json_path = _out_dir(args.out), _out_file(args.json, "--json")
     if args.amplitude is not None and not (math.isfinite(args.amplitude) and args.amplitude > 0):
@@ -128,8 +129,6 @@ def cmd_frequency(args: argparse.Namespace) -> int:
     result = frequency_response(rig, controller, amplitude=args.amplitude, scenario=scenario)
     print(result.text())
     if out is not None:
-        from fuzzyservo.io.outputs import save_bode
-
         print(f"Bode plot written to {save_bode(result, out)}")
     _json(json_path, result)
     return 0
@@ -149,7 +148,7 @@ def cmd_show(args: argparse.Namespace) -> int:
 
 
 def cmd_export(args: argparse.Namespace) -> int:
-    from fuzzyservo.io.export import export_file
+    from fuzzyservo.workflows import export_file
 
     source = resolve(args.controller, "studies/controllers", "controller")
     result = export_file(source, fis=args.fis, fcl=args.fcl, c_dir=args.c, st=args.st,
@@ -162,7 +161,7 @@ def cmd_export(args: argparse.Namespace) -> int:
 
 
 def cmd_evaluate(args: argparse.Namespace) -> int:
-    from fuzzyservo.io.evaluation import evaluate
+    from fuzzyservo.workflows import evaluate
 
     _out_file(args.out, "--out", "out.csv")
     source = resolve(args.controller, "studies/controllers", "controller")
@@ -180,9 +179,9 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
 
 def cmd_tune(args: argparse.Namespace) -> int:
     from fuzzyservo.io.studies import load_study, with_warm_start
-    from fuzzyservo.io.study_report import write_study_report
     from fuzzyservo.tuning.runner import run_study
     from fuzzyservo.tuning.spec import storage_problem
+    from fuzzyservo.workflows import write_study_report
 
     _at_least(1, trials=args.trials, workers=args.workers, batch_size=args.batch_size)
     _at_least(0, check_samples=args.check_samples)
@@ -280,7 +279,8 @@ def cmd_designer(args: argparse.Namespace) -> int:
 
 def cmd_fit_valve(args: argparse.Namespace) -> int:
     """Train the seed-003 valve network on a valve-data CSV and write it as JSON."""
-    from fuzzyservo.io.valve_data import fit_valve, network_file
+    from fuzzyservo.io.valve_data import network_file
+    from fuzzyservo.workflows import fit_valve
 
     _at_least(1, restarts=args.restarts)
     _out_file(args.out, "--out")

@@ -93,7 +93,7 @@ def test_a_study_written_in_python_runs_resumes_and_reports(tmp_path: Path) -> N
     file; only the SQLite storage the user names) runs, resumes with its finished trials
     kept, and reports like one read from a file."""
     from fuzzyservo import PI, Objective, P, Parameter, Study, tune
-    from fuzzyservo.io.study_report import write_study_report
+    from fuzzyservo.workflows import write_study_report
 
     study = Study(
         name="lift_in_code",

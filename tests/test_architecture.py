@@ -126,3 +126,35 @@ def test_one_name_for_each_report_step() -> None:
         if len(homes := defined.get(name, [])) > 1
     }
     assert not shared, shared
+
+
+# what io may not import: the modules that simulate, fit, analyse or score (io reads and
+# writes; the domain packages compute, fuzzyservo.workflows joins the two)
+COMPUTING = (
+    "fuzzyservo.simulation",
+    "fuzzyservo.analysis.margins",
+    "fuzzyservo.analysis.frequency",
+    "fuzzyservo.analysis.compare",
+    "fuzzyservo.tuning.runner",
+    "fuzzyservo.tuning.objective",
+    "fuzzyservo.tuning.batches",
+    "fuzzyservo.calibration.search",
+    "fuzzyservo.calibration.candidates",
+    "fuzzyservo.calibration.summary",
+    "fuzzyservo.calibration.null",
+    "fuzzyservo.components.nn_fit",
+    "fuzzyservo.controllers.fuzzy.evaluate",
+    "fuzzyservo.codegen._check",
+)
+
+
+def test_io_imports_nothing_that_computes() -> None:
+    grimp = pytest.importorskip("grimp")
+    graph = grimp.build_graph("fuzzyservo", exclude_type_checking_imports=True)
+    offenders = sorted(
+        f"{module} imports {imported}"
+        for module in graph.find_descendants("fuzzyservo.io") | {"fuzzyservo.io"}
+        for imported in graph.find_modules_directly_imported_by(module)
+        if imported.startswith(COMPUTING)
+    )
+    assert not offenders, offenders

@@ -99,7 +99,7 @@ def test_a_library_error_is_one_line_from_both(capsys):
 def test_a_library_error_names_the_argument_and_the_shell_its_option():
     """The library speaks of its own arguments, the command line of its options."""
     from fuzzyservo.executor import make_executor
-    from fuzzyservo.io.export import export_file
+    from fuzzyservo.workflows import export_file
 
     with pytest.raises(fuzzyservo.ConfigError, match=r"^cluster: 'nope' is not a Dask"):
         make_executor(cluster="nope")

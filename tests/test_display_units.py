@@ -136,8 +136,8 @@ def test_tune_explains_the_brake_scenarios_n_a_and_counts_its_trials(tmp_path):
     from support import DATA
 
     from fuzzyservo.io.studies import load_study
-    from fuzzyservo.io.study_report import write_study_report
     from fuzzyservo.tuning.runner import run_study
+    from fuzzyservo.workflows import write_study_report
 
     spec = dataclasses.replace(
         load_study(DATA / "studies" / "ehs160_flc.yaml"), scenarios=("steps", "brake")

@@ -22,9 +22,9 @@ from fuzzyservo.codegen import c_compiler, identifier
 from fuzzyservo.controllers.fuzzy.evaluate import evaluate_inputs
 from fuzzyservo.controllers.fuzzy.system import FuzzySystem
 from fuzzyservo.io.controllers import load_controller
-from fuzzyservo.io.export import export
 from fuzzyservo.io.fcl import read_fcl
 from fuzzyservo.io.fis import parse_fis, read_fis
+from fuzzyservo.workflows import export
 
 
 def test_flc2_from_its_fis_and_fcl_gives_identical_metrics(tmp_path):

@@ -19,9 +19,9 @@ from support import DATA
 
 from fuzzyservo.io.controllers import load_controller, write_controller_file
 from fuzzyservo.io.studies import load_study
-from fuzzyservo.io.study_report import write_study_report
 from fuzzyservo.tuning.objective import build_evaluator
 from fuzzyservo.tuning.runner import run_study
+from fuzzyservo.workflows import write_study_report
 
 SUMMARY_KEYS = {
     "study", "trials", "objective", "best", "baseline", "pareto", "importances", "storage",

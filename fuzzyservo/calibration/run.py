@@ -40,7 +40,13 @@ class CalibrationResult(Result):
     skipped: dict[str, str] = field(default_factory=dict)
 
     def __getattr__(self, name: str) -> Any:
-        if name.startswith("__") or name in ("outcome", "replay", "skipped", "diagnostics"):
+        if name.startswith("__") or name in (
+            "outcome",
+            "replay",
+            "skipped",
+            "diagnostics",
+            "correlations",
+        ):
             raise AttributeError(name)
         return getattr(self.outcome, name)
 
@@ -49,6 +55,17 @@ class CalibrationResult(Result):
 
         return {**calibration_summary(self.outcome, self.replay, self.skipped),
                 **self.diagnostics}  # fmt: skip
+
+    @functools.cached_property
+    def correlations(self) -> dict[str, tuple[str, float, dict[str, Any]]]:
+        """The held-out residual's correlations before and after (``before``/``after``:
+        the input name, the white band, each channel's :class:`Correlations`) for the
+        residual figures (summary.residual_correlations)."""
+        from fuzzyservo.calibration.summary import residual_correlations
+
+        models = self.outcome.models
+        return {label: residual_correlations(self.replay, models[key])
+                for label, key in (("before", "nominal"), ("after", "calibrated"))}  # fmt: skip
 
     @functools.cached_property
     def diagnostics(self) -> dict[str, Any]:

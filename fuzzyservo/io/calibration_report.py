@@ -14,7 +14,6 @@ from fuzzyservo.atomic import ensure_folder, write_text
 from fuzzyservo.calibration import CalibrationResult
 from fuzzyservo.calibration.joint import split_field
 from fuzzyservo.calibration.report import ZOOM_S, report_markdown
-from fuzzyservo.calibration.summary import residual_correlations
 from fuzzyservo.components.effects import LIBRARY
 from fuzzyservo.display import display_scale
 
@@ -105,8 +104,7 @@ def write_calibration(
     )  # fmt: skip
     paths["overlay_zoom"] = save(fig, out_dir / "overlay_zoom.png")
     for label, fitted in (("before", before), ("after", after)):
-        model = outcome.models["nominal" if label == "before" else "calibrated"]
-        input_name, band, found = residual_correlations(replay, model)
+        input_name, band, found = result.correlations[label]
         res = {channel: measured[channel] - fitted[channel] for channel in replay.channels}
         fig = residual_figure(t, res, units, {c: k.acf for c, k in found.items()},
                               {c: k.xcf for c, k in found.items()}, band, input_name,

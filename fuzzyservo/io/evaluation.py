@@ -8,11 +8,8 @@ output variable, in the system's order, written with ``repr`` precision.
 from __future__ import annotations
 
 import csv
-import dataclasses
 import math
-from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
 
 import numpy as np
 
@@ -20,76 +17,14 @@ from fuzzyservo.atomic import atomic_write
 from fuzzyservo.controllers.fuzzy.controller import FuzzyController
 from fuzzyservo.controllers.fuzzy.system import FuzzySystem
 from fuzzyservo.errors import ConfigError, excerpt
-from fuzzyservo.results import Result
 
 __all__ = [
-    "FuzzyEvaluation",
-    "evaluate",
+    "load_exportable",
     "load_fuzzy_controller",
     "load_system",
     "read_input_table",
     "write_output_table",
 ]
-
-
-@dataclass(frozen=True)
-class FuzzyEvaluation(Result):
-    """A fuzzy system's outputs for a table of inputs; ``text()`` is the output CSV."""
-
-    system: FuzzySystem
-    inputs: np.ndarray
-    outputs: np.ndarray
-    ignored: tuple[str, ...] = ()
-    silent: int = 0
-
-    @property
-    def output_names(self) -> list[str]:
-        return [v.name for v in self.system.outputs]
-
-    @property
-    def notes(self) -> list[str]:
-        """Input columns ignored, and outputs where no rule fired (the CLI's stderr lines)."""
-        s, out = self.system, []
-        if self.ignored:
-            out.append(
-                f"note: column(s) {list(self.ignored)} are not inputs of {excerpt(s.name)}; ignored"
-            )
-        if self.silent:
-            fallback = "the middle of its range" if s.semantics == "matlab" else "NaN"
-            out.append(f"warning: no rule fired for {self.silent} output value(s); each is "
-                       f"{fallback} ({s.semantics} semantics)")  # fmt: skip
-        return out
-
-    def text(self) -> str:
-        rows = (",".join(repr(float(v)) for v in row) for row in self.outputs)
-        return "\n".join([",".join(self.output_names), *rows])
-
-    def to_dict(self) -> dict[str, Any]:
-        return {"system": self.system.name, "semantics": self.system.semantics,
-                "outputs": {n: self.outputs[:, k].tolist() for k, n in enumerate(self.output_names)}}  # fmt: skip
-
-    def write(self, path: str | Path) -> Path:
-        """The outputs as a CSV file (:func:`write_output_table`)."""
-        return write_output_table(path, self.output_names, self.outputs)
-
-
-def evaluate(
-    system: FuzzySystem | str | Path, inputs: np.ndarray | str | Path, semantics: str | None = None
-) -> FuzzyEvaluation:
-    """What ``evalfis`` does: ``system`` (or its ``.fis``, ``.fcl`` or controller file) on
-    ``inputs`` (an (m, n_inputs) array, or a CSV with a column per input named like it),
-    in ``semantics`` (``skfuzzy`` or ``matlab``; default: the system's)."""
-    from fuzzyservo.controllers.fuzzy.evaluate import evaluate_inputs
-
-    if not isinstance(system, FuzzySystem):
-        system = load_system(Path(system))
-    if semantics:
-        system = dataclasses.replace(system, semantics=semantics)
-    ignored: list[str] = []
-    if not isinstance(inputs, np.ndarray):
-        inputs, ignored = read_input_table(inputs, [v.name for v in system.inputs])
-    outputs, silent = evaluate_inputs(system, inputs)
-    return FuzzyEvaluation(system, inputs, outputs, tuple(ignored), silent)
 
 
 def load_fuzzy_controller(path: Path, other: str = " or a .fis") -> FuzzyController:
@@ -175,3 +110,18 @@ def write_output_table(path: str | Path, names: list[str], values: np.ndarray) -
         writer.writerow(names)
         writer.writerows([[repr(float(v)) for v in row] for row in values])
     return Path(path)
+
+
+def load_exportable(path: str | Path) -> FuzzyController | FuzzySystem:
+    """What ``path`` holds for export: a controller (a fuzzy controller YAML file, or a
+    ``.fis``/FCL file with a control-law comment) or an inference system (any other
+    ``.fis``/FCL file)."""
+    from fuzzyservo.io.fcl import read_fcl_law
+    from fuzzyservo.io.fis import controller_from_law, read_fis_law
+
+    p = Path(path)
+    suffix = p.suffix.lower()
+    if suffix not in (".fis", ".fcl"):
+        return load_fuzzy_controller(p, other=", a .fis or a .fcl")
+    system, law = (read_fis_law if suffix == ".fis" else read_fcl_law)(p)
+    return controller_from_law(system, law, p, "[Rules]") if law else system

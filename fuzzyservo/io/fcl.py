@@ -44,6 +44,7 @@ evaluation settings, as in :mod:`.fis`, so a round trip is lossless.
 
 from __future__ import annotations
 
+import dataclasses
 import re
 from pathlib import Path
 from typing import NoReturn
@@ -69,7 +70,7 @@ from fuzzyservo.io.fis import number_text as _num
 from fuzzyservo.limits import MAX_POINTS, MAX_SAMPLE_POINTS, points_problem
 
 __all__ = [
-    "controller_from_fcl", "fcl_text", "parse_fcl", "read_fcl", "read_fcl_law", "write_fcl",
+    "controller_from_fcl", "fcl_names", "fcl_text", "parse_fcl", "read_fcl", "read_fcl_law", "write_fcl",
 ]  # fmt: skip
 
 _AND = {"MIN": "min", "PROD": "prod"}
@@ -507,3 +508,24 @@ def fcl_text(system: FuzzySystem, law: str = "") -> str:
 def write_fcl(system: FuzzySystem, path: str | Path, law: str = "") -> Path:
     """Write ``system`` (and the control law ``law``) as FCL (UTF-8); returns the path."""
     return write_text(path, fcl_text(system, law))
+
+
+def fcl_names(system: FuzzySystem) -> tuple[FuzzySystem, list[str]]:
+    """``system`` with term names FCL can refer to: a repeated name gets ``_2``, ``_3`` …
+    (MATLAB refers to terms by number; juggler.fis names nine output terms alike)."""
+    variables, notes = [], []
+    for v in (*system.inputs, *system.outputs):
+        seen: dict[str, int] = {}
+        terms = []
+        for t in v.terms:
+            seen[t.name] = seen.get(t.name, 0) + 1
+            name = t.name if seen[t.name] == 1 else f"{t.name}_{seen[t.name]}"
+            terms.append(dataclasses.replace(t, name=name))
+        if any(n > 1 for n in seen.values()):
+            notes.append(f"note: FCL refers to terms by name; repeated term names of "
+                         f"{excerpt(v.name)} written with _2, _3 … suffixes")  # fmt: skip
+        variables.append(dataclasses.replace(v, terms=tuple(terms)))
+    n = len(system.inputs)
+    renamed = dataclasses.replace(system, inputs=tuple(variables[:n]), output=variables[n],
+                                  other_outputs=tuple(variables[n + 1 :]))  # fmt: skip
+    return renamed, notes

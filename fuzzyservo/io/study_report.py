@@ -1,6 +1,7 @@
 """What a finished study leaves in its output folder: the best controller, a summary, figures, a report.
 
-:func:`write_study_report` turns an :class:`~fuzzyservo.tuning.outcome.StudyOutcome` into
+:func:`write_best_controller` and :func:`write_study_files` write (the workflow that
+scores the written controller between them is :func:`fuzzyservo.workflows.write_study_report`)
 
 - ``best_controller.yaml``: the template with the best parameters, a controller file
   ``fuzzyservo simulate``/``compare`` take as it is (and ``best_controller.fis`` for a
@@ -13,17 +14,17 @@
 The best controller file is read back and scored again (:mod:`fuzzyservo.tuning.report`,
 where every number is computed; this module only renders and writes) before the report
 claims it reproduces the study's objective. matplotlib is imported only inside
-:func:`write_study_report`.
+:func:`write_study_files`.
 """
 
 from __future__ import annotations
 
 import math
 import re
-from collections.abc import Callable
 from pathlib import Path
 
 from fuzzyservo.atomic import ensure_folder, write_text
+from fuzzyservo.controllers.base import Controller
 from fuzzyservo.display import (
     LOWER_IS_BETTER,
     TRIAL_COUNTS_NOTE,
@@ -45,10 +46,8 @@ from fuzzyservo.tuning.outcome import (
 )
 from fuzzyservo.tuning.report import (
     StudyReport,
-    best_controller,
     best_description,
     number_text,
-    study_report,
     values_text,
 )
 from fuzzyservo.tuning.uncertainty.robust import Comparison
@@ -60,33 +59,29 @@ SUMMARY_FILE = "summary.json"
 REPORT_FILE = "report.md"
 
 
-def write_study_report(
-    outcome: StudyOutcome,
-    out_dir: Path,
-    *,
-    check_samples: int | None = None,
-    progress: Callable[[int], object] | None = None,
-) -> tuple[StudyReport, dict[str, Path]]:
-    """Write the best controller, ``summary.json``, the figures and ``report.md`` into
-    ``out_dir``; returns the report (:func:`~fuzzyservo.tuning.report.study_report` on
-    the best controller as its written file holds it) and the written files by role:
-    ``controller``, ``fis`` (fuzzy controllers), ``summary``, ``report``, ``history``,
-    ``importances`` (when computed), ``pareto`` (Pareto studies), ``curve``,
-    ``membership_before``, ``membership_after`` (fuzzy), ``response_<scenario>`` per
-    scenario and, for a robust study compared on fresh plants (``check_samples``, see
-    :func:`~fuzzyservo.tuning.report.study_report`), ``check`` (the Monte Carlo
-    distributions)."""
+def write_best_controller(best: Controller, outcome: StudyOutcome, out_dir: Path) -> Path:
+    """The best trial's controller as a file users run (``best_controller.yaml``), its
+    description saying where it comes from and what it scored."""
+    from fuzzyservo.io.controllers import controller_data, write_controller_file
+
+    data = controller_data(best)
+    data["description"] = best_description(outcome, best_trial_number(outcome))
+    return write_controller_file(data, ensure_folder(out_dir) / CONTROLLER_FILE)
+
+
+def write_study_files(report: StudyReport, out_dir: Path, controller: Path) -> dict[str, Path]:
+    """Write the rest of a study's report beside its best controller's file
+    ``controller``: the ``.fis`` (fuzzy controllers), the figures, ``summary.json``
+    (``report.to_dict()``) and ``report.md``. Returns the files by role: ``controller``,
+    ``fis``, ``summary``, ``report``, ``history``, ``importances`` (when computed),
+    ``pareto`` (Pareto studies), ``curve``, ``membership_before``, ``membership_after``
+    (fuzzy), ``response_<scenario>`` per scenario and ``check`` (a robust study compared
+    on fresh plants: the Monte Carlo distributions)."""
     from fuzzyservo.controllers.fuzzy.controller import FuzzyController
-    from fuzzyservo.io.controllers import controller_data, load_controller, write_controller_file
 
     out_dir = ensure_folder(out_dir)
-    paths: dict[str, Path] = {}
-    data = controller_data(best_controller(outcome))
-    data["description"] = best_description(outcome, best_trial_number(outcome))
-    paths["controller"] = write_controller_file(data, out_dir / CONTROLLER_FILE)
-    # the file, not the in-memory mapping, is what users run: score the file
-    best = load_controller(paths["controller"])
-    report = study_report(outcome, best, check_samples=check_samples, progress=progress)
+    outcome, best = report.outcome, report.best_controller
+    paths: dict[str, Path] = {"controller": controller}
     fuzzy = isinstance(best, FuzzyController)
     if fuzzy:
         from fuzzyservo.io.fis import write_fis
@@ -99,7 +94,7 @@ def write_study_report(
     paths["summary"] = write_json(out_dir / SUMMARY_FILE, report.to_dict())
     paths["report"] = out_dir / REPORT_FILE
     write_text(paths["report"], _report(report, paths, out_dir, units))
-    return report, paths
+    return paths
 
 
 def _check_figure(comparison: Comparison, out_dir: Path, units: MetricUnits) -> Path:

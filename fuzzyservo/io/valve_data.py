@@ -14,10 +14,9 @@ from __future__ import annotations
 import csv
 import json
 import math
-from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -37,10 +36,9 @@ from fuzzyservo.components.valves import (
     NN_W2,
 )
 from fuzzyservo.errors import DataError, excerpt
-from fuzzyservo.results import Result
 
 if TYPE_CHECKING:
-    from fuzzyservo.components.nn_fit import NetworkFit
+    pass
 
 COLUMNS = ("p_s", "u_c", "p_a", "p_b", "q_a", "q_b")
 DEFAULT_UNITS = ("bar", "V", "bar", "bar", "l_min", "l_min")
@@ -237,57 +235,3 @@ def network_file(rig_path: str | Path) -> Path:
         file=str(path),
         key="plant.components",
     )
-
-
-@dataclass(frozen=True)
-class ValveFitResult(Result):
-    """A valve network trained on a valve-data CSV and the file it was written to."""
-
-    fit: NetworkFit
-    path: Path
-
-    def text(self) -> str:
-        lines = []
-        for label, values in (
-            ("training", self.fit.train_rms),
-            ("validation", self.fit.validation_rms),
-        ):
-            q_a, q_b = (v * 60e3 for v in values)
-            lines.append(f"{label:<10} RMS  Q_A {q_a:.4g} l/min  Q_B {q_b:.4g} l/min")
-        return "\n".join([*lines, f"wrote {self.path}"])
-
-    def to_dict(self) -> dict[str, Any]:
-        f = self.fit
-        return {"file": str(self.path), "train_rms_m3_s": list(f.train_rms),
-                "validation_rms_m3_s": list(f.validation_rms), "seed": f.seed,
-                "restarts": f.restarts}  # fmt: skip
-
-
-def fit_valve(
-    data: str | Path,
-    out: str | Path,
-    *,
-    seed: int = 0,
-    restarts: int = 6,
-    progress: Callable[[int], object] | None = None,
-) -> ValveFitResult:
-    """Train the seed-003 valve network on the valve-data CSV ``data`` (Levenberg-Marquardt,
-    best of ``restarts`` seeded ``seed``) and write it to ``out`` as JSON;
-    ``progress(k)`` as restarts finish."""
-    from fuzzyservo.components.nn_fit import fit_valve_network
-
-    rows = read_valve_csv(data)
-    try:
-        fit = fit_valve_network(rows, seed=seed, restarts=restarts, progress=progress)
-    except ValueError as exc:
-        raise DataError(f"{data}: {exc}") from None
-    training = {
-        "data": str(data),
-        "method": "Levenberg-Marquardt (scipy least_squares, method=lm), best of restarts",
-        "seed": fit.seed,
-        "restarts": fit.restarts,
-        "samples_train": fit.n_train,
-        "samples_validation": fit.n_validation,
-    }
-    write_valve_network(out, fit.weights, fit.train_rms, fit.validation_rms, training)
-    return ValveFitResult(fit, Path(out))

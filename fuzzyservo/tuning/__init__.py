@@ -2,7 +2,7 @@
 
 A study is a :class:`~fuzzyservo.tuning.spec.Study`, built in Python or read from a study
 file by :func:`fuzzyservo.io.studies.load_study`; :func:`tune` runs or resumes it and
-:func:`fuzzyservo.io.study_report.write_study_report` writes its report.
+:func:`fuzzyservo.workflows.write_study_report` writes its report.
 """
 
 from __future__ import annotations
@@ -38,7 +38,7 @@ def tune(
     The Optuna storage is ``storage`` (an SQLAlchemy URL: ``sqlite:///path.db``,
     ``postgresql://…``), else the study's ``storage``, else SQLite in ``out_dir`` (default
     ``out/<study name>``); ``rig`` tunes on another rig than the study's own. Write the
-    report with :func:`fuzzyservo.io.study_report.write_study_report`.
+    report with :func:`fuzzyservo.workflows.write_study_report`.
 
     Trials are asked ``batch_size`` at a time (default: the study's) and scored by
     ``workers`` local processes or on the Dask ``cluster`` (``tcp://HOST:PORT``): the

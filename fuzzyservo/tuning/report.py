@@ -2,7 +2,7 @@
 margins its constraints bound, a robust study's comparison on fresh plants, and the
 numbers of ``summary.json`` (:class:`StudyReport`, from :func:`study_report`).
 
-:func:`fuzzyservo.io.study_report.write_study_report` writes the best controller's file,
+:func:`fuzzyservo.workflows.write_study_report` writes the best controller's file,
 reads it back and has it scored here (the file, not the in-memory mapping, is what users
 run), then writes the report's files; ``fuzzyservo tune`` prints :meth:`StudyReport.text`
 and ``--json`` is :meth:`StudyReport.to_dict`, the same mapping as ``summary.json``.

@@ -1,31 +1,179 @@
-"""A fuzzy controller or inference system written for other tools: MATLAB ``.fis``,
-IEC 61131-7 FCL, C99, IEC 61131-3 Structured Text and FMI co-simulation FMUs (what
-``fuzzyservo export`` writes).
-
-A controller (a YAML file, or a ``.fis``/FCL file with a fuzzyservo control-law
-comment) is exported with its control law: ``.fis`` and FCL carry it in a comment, C,
-ST and the FMU compute it. Any other ``.fis`` or FCL file is an inference system with
-any number of inputs and outputs: its C and FMU compute what ``evaluate`` does.
-"""
+"""The workflows that read files, compute and write files, one function each, so that
+:mod:`fuzzyservo.io` only reads and writes and the command line only parses and prints:
+a tuned study's report (:func:`write_study_report`), a fuzzy system evaluated on a table
+of inputs (:func:`evaluate`, what ``evalfis`` does), the seed-003 valve network trained
+on valve data (:func:`fit_valve`) and a fuzzy controller or inference system written for
+other tools (:func:`export`, what ``fuzzyservo export`` writes): MATLAB ``.fis``,
+IEC 61131-7 FCL, C99, IEC 61131-3 Structured Text and FMI co-simulation FMUs, with the
+lookup table's and single precision's errors measured. A controller (a YAML file, or a
+``.fis``/FCL file with a fuzzyservo control-law comment) is exported with its control
+law: ``.fis`` and FCL carry it in a comment, C, ST and the FMU compute it. Any other
+``.fis`` or FCL file is an inference system with any number of inputs and outputs: its
+C and FMU compute what ``evaluate`` does."""
 
 from __future__ import annotations
 
 import dataclasses
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
 from fuzzyservo.atomic import write_files, write_text
+from fuzzyservo.components.nn_fit import NetworkFit, fit_valve_network
 from fuzzyservo.controllers.fuzzy.controller import FuzzyController
+from fuzzyservo.controllers.fuzzy.evaluate import evaluate_inputs
 from fuzzyservo.controllers.fuzzy.system import FuzzySystem
-from fuzzyservo.errors import ConfigError, excerpt
+from fuzzyservo.errors import ConfigError, DataError, excerpt
+from fuzzyservo.io.evaluation import (
+    load_exportable,
+    load_system,
+    read_input_table,
+    write_output_table,
+)
+from fuzzyservo.io.fcl import fcl_names, write_fcl
+from fuzzyservo.io.fis import law_text, write_fis
+from fuzzyservo.io.valve_data import read_valve_csv, write_valve_network
 from fuzzyservo.limits import lut_problem
 from fuzzyservo.results import Result
+from fuzzyservo.tuning.outcome import StudyOutcome
+from fuzzyservo.tuning.report import StudyReport, best_controller, study_report
 
-__all__ = [
-    "ExportResult", "export", "export_file", "load_exportable",
-]  # fmt: skip
+
+def write_study_report(
+    outcome: StudyOutcome,
+    out_dir: str | Path,
+    *,
+    check_samples: int | None = None,
+    progress: Callable[[int], object] | None = None,
+) -> tuple[StudyReport, dict[str, Path]]:
+    """Write a finished study's report into ``out_dir``: the best controller's file,
+    read back and scored again (the file, not the in-memory mapping, is what users run;
+    :func:`~fuzzyservo.tuning.report.study_report`, with a robust study's comparison on
+    ``check_samples`` fresh plants, ``progress(1)`` per plant and controller), then its
+    ``.fis``, the figures, ``summary.json`` and ``report.md``
+    (:func:`~fuzzyservo.io.study_report.write_study_files`). Returns the report and the
+    files by role."""
+    from fuzzyservo.io.controllers import load_controller
+    from fuzzyservo.io.study_report import write_best_controller, write_study_files
+
+    path = write_best_controller(best_controller(outcome), outcome, Path(out_dir))
+    report = study_report(outcome, load_controller(path), check_samples=check_samples,
+                          progress=progress)  # fmt: skip
+    return report, write_study_files(report, Path(out_dir), path)
+
+
+@dataclass(frozen=True)
+class FuzzyEvaluation(Result):
+    """A fuzzy system's outputs for a table of inputs; ``text()`` is the output CSV."""
+
+    system: FuzzySystem
+    inputs: np.ndarray
+    outputs: np.ndarray
+    ignored: tuple[str, ...] = ()
+    silent: int = 0
+
+    @property
+    def output_names(self) -> list[str]:
+        return [v.name for v in self.system.outputs]
+
+    @property
+    def notes(self) -> list[str]:
+        """Input columns ignored, and outputs where no rule fired (the CLI's stderr lines)."""
+        s, out = self.system, []
+        if self.ignored:
+            out.append(
+                f"note: column(s) {list(self.ignored)} are not inputs of {excerpt(s.name)}; ignored"
+            )
+        if self.silent:
+            fallback = "the middle of its range" if s.semantics == "matlab" else "NaN"
+            out.append(f"warning: no rule fired for {self.silent} output value(s); each is "
+                       f"{fallback} ({s.semantics} semantics)")  # fmt: skip
+        return out
+
+    def text(self) -> str:
+        rows = (",".join(repr(float(v)) for v in row) for row in self.outputs)
+        return "\n".join([",".join(self.output_names), *rows])
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"system": self.system.name, "semantics": self.system.semantics,
+                "outputs": {n: self.outputs[:, k].tolist() for k, n in enumerate(self.output_names)}}  # fmt: skip
+
+    def write(self, path: str | Path) -> Path:
+        """The outputs as a CSV file (:func:`write_output_table`)."""
+        return write_output_table(path, self.output_names, self.outputs)
+
+
+def evaluate(
+    system: FuzzySystem | str | Path, inputs: np.ndarray | str | Path, semantics: str | None = None
+) -> FuzzyEvaluation:
+    """What ``evalfis`` does: ``system`` (or its ``.fis``, ``.fcl`` or controller file) on
+    ``inputs`` (an (m, n_inputs) array, or a CSV with a column per input named like it),
+    in ``semantics`` (``skfuzzy`` or ``matlab``; default: the system's)."""
+    if not isinstance(system, FuzzySystem):
+        system = load_system(Path(system))
+    if semantics:
+        system = dataclasses.replace(system, semantics=semantics)
+    ignored: list[str] = []
+    if not isinstance(inputs, np.ndarray):
+        inputs, ignored = read_input_table(inputs, [v.name for v in system.inputs])
+    outputs, silent = evaluate_inputs(system, inputs)
+    return FuzzyEvaluation(system, inputs, outputs, tuple(ignored), silent)
+
+
+@dataclass(frozen=True)
+class ValveFitResult(Result):
+    """A valve network trained on a valve-data CSV and the file it was written to."""
+
+    fit: NetworkFit
+    path: Path
+
+    def text(self) -> str:
+        lines = []
+        for label, values in (
+            ("training", self.fit.train_rms),
+            ("validation", self.fit.validation_rms),
+        ):
+            q_a, q_b = (v * 60e3 for v in values)
+            lines.append(f"{label:<10} RMS  Q_A {q_a:.4g} l/min  Q_B {q_b:.4g} l/min")
+        return "\n".join([*lines, f"wrote {self.path}"])
+
+    def to_dict(self) -> dict[str, Any]:
+        f = self.fit
+        return {"file": str(self.path), "train_rms_m3_s": list(f.train_rms),
+                "validation_rms_m3_s": list(f.validation_rms), "seed": f.seed,
+                "restarts": f.restarts}  # fmt: skip
+
+
+def fit_valve(
+    data: str | Path,
+    out: str | Path,
+    *,
+    seed: int = 0,
+    restarts: int = 6,
+    progress: Callable[[int], object] | None = None,
+) -> ValveFitResult:
+    """Train the seed-003 valve network on the valve-data CSV ``data`` (Levenberg-Marquardt,
+    best of ``restarts`` seeded ``seed``) and write it to ``out`` as JSON;
+    ``progress(k)`` as restarts finish."""
+    rows = read_valve_csv(data)
+    try:
+        fit = fit_valve_network(rows, seed=seed, restarts=restarts, progress=progress)
+    except ValueError as exc:
+        raise DataError(f"{data}: {exc}") from None
+    training = {
+        "data": str(data),
+        "method": "Levenberg-Marquardt (scipy least_squares, method=lm), best of restarts",
+        "seed": fit.seed,
+        "restarts": fit.restarts,
+        "samples_train": fit.n_train,
+        "samples_validation": fit.n_validation,
+    }
+    write_valve_network(out, fit.weights, fit.train_rms, fit.validation_rms, training)
+    return ValveFitResult(fit, Path(out))
 
 
 @dataclass(frozen=True)
@@ -44,22 +192,6 @@ class ExportResult(Result):
     def to_dict(self) -> dict[str, Any]:
         return {"controller": self.controller, "files": [str(p) for p in self.paths],
                 "notes": list(self.notes)}  # fmt: skip
-
-
-def load_exportable(path: str | Path) -> FuzzyController | FuzzySystem:
-    """What ``path`` holds for export: a controller (a fuzzy controller YAML file, or a
-    ``.fis``/FCL file with a control-law comment) or an inference system (any other
-    ``.fis``/FCL file)."""
-    from fuzzyservo.io.evaluation import load_fuzzy_controller
-    from fuzzyservo.io.fcl import read_fcl_law
-    from fuzzyservo.io.fis import controller_from_law, read_fis_law
-
-    p = Path(path)
-    suffix = p.suffix.lower()
-    if suffix not in (".fis", ".fcl"):
-        return load_fuzzy_controller(p, other=", a .fis or a .fcl")
-    system, law = (read_fis_law if suffix == ".fis" else read_fcl_law)(p)
-    return controller_from_law(system, law, p, "[Rules]") if law else system
 
 
 def export_file(
@@ -104,27 +236,6 @@ def export_file(
         raise ConfigError(str(exc), file=str(source)) from None
 
 
-def _fcl_names(system: FuzzySystem) -> tuple[FuzzySystem, list[str]]:
-    """``system`` with term names FCL can refer to: a repeated name gets ``_2``, ``_3`` …
-    (MATLAB refers to terms by number; juggler.fis names nine output terms alike)."""
-    variables, notes = [], []
-    for v in (*system.inputs, *system.outputs):
-        seen: dict[str, int] = {}
-        terms = []
-        for t in v.terms:
-            seen[t.name] = seen.get(t.name, 0) + 1
-            name = t.name if seen[t.name] == 1 else f"{t.name}_{seen[t.name]}"
-            terms.append(dataclasses.replace(t, name=name))
-        if any(n > 1 for n in seen.values()):
-            notes.append(f"note: FCL refers to terms by name; repeated term names of "
-                         f"{excerpt(v.name)} written with _2, _3 … suffixes")  # fmt: skip
-        variables.append(dataclasses.replace(v, terms=tuple(terms)))
-    n = len(system.inputs)
-    renamed = dataclasses.replace(system, inputs=tuple(variables[:n]), output=variables[n],
-                                  other_outputs=tuple(variables[n + 1 :]))  # fmt: skip
-    return renamed, notes
-
-
 def export(
     controller: FuzzyController | FuzzySystem,
     *,
@@ -144,8 +255,6 @@ def export(
     ``fmi`` 3 or 2); a controller's code with a lookup table of ``lut`` points per input
     instead of the evaluator, its largest error reported."""
     from fuzzyservo.codegen import single_precision_error, system_c_sources
-    from fuzzyservo.io.fcl import write_fcl
-    from fuzzyservo.io.fis import law_text, write_fis
 
     system = controller.system if isinstance(controller, FuzzyController) else controller
     if lut is not None and isinstance(controller, FuzzyController):
@@ -167,7 +276,7 @@ def export(
         paths.append(write_fis(system, fis, law))
         lines.append(f"{name} written to {fis}")
     if fcl:
-        named, renamed = _fcl_names(system)
+        named, renamed = fcl_names(system)
         notes += renamed
         paths.append(write_fcl(named, fcl, law))
         lines.append(f"{name} written to {fcl} (IEC 61131-7 FCL)")

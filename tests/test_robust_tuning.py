@@ -305,8 +305,8 @@ def test_report_compares_best_baseline_and_template_nominal_and_monte_carlo(tmp_
     """A robust study's report: the tuned controller beside P K=10 and the template (FLC2)
     on the nominal plant and on fresh samples, each with its gain check."""
     from fuzzyservo.display import metric_units
-    from fuzzyservo.io.study_report import _comparison_lines
     from fuzzyservo.tuning.report import comparison_controllers
+    from fuzzyservo.tuning.report_markdown import comparison_lines
     from fuzzyservo.tuning.uncertainty.robust import CHECK_SEED, compare_controllers
 
     spec = dataclasses.replace(_small(tmp_path, samples=1), scenarios=("steps",))
@@ -320,7 +320,7 @@ def test_report_compares_best_baseline_and_template_nominal_and_monte_carlo(tmp_
     assert rows["flc_dinca_robust"]["nominal"]["gain_margin_holds"] is True
     assert rows["flc_dinca_robust"]["failures"] == 0 and rows["p_k10"]["failures"] == 2
     assert rows["flc_dinca_robust"]["nominal"]["objective"] < rows["p_k10"]["nominal"]["objective"]
-    text = "\n".join(_comparison_lines(c, lambda key: f"{key}.png", metric_units(spec.rig)))
+    text = "\n".join(comparison_lines(c, lambda key: f"{key}.png", metric_units(spec.rig)))
     assert "### Nominal plant" in text and "2 plants the study never saw" in text
     assert "| steady-state error [cm] |" in text  # the rig's display unit, as in the plots
     assert "| failures | 0 / 2 | 2 / 2 |" in text and "**oscillates**" in text

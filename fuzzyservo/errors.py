@@ -82,13 +82,9 @@ class FuzzyservoError(Exception):
     """Base class of the errors the command line turns into one line and exit status 2."""
 
     def as_option(self) -> str:
-        """The line the command line prints: a :class:`ConfigError` about a Python argument
-        names its option instead (``sample_time_s`` as ``--sample-time``: dashes for
-        underscores, no unit suffix)."""
-        argument = getattr(self, "argument", None)
-        if not argument or getattr(self, "file", None) or getattr(self, "key", None):
-            return str(self)
-        return f"--{argument.removesuffix('_s').replace('_', '-')}: {self.detail}"
+        """The line the command line prints (a :class:`ConfigError` about a Python
+        argument names its option instead)."""
+        return str(self)
 
 
 class ConfigError(FuzzyservoError, ValueError):
@@ -123,6 +119,14 @@ class ConfigError(FuzzyservoError, ValueError):
         shown = key if key is None or len(key) <= 2 * EXCERPT else f"{key[: 2 * EXCERPT - 1]}…"
         where = ": ".join(part for part in (file, shown, argument) if part)
         super().__init__(f"{where}: {message}" if where else message)
+
+    def as_option(self) -> str:
+        """This error as the command line prints it: the Python argument named as its
+        option (``sample_time_s`` as ``--sample-time``: dashes for underscores, no unit
+        suffix); an error about a file or key as it is."""
+        if not self.argument or self.file or self.key:
+            return str(self)
+        return f"--{self.argument.removesuffix('_s').replace('_', '-')}: {self.detail}"
 
 
 class DataError(FuzzyservoError, ValueError):

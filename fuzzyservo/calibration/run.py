@@ -61,11 +61,11 @@ class CalibrationResult(Result):
         """The held-out residual's correlations before and after (``before``/``after``:
         the input name, the white band, each channel's :class:`Correlations`) for the
         residual figures (summary.residual_correlations)."""
-        from fuzzyservo.calibration.summary import residual_correlations
+        from fuzzyservo.calibration.summary import RESIDUAL_MODELS, residual_correlations
 
         models = self.outcome.models
         return {label: residual_correlations(self.replay, models[key])
-                for label, key in (("before", "nominal"), ("after", "calibrated"))}  # fmt: skip
+                for label, key in RESIDUAL_MODELS}  # fmt: skip
 
     @functools.cached_property
     def diagnostics(self) -> dict[str, Any]:

@@ -58,14 +58,17 @@ def residual_analysis(replay: Replay, model: dict[str, np.ndarray]) -> dict[str,
     return out
 
 
+#: the residuals a calibration analyses: (label, the model of SearchOutcome.models)
+RESIDUAL_MODELS = (("before", "nominal"), ("after", "calibrated"))
+
+
 def diagnostics(outcome: SearchOutcome, replay: Replay) -> dict[str, Any]:
     """The parts of ``summary.json`` that analyse the residual: its whiteness and
     independence before and after (``residual_analysis``, MATLAB ``resid``) and each
     effect's signature R² on the nominal model's residual (``signature_r2``, a run of
     the nominal rig)."""
     models = outcome.models
-    analyses = {label: residual_analysis(replay, models[key])
-                for label, key in (("before", "nominal"), ("after", "calibrated"))}  # fmt: skip
+    analyses = {label: residual_analysis(replay, models[key]) for label, key in RESIDUAL_MODELS}
     sig_replay, sig_model = replay, models["nominal"]
     if hasattr(replay, "records"):  # several records: the signatures of the first
         sig_replay = replay.records[0]

@@ -16,9 +16,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from fuzzyservo.controllers.base import Controller
-from fuzzyservo.display import (
-    metric_units,
-)
+from fuzzyservo.display import metric_units
 from fuzzyservo.results import Result, json_ready
 from fuzzyservo.tuning.evaluation import Evaluation
 from fuzzyservo.tuning.objective import build_evaluator, measured_margins
@@ -36,19 +34,25 @@ class StudyReport(Result):
     """A finished study with its best controller scored again.
 
     ``best_controller``: the best trial's controller as its file holds it; ``check``: that
-    controller scored again on the study's objective; ``trial``: the best trial's number
-    (None when the outcome cannot name it); ``comparison``: a robust study's best,
+    controller scored again on the study's objective; ``comparison``: a robust study's best,
     baseline and template on plants drawn afresh (None when not run);
     ``measured_margins``: {metric: {"best", "baseline"}} for the margins the constraints
     bound, measured on the nominal plant (None where the loop never oscillates)."""
 
     outcome: StudyOutcome = field(repr=False)
     best_controller: Controller
-    baseline_name: str
-    trial: int | None
     check: Evaluation = field(repr=False)
     comparison: Comparison | None = field(default=None, repr=False)
     measured_margins: dict[str, dict[str, float | None]] = field(default_factory=dict)
+
+    @property
+    def trial(self) -> int | None:
+        """The best trial's number (None when the outcome cannot name it)."""
+        return best_trial_number(self.outcome)
+
+    @property
+    def baseline_name(self) -> str:
+        return self.outcome.spec.baseline.name
 
     @property
     def reproduces(self) -> bool:
@@ -62,14 +66,13 @@ class StudyReport(Result):
         if self.measured_margins:
             summary["measured_margins"] = self.measured_margins
         if self.comparison is not None:
-            summary["comparison"] = {
-                "samples": self.comparison.samples,
-                "seed": self.comparison.seed,
-                "gain_margin_checked": self.comparison.gain,
-                "uncertainty": self.comparison.uncertainty,
-                "controllers": self.comparison.rows(),
-            }
+            summary["comparison"] = self._comparison_data()
         return summary
+
+    def _comparison_data(self) -> dict[str, Any]:
+        c = self.comparison
+        return {"samples": c.samples, "seed": c.seed, "gain_margin_checked": c.gain,
+                "uncertainty": c.uncertainty, "controllers": c.rows()}  # fmt: skip
 
     def text(self) -> str:
         """What ``fuzzyservo tune`` prints when done: the outcome's lines
@@ -77,14 +80,13 @@ class StudyReport(Result):
         if self.comparison is None:
             return self.outcome.text()
         units = metric_units(self.outcome.spec.rig)
-        comparison = json_ready(self.to_dict())["comparison"]
+        comparison = json_ready(self._comparison_data())  # as summary.json holds it
         return f"{self.outcome.text()}\n{comparison_text(comparison, units)}"
 
 
 def best_controller(outcome: StudyOutcome) -> Controller:
     """The study's template with the best trial's parameters, named ``<study>_best``."""
-    spec = outcome.spec
-    return build_evaluator(spec).controller(outcome.best_params, name=f"{spec.name}_best")
+    return outcome.spec.trial_controller(outcome.best_params, f"{outcome.spec.name}_best")
 
 
 def best_description(outcome: StudyOutcome, trial: int | None) -> str:
@@ -123,8 +125,6 @@ def study_report(
     return StudyReport(
         outcome=outcome,
         best_controller=best,
-        baseline_name=evaluator.baseline.name,
-        trial=best_trial_number(outcome),
         check=evaluator.evaluate(best),
         comparison=comparison,
         measured_margins=_measured_margins(evaluator, best),

@@ -83,17 +83,20 @@ def _component(c) -> list[str]:
         out += [f"| `{s.name}` | {_unit(s.unit)} | {_cell(s.doc)} |" for s in c.states]
         out.append("")
     if c.signals:
-        out += ["| signal | unit | expression |", "|---|---|---|"]
-        out += [f"| `{s.name}` | {_unit(s.unit)} | `{_cell(s.expr)}` |" for s in c.signals]
+        out += ["| signal | unit | records |", "|---|---|---|"]
+        out += [f"| `{s.name}` | {_unit(s.unit)} | `{_cell(s.source)}` |" for s in c.signals]
         out.append("")
     if c.effects:
         out += ["Effects it reads: " + ", ".join(f"`{e}`" for e in c.effects) + ".", ""]
     if c.code:
         out += ['??? note "compiled code, by phase"', ""]
-        for phase, code in c.code.items():
-            out += [f"    `{phase}`:", "", "    ```python"]
-            out += ["    " + line for line in inspect.cleandoc(code).splitlines()]
-            out += ["    ```", ""]
+        for phase, functions in c.code.items():
+            for function in functions if isinstance(functions, tuple) else (functions,):
+                source = inspect.getsource(function.py_func)
+                out += [f"    `{phase}`: returns {', '.join(function.returns)}", ""]
+                out += ["    ```python"]
+                out += ["    " + line for line in inspect.cleandoc(source).splitlines()]
+                out += ["    ```", ""]
     return out
 
 

@@ -292,7 +292,7 @@ class Rig:
 
 def compose_rig(
     name: str,
-    components: dict[str, tuple[str, dict[str, float]]],
+    components: dict[str, tuple[str, dict[str, float]] | tuple[str, dict[str, float], str]],
     *,
     feedback: LinearSensor,
     actuator: Actuator,
@@ -306,19 +306,23 @@ def compose_rig(
 ) -> Rig:
     """A rig composed in code, as a rig file's ``plant.components`` does.
 
-    ``components``: instance name -> (component type, parameter values by key, SI); the
-    types are those of ``fuzzyservo/components/library`` (:func:`component_types`).
+    ``components``: instance name -> (component type, parameter values by key, SI), and
+    optionally its axis (a circuit of several actuators on one supply: each valve, line,
+    actuator and load names its axis); the types are those of
+    ``fuzzyservo/components/library`` (:func:`component_types`).
     ``initial``: initial-state keys (``position``, ``pressure_a``, ...) in SI;
     ``io_delay_s`` the loop's I/O delay (a rig file's ``controller.io_delay``). Raises
     ``ValueError`` naming the instance and key when something does not fit.
     """
     from fuzzyservo.plants.composed import compose
 
-    plant = compose(tuple((inst, type_name) for inst, (type_name, _) in components.items()))
+    plant = compose(
+        tuple((inst, type_name, *axis) for inst, (type_name, _, *axis) in components.items())
+    )
     by_key = {f.metadata["key"]: f.name for f in dataclasses.fields(plant.params_cls)
               if "key" in f.metadata and not f.metadata.get("effect")}  # fmt: skip
     values = {}
-    for inst, (_, given) in components.items():
+    for inst, (_, given, *_) in components.items():
         for key, value in given.items():
             field_name = by_key.get(f"{inst}.{key}")
             if field_name is None:

@@ -21,7 +21,7 @@ from support import DATA, controller_named, rig_named
 
 from fuzzyservo.calibration.synthetic import synthetic_run
 from fuzzyservo.cli import main
-from fuzzyservo.components.declare import registry
+from fuzzyservo.components.declare import phase, registry
 from fuzzyservo.components.effects import LIBRARY
 from fuzzyservo.errors import ConfigError
 from fuzzyservo.io.measured import write_measured
@@ -167,20 +167,61 @@ def test_compositions_refuse_in_one_line() -> None:
         compose(_minimal("linear_motor"))
 
 
-def test_component_code_vocabulary_resolves_to_declared_positions() -> None:
-    from fuzzyservo.components.declare import Component, Param
-    from fuzzyservo.components.effects import E
-    from fuzzyservo.plants.composed import _Vocabulary
+def test_phase_functions_are_joined_by_argument_name() -> None:
+    """The composer passes each argument by its name and binds each return: a circuit
+    variable, a derivative dx[i], or the instance's own value; a name nothing provides
+    is a one-line error naming the component."""
+    from fuzzyservo.components.declare import Component, Param, State
+    from fuzzyservo.plants.composed import _Calls
 
-    load = Component("spring", "load", "a test load", "test", params=(Param("k", "N/m", "k"),))
-    vocabulary = _Vocabulary("ld", load, {("ld", "k"): (False, 20)}, {("ld", "y"): 0})
-    code = "L.f = P.k * X.y + E.valve_lag_s  # comments are dropped\nf_load += L.f"
-    assert vocabulary.resolve(code) == (f"ld_f = p[20] * x[0] + p[{E.valve_lag_s}]\nf_load += ld_f")
-    assert vocabulary.resolve("DX.y = 'P.k'") == "dx[0] = 'P.k'"
-    with pytest.raises(CompositionError, match="undeclared parameter 'c'"):
-        vocabulary.resolve("f_load += P.c")
-    with pytest.raises(CompositionError, match="undeclared effect parameter 'lag'"):
-        vocabulary.resolve("f_load += E.lag")
+    load = Component(
+        "spring",
+        "load",
+        "a test load",
+        "test",
+        params=(Param("k", "N/m", "k"),),
+        states=(State("y", "m", "y", "motion", 1e-6, 1e-3),),
+        code={"load": _spring_force},
+    )
+    calls = _Calls({("ld", "k"): (False, 20)}, {("ld", "y"): 3}, bristles=False)
+    assert calls.records("ld", load) == ["ld_P = _c0(p[20])", "ld_X = _c1(x[3])"]
+    line = calls.call("ld", load, "load", _spring_force)
+    assert line == "ld_f, f_load, dx[3] = _c2(ld_P, ld_X, f_load)"
+    assert calls.value("ld", load, "f") == "ld_f"
+    assert calls.value("ld", load, "k") == "p[20]"
+    with pytest.raises(CompositionError, match="reads 'vel', which no earlier phase provides"):
+        calls.call("ld", load, "load", _damper_force)
+    with pytest.raises(CompositionError, match="returns 'dx_w' but declares no state 'w'"):
+        calls.call("ld", load, "load", _moves_w)
+
+
+def test_a_component_runs_alone() -> None:
+    """A phase function is ordinary compiled code: called with its records, the
+    cylinder's actuator phase gives the piston area, the chamber volumes and the
+    end-stop force."""
+    import math
+
+    from fuzzyservo.components.declare import registry
+    from fuzzyservo.components.effects import EffectParams
+    from fuzzyservo.components.library.cylinders import single_rod
+    from fuzzyservo.params import pack
+
+    cylinder = registry()["single_rod_cylinder"]
+    values = dict(
+        piston_diameter=0.03, rod_diameter=0.014, stroke=0.16, zero_position=0.0,
+        piston_mass=1.0, dead_volume_a=1e-6, dead_volume_b=1e-6, end_stop_stiffness=1e8,
+        end_stop_damping=0.0,
+    )  # fmt: skip
+    P = cylinder.values(**values)
+    p = pack(EffectParams())
+    state = cylinder.state(0.05, 0.0, 2e6, 1e6, 0.0)
+    out = dict(zip(single_rod.returns, single_rod(P, state, p), strict=True))
+    area = 0.25 * math.pi * 0.03**2
+    assert out["area_a"] == pytest.approx(area)
+    assert out["va"] == pytest.approx(1e-6 + area * 0.05)
+    assert out["f_hyd"] == pytest.approx(2e6 * area - 1e6 * out["area_b"])
+    beyond = single_rod(P, cylinder.state(-0.001, 0.0, 2e6, 1e6, 0.0), p)
+    assert dict(zip(single_rod.returns, beyond, strict=True))["f_stop"] == pytest.approx(1e5)
 
 
 def test_rig_file_errors_name_the_component_key(tmp_path: Path) -> None:
@@ -287,3 +328,19 @@ def test_extra_sensors_read_any_signal_scaled_and_offset(tmp_path: Path, p4) -> 
     # a reading is in its sensor's unit (here mA), as a logger records it
     np.testing.assert_allclose(r.signals["p_a_sensor"], 4.0 + 0.064 * r.signals["p_a"] / 1e5)
     assert r.units["p_a_sensor"] == "mA"
+
+
+@phase("f", "f_load", "dx_y")
+def _spring_force(P, X, f_load):
+    f = P.k * X.y
+    return f, f_load + f, 0.0
+
+
+@phase("f_load")
+def _damper_force(P, vel, f_load):
+    return f_load + P.k * vel
+
+
+@phase("dx_w")
+def _moves_w(P):
+    return 0.0

@@ -5,27 +5,40 @@ Simscape Fluids build a circuit. Each component type is one module under
 ``components/library/`` that defines ``COMPONENTS``, a tuple of :class:`Component`;
 :func:`registry` finds them, so a new component is that one file plus its test.
 
-A component's compiled code is a few lines of Python (``code``, by phase) written
-against the circuit's shared variables (the names :data:`PHASES` defines) and five
-prefixes that the composer (:mod:`fuzzyservo.plants.composed`) resolves on the code's
-syntax tree, to positions derived from the declarations:
+A component's equations are ordinary functions, one per phase of the circuit
+(:data:`PHASES`), compiled by numba and decorated with :func:`phase`, which names what
+they return. The composer (:mod:`fuzzyservo.plants.composed`) joins them: it passes each
+argument by its name and generates only the sequence of calls.
 
-``P.key``    the component's parameter ``key`` (an entry of the packed vector)
-``X.name``   its state ``name``;  ``DX.name = ...`` sets that state's derivative
-``L.name``   a variable local to this instance (prefixed with the instance name)
-``E.field``  an effect parameter (a field of :data:`~fuzzyservo.components.effects.E`)
+``P``        the instance's parameters, a record with one field per declared key
+             (a vector parameter's field is its start in ``p``)
+``X``        its states, a record with one field per declared state
+``p``        the whole parameter vector (effect parameters are ``p[E.<field>]``,
+             :data:`~fuzzyservo.components.effects.E`; the shared maps read it)
+``u``, ``f_ext``  the plant's input and the scenario's load
+a circuit variable (:data:`CIRCUIT`): what one instance hands the next through the
+             ports it shares with them (the valve's port pressures, the flows into the
+             actuator, the moving mass ...)
+any other name: what this instance returned in an earlier phase
 
-Signals are expressions in the same vocabulary, written to the signal table by name,
-so no table has to agree with another by position.
+A returned name is a circuit variable, ``dx_<state>`` (that state's derivative) or a
+value of this instance (a signal may record it). A signal names the value it records;
+``end_stop`` is a function of ``P`` and ``X``, true beyond a mechanical stop. Every
+function runs alone too: ``comp.values(...)`` and ``comp.state(...)`` build its records.
 """
 
 from __future__ import annotations
 
 import importlib
+import inspect
 import pkgutil
+from collections import namedtuple
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from functools import cache
+from typing import Any
+
+from fuzzyservo._jit import njit
 
 # Phases in the order the composed right-hand side runs them, and what each defines.
 PHASES = (
@@ -41,6 +54,17 @@ PHASES = (
     "node",  # other consumers at the supply node (an accumulator): q_supply += their intake
     "supply_flow",  # the supply's derivatives (it sees q_supply, q_tank)
 )
+
+# The circuit's variables: what the phases above hand each other, by name (SI).
+CIRCUIT = (
+    "beta", "p_lam", "mass_form",  # fluid
+    "p_s", "p_t",  # supply
+    "pos", "vel", "p_a", "p_b", "area_a", "area_b", "f_stop",  # actuator
+    "p_a_port", "p_b_port",  # line
+    "q_va", "q_vb", "q_supply", "q_tank",  # valve
+    "q_a", "q_b",  # line_flow
+    "mass", "f_load",  # mass, load
+)  # fmt: skip
 
 # Roles: how many of each a composition holds, and the phases they may write.
 ROLES: dict[str, tuple[int, int]] = {
@@ -98,27 +122,53 @@ class State:
 
 @dataclass(frozen=True)
 class Signal:
-    """One recorded signal: name (unique in a composition), unit, and the expression."""
+    """One recorded signal: name (unique in a composition), unit, and the value it
+    records: a circuit variable, or the instance's state, parameter or returned value."""
 
     name: str
     unit: str
-    expr: str
+    source: str
     doc: str = ""
+
+
+def phase(*returns: str) -> Callable[[Callable[..., Any]], Any]:
+    """A phase function, compiled by numba, returning the values ``returns`` names in
+    that order (one name: the value itself; several: a tuple)."""
+
+    def compiled(function: Callable[..., Any]) -> Any:
+        dispatcher = njit(cache=True, inline="always")(function)
+        dispatcher.returns = returns
+        return dispatcher
+
+    return compiled
+
+
+def arguments(function: Any) -> tuple[str, ...]:
+    """The names a phase function (or ``end_stop``) takes, in order."""
+    return tuple(inspect.signature(function.py_func).parameters)
+
+
+@cache
+def record(name: str, fields: tuple[str, ...]) -> type:
+    """The record (a named tuple, which numba compiles to plain values) with ``fields``."""
+    return namedtuple(name, fields)
 
 
 @dataclass(frozen=True)
 class Component:
     """A component type: everything the composer, the rig reader and the docs need.
 
-    ``initial``: SI state values at rest from the parameter values (by key) and the
+    ``code``: phase -> function (:func:`phase`), or a tuple of them run in order;
+    ``bristle_code``: the phases whose
+    function differs in a composition that carries the ``bristles`` states (LuGre
+    friction). ``initial``: SI state values at rest from the parameter values (by key) and the
     circuit so far (``p_s``, ``p_t``, the rig's initial keys); ``scales``: what this
     component tells about the rig's size (``pressure``, ``flow``, ``area``, ``input``
     ...); ``null``: the valve input of hydraulic null; ``effects``: the effects of
     components/effects.py its code reads; ``initial_keys``: rig-file initial keys ->
-    (circuit name, SI unit); ``end_stop``: an expression true beyond a mechanical stop;
-    ``check``: a problem with the values as ``"key: what is wrong; the fix"``, or None.
-    ``bristle_code``: the phases whose code differs in a composition that carries the
-    ``bristles`` states (LuGre friction), in place of ``code``'s.
+    (circuit name, SI unit); ``end_stop``: a function of ``P``, ``X`` true beyond a
+    mechanical stop; ``check``: a problem with the values as ``"key: what is wrong; the
+    fix"``, or None.
     """
 
     type: str
@@ -128,8 +178,8 @@ class Component:
     params: tuple[Param, ...] = ()
     states: tuple[State, ...] = ()
     signals: tuple[Signal, ...] = ()
-    code: Mapping[str, str] = field(default_factory=dict)
-    bristle_code: Mapping[str, str] = field(default_factory=dict)
+    code: Mapping[str, Any] = field(default_factory=dict)
+    bristle_code: Mapping[str, Any] = field(default_factory=dict)
     effects: tuple[str, ...] = ()
     initial: Callable[[dict[str, float], dict[str, float]], dict[str, float]] | None = None
     initial_keys: Mapping[str, tuple[str, str]] = field(default_factory=dict)
@@ -140,7 +190,7 @@ class Component:
     # may take that input instead (read as ``f_ext`` by its code)
     load: tuple[str, str] | None = None
     mechanics: Mapping[str, str] | None = None  # actuators: SI units of force, velocity
-    end_stop: str = ""
+    end_stop: Any = None
     check: Callable[[dict[str, float]], str | None] | None = None
     actuators: tuple[str, ...] = ()  # loads: the actuator types it applies to (empty: any)
     refuses: Mapping[str, str] = field(default_factory=dict)  # effect -> why not meaningful
@@ -148,9 +198,14 @@ class Component:
     def __post_init__(self) -> None:
         if self.role not in ROLES:
             raise ValueError(f"component {self.type!r}: role {self.role!r} not in {list(ROLES)}")
-        for phase in (*self.code, *self.bristle_code):
-            if phase not in PHASES:
-                raise ValueError(f"component {self.type!r}: phase {phase!r} not in {PHASES}")
+        for name, functions in (*self.code.items(), *self.bristle_code.items()):
+            if name not in PHASES:
+                raise ValueError(f"component {self.type!r}: phase {name!r} not in {PHASES}")
+            for function in functions if isinstance(functions, tuple) else (functions,):
+                if not hasattr(function, "returns"):
+                    raise ValueError(
+                        f"component {self.type!r}: phase {name!r} is not a @phase function"
+                    )
         for state in self.states:
             if state.group not in STATE_GROUPS:
                 raise ValueError(
@@ -159,6 +214,16 @@ class Component:
         keys = [p.key for p in self.params]
         if len(set(keys)) != len(keys):
             raise ValueError(f"component {self.type!r}: a parameter key is declared twice")
+
+    @property
+    def values(self) -> type:
+        """The record of this component's parameters (``P`` in its phase functions)."""
+        return record(f"{self.type}_params", tuple(p.key for p in self.params))
+
+    @property
+    def state(self) -> type:
+        """The record of this component's states (``X`` in its phase functions)."""
+        return record(f"{self.type}_states", tuple(s.name for s in self.states))
 
     def param(self, key: str) -> Param:
         for p in self.params:

@@ -49,14 +49,15 @@ def _composition(node: Node, unknowns: dict[str, tuple[float, float]]) -> tuple[
     parts = []
     for name in node.data:
         child = node.child(str(name))
-        child.only(("type", "parameters", "source", "note"))
+        child.only(("type", "axis", "parameters", "source", "note"))
         type_name = child.str("type")
+        axis = child.str("axis") if child.has("axis") else ""
         if type_name not in types:
             child.fail(
                 f"unknown component type {excerpt(type_name)}; choose one of {sorted(types)}",
                 key="type",
             )
-        parts.append((str(name), type_name))
+        parts.append((str(name), type_name, axis) if axis else (str(name), type_name))
     try:
         plant = compose(tuple(parts))
     except CompositionError as exc:
@@ -64,7 +65,7 @@ def _composition(node: Node, unknowns: dict[str, tuple[float, float]]) -> tuple[
     by_key = fields_by_key(plant.params_cls)
     vectors = vectors_by_key(plant.params_cls)
     values: dict[str, Any] = {}
-    for name, _ in parts:
+    for name, *_ in parts:
         params_node = node.child(name).child("parameters", default={})
         prefix = f"{name}."
         keys = {k[len(prefix) :]: f for k, f in by_key.items() if k.startswith(prefix)}

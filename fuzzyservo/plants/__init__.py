@@ -44,7 +44,8 @@ class PlantModel:
     mechanics: dict[str, str]  # SI units of "force" and "velocity" for effect parameters
     null_input: Callable[[Any], float]
     effect_scales: Callable[[Any, float, float], Any] | None
-    components: tuple[tuple[str, str], ...] = ()  # (instance, type) of a composition
+    # (instance, type) or (instance, type, axis) of a composition
+    components: tuple[tuple[str, ...], ...] = ()
     # a composition with LuGre friction's bristle states: whether this form carries them
     # (compose's ``bristles``); None where no component declares them
     bristles: bool | None = None
@@ -101,7 +102,7 @@ class PlantModel:
             from fuzzyservo.components.declare import registry
 
             types = registry()
-            for name, type_name in self.components:
+            for name, type_name, *_ in self.components:
                 why = types[type_name].refuses.get(effect)
                 if why:
                     return f"effect {effect!r} is not meaningful here: {name} ({type_name}) {why}"

@@ -3,19 +3,24 @@
 :func:`compose` turns instances of component types (:mod:`fuzzyservo.components.declare`)
 into a :class:`~fuzzyservo.plants.PlantModel`: a frozen parameter class whose fields
 are the instances' parameters (file key ``<instance>.<key>``), the state vector laid
-out by state group, and the Python source of one flat right-hand side, which the
-closed loop is compiled against (:func:`fuzzyservo._jit.bind_plant`). Every index in
-that source is generated from the declarations; none is written by hand.
+out by state group, and the source that joins the components' phase functions into one
+right-hand side, which the closed loop is compiled against
+(:func:`fuzzyservo._jit.bind_plant`). That source is only the sequence of calls: each
+argument passed by its name, each return bound to the circuit's variable it names, every
+index generated from the declarations; no equation is written there.
 
-The circuit has one fluid, one supply, one 4-way valve, at most one pair of lines,
-one actuator and any number of loads; the phases of :data:`~fuzzyservo.components.declare.PHASES`
-run in order, each instance's code in the order the rig file lists them.
+The circuit has one fluid, one supply, at most one accumulator, and one axis or several:
+each axis one 4-way valve, at most one pair of lines, one actuator and any number of
+loads (a part's axis is the third entry of its ``parts`` tuple, ``axis:`` in a rig
+file). The supply sees the sum of the valves' flows; the loop drives every valve with
+its one command. The phases of :data:`~fuzzyservo.components.declare.PHASES` run in
+order, each instance's functions in the order the rig file lists them.
 """
 
 from __future__ import annotations
 
-import ast
 import dataclasses
+import importlib
 import re
 from collections.abc import Mapping
 from functools import cache
@@ -24,13 +29,15 @@ from typing import Any
 import numpy as np
 
 from fuzzyservo.components.declare import (
+    CIRCUIT,
     PHASES,
     ROLES,
     STATE_GROUPS,
     Component,
+    arguments,
     registry,
 )
-from fuzzyservo.components.effects import INPUT_EFFECTS, LIBRARY, E, EffectParams, Scales
+from fuzzyservo.components.effects import INPUT_EFFECTS, LIBRARY, EffectParams, Scales
 from fuzzyservo.params import index_of, pack, quantity, vector, vector_offset
 from fuzzyservo.plants import PlantModel
 from fuzzyservo.plants._jacobian import jacobian_source
@@ -53,8 +60,9 @@ def _resolve_unit(unit: str, mechanics: Mapping[str, str], input_unit: str) -> s
     return _TOKENS.sub(lambda m: f"({table[m.group(1)]})", unit)
 
 
-def compose(parts: tuple[tuple[str, str], ...], bristles: bool = False) -> PlantModel:
-    """The plant of the instances ``parts`` = ((instance name, component type), ...).
+def compose(parts: tuple[tuple[str, ...], ...], bristles: bool = False) -> PlantModel:
+    """The plant of the instances ``parts`` = ((instance name, component type), ...), or
+    ((instance name, component type, axis), ...) for a circuit of several axes.
 
     ``bristles``: with the ``bristles`` states (LuGre friction's bristle deflection, last
     in the state vector) and the components' ``bristle_code``; without them (the
@@ -68,10 +76,12 @@ def compose(parts: tuple[tuple[str, str], ...], bristles: bool = False) -> Plant
 
 
 @cache
-def _compose(parts: tuple[tuple[str, str], ...], bristles: bool) -> PlantModel:
+def _compose(parts: tuple[tuple[str, ...], ...], bristles: bool) -> PlantModel:
     types = registry()
     instances: list[tuple[str, Component]] = []
-    for name, type_name in parts:
+    axis_of: dict[str, str] = {}  # instance -> its axis ("" in a one-axis circuit)
+    for name, type_name, *axis in parts:
+        axis_of[name] = axis[0] if axis else ""
         if not name.isidentifier():
             raise CompositionError(
                 f"{name}: an instance name must be a Python identifier (letters, digits, _)"
@@ -81,31 +91,12 @@ def _compose(parts: tuple[tuple[str, str], ...], bristles: bool) -> PlantModel:
                 f"{name}: unknown component type {type_name!r}; choose one of {sorted(types)}"
             )
         instances.append((name, types[type_name]))
-    for role, (lo, hi) in ROLES.items():
-        count = sum(1 for _, c in instances if c.role == role)
-        if not lo <= count <= hi:
-            which = sorted(t for t, c in types.items() if c.role == role)
-            need = f"exactly {lo}" if lo == hi else f"{lo} to {hi}"
-            raise CompositionError(
-                f"a composition needs {need} {role} component(s), got {count}; "
-                f"add or remove one of {which}"
-            )
+    axes = _axes(instances, axis_of, types)
     valve = next(c for _, c in instances if c.role == "valve")
     actuator = next(c for _, c in instances if c.role == "actuator")
-    for name, comp in instances:
-        if comp.actuators and actuator.type not in comp.actuators:
-            raise CompositionError(
-                f"{name}: a {comp.type} load is not meaningful on a {actuator.type}; "
-                f"it applies to {list(comp.actuators)}"
-            )
     mechanics = dict(actuator.mechanics or {"force": "N", "velocity": "m/s", "position": "m"})
-    # the scenario's load input: the actuator's force, unless a load component takes it
-    takers = [c for _, c in instances if c.role == "load" and c.load]
-    if len(takers) > 1:
-        raise CompositionError(
-            f"{len(takers)} loads take the scenario's load input "
-            f"({', '.join(c.type for c in takers)}); keep one of them"
-        )
+    # the scenario's load input: each axis's actuator force, unless a load takes it
+    takers = {axis_of[n]: c for n, c in instances if c.role == "load" and c.load}
     input_name, input_unit = valve.input or ("u", "V")
 
     # parameters: one frozen dataclass, fields <instance>__<key>, file keys <instance>.<key>
@@ -133,7 +124,7 @@ def _compose(parts: tuple[tuple[str, str], ...], bristles: bool) -> PlantModel:
             owner[field_name] = (name, comp, prm.key)
     # required fields before defaulted ones (dataclass rule); the order packs the vector
     fields.sort(key=lambda f: f[2].default is not dataclasses.MISSING)
-    label = "_".join(t for _, t in parts)
+    label = "_".join(t for _, t, *_ in parts)
     if bristles:  # one parameter class for both forms: the same values run on either
         params_cls = compose(parts).params_cls
     else:
@@ -176,41 +167,58 @@ def _compose(parts: tuple[tuple[str, str], ...], bristles: bool) -> PlantModel:
     ]
     declared.sort(key=lambda item: STATE_GROUPS.index(item[2].group))
     state_index = {(name, st.name): i for i, (name, _, st) in enumerate(declared)}
-    state_names = tuple(st.name for _, _, st in declared)
+    state_names = tuple(_named(axis_of[name], st.name) for name, _, st in declared)
     if len(set(state_names)) != len(state_names):
         raise CompositionError(f"two components declare the same state name: {state_names}")
 
-    def subst(name: str, comp: Component, text: str) -> str:
-        return _Vocabulary(name, comp, param_index, state_index).resolve(text)
-
+    calls = _Calls(param_index, state_index, bristles, axis_of)
     # the body: phases in order, instances in file order; defaults where a role is absent
-    body: list[str] = ["mass = 0.0", "f_load = 0.0" if takers else "f_load = f_ext"]
-    has_line = any(c.role == "line" for _, c in instances)
+    body: list[str] = []
+    for axis in axes:
+        body += [f"{_local(axis, 'mass')} = 0.0", f"{_local(axis, 'f_load')} = "
+                 + ("0.0" if axis in takers else "f_ext")]  # fmt: skip
+        calls.circuit |= {_local(axis, "mass"), _local(axis, "f_load")}
+    body += [line for name, comp in instances for line in calls.records(name, comp)]
+    lined = {axis_of[n] for n, c in instances if c.role == "line"}
     for phase in PHASES:
-        if phase == "line" and not has_line:
-            body += ["p_a_port = p_a", "p_b_port = p_b"]
-        if phase == "line_flow" and not has_line:
-            body += ["q_a = q_va", "q_b = q_vb"]
+        for axis in axes:
+            pairs = {"line": ("p_a_port", "p_a", "p_b_port", "p_b"),
+                     "line_flow": ("q_a", "q_va", "q_b", "q_vb")}.get(phase)  # fmt: skip
+            if pairs and axis not in lined:
+                names = [_local(axis, v) for v in pairs]
+                body += [f"{names[0]} = {names[1]}", f"{names[2]} = {names[3]}"]
+                calls.circuit |= {names[0], names[2]}
         for name, comp in instances:
-            code = (bristles and comp.bristle_code.get(phase)) or comp.code.get(phase)
-            if code:
+            functions = (bristles and comp.bristle_code.get(phase)) or comp.code.get(phase)
+            if functions is not None:
                 body.append(f"# {name} ({comp.type}): {phase}")
-                body += [line for line in subst(name, comp, _dedent(code)).splitlines()]
+                for function in functions if isinstance(functions, tuple) else (functions,):
+                    body.append(calls.call(name, comp, phase, function))
+        if phase == "valve" and axes != ("",):  # the supply serves every axis's valve
+            for total in _SUPPLY_FLOWS:
+                body.append(f"{total} = " + " + ".join(_local(a, total, True) for a in axes))
+                calls.circuit.add(total)
     signals = [(name, comp, sig) for name, comp in instances for sig in comp.signals]
-    signals.append(("", None, _LOAD_SIGNAL))
-    signal_names = tuple(sig.name for _, _, sig in signals)
+    signals += [(axis, None, _LOAD_SIGNAL) for axis in axes]
+    signal_names = tuple(
+        _named(axis_of.get(name, name) if comp else name, sig.name) for name, comp, sig in signals
+    )
     if len(set(signal_names)) != len(signal_names):
         raise CompositionError(f"two components declare the same signal name: {signal_names}")
     writes = [
-        f"out[{k}] = {subst(name, comp, sig.expr) if comp else sig.expr}"
+        f"out[{k}] = " + (calls.value(name, comp, sig.source) if comp else _local(name, sig.source))
         for k, (name, comp, sig) in enumerate(signals)
     ]
-    stops = [f"({subst(name, comp, comp.end_stop)})" for name, comp in instances if comp.end_stop]
+    stopping = [(name, comp) for name, comp in instances if comp.end_stop is not None]
+    stop_lines = [line for name, comp in stopping for line in calls.records(name, comp)]
+    stops = [calls.expression(name, comp, comp.end_stop) for name, comp in stopping]
     binding = _SOURCE.format(
         label=label,
+        imports="\n".join(calls.imports),
         body=_indent(body),
         writes=_indent(writes),
         n=len(state_names),
+        stop_records=_indent(stop_lines),
         stop=" or ".join(stops) or "False",
     ) + (jacobian_source(body, len(state_names)) or "")
 
@@ -219,11 +227,17 @@ def _compose(parts: tuple[tuple[str, str], ...], bristles: bool) -> PlantModel:
         for name in LIBRARY
         if name in INPUT_EFFECTS or any(name in c.effects for _, c in instances)
     )
-    units = {sig.name: _resolve_unit(sig.unit, mechanics, input_unit) for _, _, sig in signals}
+    units = {
+        named: _resolve_unit(sig.unit, mechanics, input_unit)
+        for named, (_, _, sig) in zip(signal_names, signals, strict=True)
+    }
     initial_keys: dict[str, tuple[str, str]] = {}
-    for _, comp in instances:
+    for name, comp in instances:
         for key, (kw, unit) in comp.initial_keys.items():
-            initial_keys[key] = (kw, _resolve_unit(unit, mechanics, input_unit))
+            axis = axis_of[name]
+            si = _resolve_unit(unit, mechanics, input_unit)
+            initial_keys[_named(axis, key)] = (_named(axis, kw), si)
+            initial_keys.setdefault(key, (kw, si))  # on an axis: every axis's, unless its own
     scale = np.array([st.scale for _, _, st in declared])
     typical = np.array([st.typical for _, _, st in declared])
     model = PlantModel(
@@ -234,9 +248,9 @@ def _compose(parts: tuple[tuple[str, str], ...], bristles: bool) -> PlantModel:
         signals=signal_names,
         signal_units=units,
         input=(input_name, input_unit),
-        load=takers[0].load if takers else actuator.load or ("f_load", "N"),
+        load=next(iter(takers.values())).load if takers else actuator.load or ("f_load", "N"),
         initial_keys=initial_keys,
-        initial_state=lambda params, **kw: _initial_state(model, instances, params, kw),
+        initial_state=lambda params, **kw: _initial_state(model, instances, axis_of, params, kw),
         state_scale=lambda params: scale.copy(),
         typical_state=lambda params: typical.copy(),
         description=" + ".join(f"{n} ({c.type})" for n, c in instances),
@@ -244,7 +258,7 @@ def _compose(parts: tuple[tuple[str, str], ...], bristles: bool) -> PlantModel:
         mechanics=mechanics,
         null_input=lambda params: _null(valve, instances, params),
         effect_scales=lambda params, rated, dt: _scales(instances, params, rated, dt),
-        components=tuple((n, c.type) for n, c in instances),
+        components=parts,
         bristles=bristles
         if any(st.group == "bristles" for _, c in instances for st in c.states)
         else None,
@@ -255,66 +269,216 @@ def _compose(parts: tuple[tuple[str, str], ...], bristles: bool) -> PlantModel:
     return model
 
 
-class _Vocabulary(ast.NodeTransformer):
-    """One instance's code with its vocabulary resolved (components/declare.py): the
-    attribute ``P.key`` becomes ``p[i]`` (a vector parameter: its start ``i`` in p), ``X.name``/``DX.name`` become ``x[i]``/``dx[i]``,
-    ``E.field`` the effect's ``p[i]`` and ``L.name`` the local ``<instance>_name``, with
-    every ``i`` the position the declarations give. The code is parsed, rewritten as a
-    syntax tree and printed back, so only names in the code (not in its strings or
-    comments) change, and a name the component did not declare is an error."""
+class _Calls:
+    """The generated source that joins the instances' phase functions: each instance's
+    records (``<instance>_P``, ``<instance>_X``), and each call with its arguments passed
+    by name and its returns bound to the circuit's variables, to the state derivatives
+    ``dx[i]`` or to the instance's own values ``<instance>_<name>``, every index the
+    position the declarations give (components/declare.py)."""
 
     def __init__(
         self,
-        name: str,
-        comp: Component,
         param_index: Mapping[tuple[str, str], tuple[bool, int]],
         state_index: Mapping[tuple[str, str], int],
+        bristles: bool,
+        axis_of: Mapping[str, str] | None = None,
     ) -> None:
-        self.name, self.comp = name, comp
-        self.param_index, self.state_index = param_index, state_index
+        self.param_index, self.state_index, self.bristles = param_index, state_index, bristles
+        self.axis_of = axis_of or {}
+        self.imports: list[str] = ["from fuzzyservo.components.declare import record"]
+        self.aliases: dict[int, str] = {}  # id(function or record) -> its name in the source
+        self.circuit: set[str] = {"mass", "f_load"}  # circuit variables set so far
+        self.own: dict[str, set[str]] = {}  # instance -> the values it returned so far
 
-    def resolve(self, code: str) -> str:
-        try:
-            tree = ast.parse(code)
-        except SyntaxError as exc:
+    def _alias(self, thing: Any, statement: str) -> str:
+        if id(thing) not in self.aliases:
+            alias = f"_c{len(self.aliases)}"
+            self.aliases[id(thing)] = alias
+            self.imports.append(statement.format(alias=alias))
+        return self.aliases[id(thing)]
+
+    def _function(self, comp: Component, function: Any) -> str:
+        py = function.py_func
+        module = importlib.import_module(py.__module__)
+        if getattr(module, py.__name__, None) is not function:
             raise CompositionError(
-                f"component {self.comp.type!r}: its code does not parse ({exc.msg}, line "
-                f"{exc.lineno}); fix the component's code"
-            ) from None
-        return ast.unparse(ast.fix_missing_locations(self.visit(tree)))
-
-    def visit_Attribute(self, node: ast.Attribute) -> ast.AST:
-        if not (isinstance(node.value, ast.Name) and node.value.id in _VOCABULARY):
-            return self.generic_visit(node)
-        prefix, ident = node.value.id, node.attr
-        if prefix == "L":
-            return ast.copy_location(ast.Name(f"{self.name}_{ident}", node.ctx), node)
-        if prefix == "P" and self.param_index.get((self.name, ident), (False, 0))[0]:
-            # a vector parameter: its start in p (the code passes p and it on)
-            offset = self.param_index[(self.name, ident)][1]
-            return ast.copy_location(ast.Constant(offset), node)
-        vector, at = self._position(prefix, ident)
-        index = ast.Subscript(ast.Name(vector, ast.Load()), ast.Constant(at), node.ctx)
-        return ast.copy_location(index, node)
-
-    def _position(self, prefix: str, ident: str) -> tuple[str, int]:
-        what = {"E": "effect parameter", "P": "parameter"}.get(prefix, "state")
-        fix = "use a field of EffectParams" if prefix == "E" else "declare it or fix the name"
-        if prefix == "E":
-            at = getattr(E, ident) if ident in E._fields else None
-        elif prefix == "P":
-            at = self.param_index.get((self.name, ident), (False, None))[1]
-        else:
-            at = self.state_index.get((self.name, ident))
-        if at is None:
-            raise CompositionError(
-                f"component {self.comp.type!r}: code uses undeclared {what} {ident!r}; {fix}"
+                f"component {comp.type!r}: {py.__qualname__} is not a module-level function "
+                f"of {py.__module__}; define it at the module's top level"
             )
-        return {"E": "p", "P": "p", "X": "x", "DX": "dx"}[prefix], at
+        return self._alias(function, f"from {py.__module__} import {py.__name__} as {{alias}}")
+
+    def records(self, name: str, comp: Component) -> list[str]:
+        """The statements that build the instance's ``P`` and ``X`` records."""
+        lines = []
+        if comp.params:
+            cls = comp.values
+            alias = self._alias(cls, f"{{alias}} = record({cls.__name__!r}, {cls._fields!r})")
+            entries = []
+            for prm in comp.params:
+                vector, at = self.param_index[(name, prm.key)]
+                entries.append(str(at) if vector else f"p[{at}]")
+            lines.append(f"{name}_P = {alias}({', '.join(entries)})")
+        if comp.states:
+            cls = comp.state
+            alias = self._alias(cls, f"{{alias}} = record({cls.__name__!r}, {cls._fields!r})")
+            entries = [
+                f"x[{self.state_index[(name, st.name)]}]"
+                if (name, st.name) in self.state_index
+                else "0.0"
+                for st in comp.states
+            ]
+            lines.append(f"{name}_X = {alias}({', '.join(entries)})")
+        return lines
+
+    def _argument(self, name: str, comp: Component, arg: str, where: str) -> str:
+        if arg in ("P", "X"):
+            if not (comp.params if arg == "P" else comp.states):
+                raise CompositionError(
+                    f"component {comp.type!r}: {where} reads {arg} but declares no "
+                    f"{'parameters' if arg == 'P' else 'states'}"
+                )
+            return f"{name}_{arg}"
+        if arg in ("p", "u", "f_ext"):
+            return arg
+        if arg in self.own.get(name, ()):
+            return f"{name}_{arg}"
+        if self._circuit(name, comp, arg) in self.circuit:
+            return self._circuit(name, comp, arg)
+        raise CompositionError(
+            f"component {comp.type!r}: {where} reads {arg!r}, which no earlier phase "
+            "provides; return it from an earlier phase or fix the name"
+        )
+
+    def call(self, name: str, comp: Component, phase: str, function: Any) -> str:
+        """One phase's call: ``<returns> = <function>(<arguments>)``."""
+        where = f"its {phase} phase"
+        args = [self._argument(name, comp, a, where) for a in arguments(function)]
+        targets = []
+        for ret in function.returns:
+            state = ret[3:] if ret.startswith("dx_") else None
+            if state is not None and (name, state) in self.state_index:
+                targets.append(f"dx[{self.state_index[(name, state)]}]")
+            elif state is not None:
+                raise CompositionError(
+                    f"component {comp.type!r}: {where} returns {ret!r} but declares no "
+                    f"state {state!r} in this form"
+                )
+            elif ret in CIRCUIT:
+                self.circuit.add(self._circuit(name, comp, ret))
+                targets.append(self._circuit(name, comp, ret))
+            else:
+                self.own.setdefault(name, set()).add(ret)
+                targets.append(f"{name}_{ret}")
+        alias = self._function(comp, function)
+        return f"{', '.join(targets)} = {alias}({', '.join(args)})"
+
+    def value(self, name: str, comp: Component, source: str) -> str:
+        """What a signal records: a value the instance returned, its state or parameter,
+        or a circuit variable."""
+        if source in self.own.get(name, ()):
+            return f"{name}_{source}"
+        if (name, source) in self.state_index:
+            return f"x[{self.state_index[(name, source)]}]"
+        vector, at = self.param_index.get((name, source), (True, None))
+        if at is not None and not vector:
+            return f"p[{at}]"
+        if self._circuit(name, comp, source) in self.circuit:
+            return self._circuit(name, comp, source)
+        raise CompositionError(
+            f"component {comp.type!r}: a signal records {source!r}, which it neither returns, "
+            "declares nor reads from the circuit; fix the signal's source"
+        )
+
+    def _circuit(self, name: str, comp: Component, variable: str) -> str:
+        """A circuit variable as this instance sees it: its axis's own (an actuator's
+        motion, its ports, its valve's flows) or the one every axis shares."""
+        return _local(self.axis_of.get(name, ""), variable, comp.role == "valve")
+
+    def expression(self, name: str, comp: Component, function: Any) -> str:
+        """A call of a function of the instance's records (``end_stop``)."""
+        args = [self._argument(name, comp, a, "its end_stop") for a in arguments(function)]
+        return f"{self._function(comp, function)}({', '.join(args)})"
 
 
-# the prefixes of a component's code (components/declare.py)
-_VOCABULARY = ("P", "X", "DX", "L", "E")
+# roles every axis has its own of (valve, lines, actuator, loads); the others serve all
+_SHARED_ROLES = ("fluid", "supply", "accumulator")
+# circuit variables every axis shares: the fluid's, the supply's pressures and its flows
+_SHARED = ("beta", "p_lam", "mass_form", "p_s", "p_t", "q_supply", "q_tank")
+# what each axis's valve draws from the supply and returns, summed for the supply
+_SUPPLY_FLOWS = ("q_supply", "q_tank")
+
+
+def _local(axis: str, variable: str, valve: bool = False) -> str:
+    """A circuit variable's name in the generated source: an axis's own carries the
+    axis (``pos__lift_left``); a shared one, or any in a one-axis circuit, is bare."""
+    own = variable not in _SHARED or (valve and variable in _SUPPLY_FLOWS)
+    return f"{variable}__{axis}" if axis and own else variable
+
+
+def _named(axis: str, name: str) -> str:
+    """A state, signal or initial key as the rig names it: ``<axis>_<name>`` on an axis."""
+    return f"{axis}_{name}" if axis else name
+
+
+def _axes(
+    instances: list[tuple[str, Component]], axis_of: dict[str, str], types: dict[str, Component]
+) -> tuple[str, ...]:
+    """The circuit's axes in file order (``("",)``: one, unnamed), each checked to hold
+    exactly one valve and one actuator, at most one pair of lines, loads meaningful on
+    its actuator and at most one load taking the scenario's input."""
+    named = [n for n, c in instances if c.role not in _SHARED_ROLES]
+    for name, comp in instances:
+        if comp.role in _SHARED_ROLES and axis_of[name]:
+            raise CompositionError(
+                f"{name}: a {comp.role} serves every axis; remove its axis ({axis_of[name]!r})"
+            )
+    axes = tuple(dict.fromkeys(axis_of[n] for n in named)) or ("",)
+    if len(axes) > 1 and "" in axes:
+        bare = next(n for n in named if not axis_of[n])
+        raise CompositionError(
+            f"{bare}: give every valve, line, actuator and load an axis, or none; "
+            f"the others are on {[a for a in axes if a]}"
+        )
+    for axis in axes:
+        if axis and not axis.isidentifier():
+            raise CompositionError(f"axis {axis!r}: must be a Python identifier (letters, _)")
+        on_axis = [(n, c) for n, c in instances if axis_of[n] == axis or c.role in _SHARED_ROLES]
+        where = f" on axis {axis!r}" if axis else ""
+        for role, (lo, hi) in ROLES.items():
+            count = sum(1 for _, c in on_axis if c.role == role)
+            if not lo <= count <= hi:
+                which = sorted(t for t, c in types.items() if c.role == role)
+                need = f"exactly {lo}" if lo == hi else f"{lo} to {hi}"
+                raise CompositionError(
+                    f"a composition needs {need} {role} component(s){where}, got {count}; "
+                    f"add or remove one of {which}"
+                )
+        actuator = next(c for _, c in on_axis if c.role == "actuator")
+        for name, comp in on_axis:
+            if comp.actuators and actuator.type not in comp.actuators:
+                raise CompositionError(
+                    f"{name}: a {comp.type} load is not meaningful on a {actuator.type}; "
+                    f"it applies to {list(comp.actuators)}"
+                )
+        takers = [c for _, c in on_axis if c.role == "load" and c.load]
+        if len(takers) > 1:
+            raise CompositionError(
+                f"{len(takers)} loads take the scenario's load input{where} "
+                f"({', '.join(c.type for c in takers)}); keep one of them"
+            )
+    actuators = {c.type for _, c in instances if c.role == "actuator"}
+    if len({str(types[t].mechanics) for t in actuators}) > 1:
+        raise CompositionError(
+            f"the axes' actuators {sorted(actuators)} move in different units; "
+            "compose cylinders with cylinders or motors with motors"
+        )
+    inputs = {c.input for _, c in instances if c.role == "valve"}
+    if len(inputs) > 1:
+        raise CompositionError(
+            f"the axes' valves take different inputs {sorted(map(str, inputs))}; the loop "
+            "drives every valve with one command: compose valves of one input"
+        )
+    return axes
 
 
 def _composed_params(parts: tuple[tuple[str, str], ...], values: dict[str, float]) -> Any:
@@ -354,14 +518,21 @@ def _make_post_init(instances: list[tuple[str, Component]]):
 
 
 def _initial_state(
-    model: Any, instances: list[tuple[str, Component]], params: Any, given: dict[str, float]
+    model: Any,
+    instances: list[tuple[str, Component]],
+    axis_of: dict[str, str],
+    params: Any,
+    given: dict[str, float],
 ) -> np.ndarray:
     """States at rest: each component's ``initial`` in phase order, sharing the circuit
-    values (``p_s``, ``p_t``, ...); then, unless the chamber pressures are given, once more
-    with the load's static force at that state so that the piston starts in balance."""
+    values (``p_s``, ``p_t``, ...) with the shared components and those of its own axis;
+    then, unless the chamber pressures are given, once more with each axis's static load
+    force at that state so that every piston starts in balance."""
+    axes = tuple(dict.fromkeys(axis_of[n] for n, c in instances if c.role == "actuator"))
 
-    def once(static_force: float) -> np.ndarray:
-        ctx: dict[str, float] = {**given, _STATIC_FORCE: static_force}
+    def once(static_force: dict[str, float]) -> np.ndarray:
+        shared: dict[str, float] = dict(given)
+        own: dict[str, dict[str, float]] = {a: {} for a in axes if a}
         values: dict[str, float] = {}
         order = sorted(
             instances, key=lambda item: min((PHASES.index(ph) for ph in item[1].code), default=0)
@@ -369,16 +540,26 @@ def _initial_state(
         for name, comp in order:
             if comp.initial is None:
                 continue
+            axis = axis_of[name]
+            prefix = f"{axis}_"
+            ctx = {**shared, _STATIC_FORCE: static_force.get(axis, 0.0)}
+            if axis:
+                ctx.update({k[len(prefix) :]: v for k, v in given.items() if k.startswith(prefix)})
+                ctx.update(own[axis])
             out = comp.initial(instance_values(params, name, comp), ctx)
-            ctx.update(out)
-            values.update({k: v for k, v in out.items() if k in model.states})
+            (own[axis] if axis else shared).update(out)
+            for key, value in out.items():
+                if _named(axis, key) in model.states:
+                    values[_named(axis, key)] = value
         return np.array([values.get(s, 0.0) for s in model.states], dtype=np.float64)
 
-    x0 = once(0.0)
+    x0 = once({})
     out = np.empty(len(model.signals))
     model.loop.plant_signals(x0, model.null_input(params), 0.0, pack(params), out)
-    force = float(out[model.signals.index(_LOAD_SIGNAL.name)])
-    return once(force) if np.isfinite(force) and force != 0.0 else x0
+    forces = {a: float(out[model.signals.index(_named(a, _LOAD_SIGNAL.name))]) for a in axes}
+    if all(np.isfinite(f) and f == 0.0 for f in forces.values()):
+        return x0
+    return once({a: f for a, f in forces.items() if np.isfinite(f)})
 
 
 def _null(valve: Component, instances: list[tuple[str, Component]], params: Any) -> float:
@@ -412,12 +593,6 @@ def _scales(
     )
 
 
-def _dedent(code: str) -> str:
-    import textwrap
-
-    return textwrap.dedent(code).strip("\n")
-
-
 def _indent(lines: list[str]) -> str:
     return "\n".join("    " + line if line else "" for line in lines)
 
@@ -434,7 +609,7 @@ import math
 import numpy as np
 
 from fuzzyservo._jit import njit
-from fuzzyservo.components.kernels import *  # noqa: F403  (the components' shared maps)
+{imports}
 
 
 @njit(cache=True, inline="always")
@@ -451,5 +626,6 @@ def plant_signals(x, u, f_ext, p, out):
 
 @njit(cache=True)
 def plant_in_end_stop(x, p):
+{stop_records}
     return {stop}
 """

@@ -16,7 +16,20 @@ falls below p_0; it only charges again once p_s exceeds p_0.
 
 from __future__ import annotations
 
-from fuzzyservo.components.declare import Component, Param, Signal, State
+from typing import Any
+
+from fuzzyservo.components.declare import Component, Param, Signal, State, phase
+
+
+@phase("v_gas", "p_gas", "q", "dx_v_oil", "q_supply")
+def gas_loaded(P: Any, X: Any, p_s: float, q_supply: float) -> tuple[float, ...]:
+    """The gas's pressure, the inlet flow (none out of an empty accumulator), the supply
+    node's one more consumer."""
+    v_gas = max(min(P.gas_volume - X.v_oil, P.gas_volume), 1e-9 * P.gas_volume)
+    p_gas = P.precharge_pressure * (P.gas_volume / v_gas) ** P.polytropic_exponent
+    q = P.inlet_conductance * (p_s - p_gas)
+    q = max(q, 0.0) if X.v_oil <= 0.0 else q
+    return v_gas, p_gas, q, q, q_supply + q
 
 
 def _charged(v: dict[str, float], ctx: dict[str, float]) -> dict[str, float]:
@@ -58,20 +71,11 @@ COMPONENTS = (
         ),
         states=(State("v_oil", "m^3", "oil volume in the accumulator", "supply", 1e-8, 1e-5),),
         signals=(
-            Signal("p_acc", "Pa", "L.p_gas", "gas pressure"),
-            Signal("q_acc", "m^3/s", "L.q", "flow into the accumulator"),
-            Signal("v_acc", "m^3", "X.v_oil", "oil volume in the accumulator"),
+            Signal("p_acc", "Pa", "p_gas", "gas pressure"),
+            Signal("q_acc", "m^3/s", "q", "flow into the accumulator"),
+            Signal("v_acc", "m^3", "v_oil", "oil volume in the accumulator"),
         ),
-        code={
-            "node": """
-                L.v_gas = max(min(P.gas_volume - X.v_oil, P.gas_volume), 1e-9 * P.gas_volume)
-                L.p_gas = P.precharge_pressure * (P.gas_volume / L.v_gas) ** P.polytropic_exponent
-                L.q = P.inlet_conductance * (p_s - L.p_gas)
-                L.q = max(L.q, 0.0) if X.v_oil <= 0.0 else L.q
-                DX.v_oil = L.q
-                q_supply = q_supply + L.q
-            """,
-        },
+        code={"node": gas_loaded},
         initial=_charged,
     ),
 )

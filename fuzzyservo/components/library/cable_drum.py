@@ -16,18 +16,40 @@ platform's acceleration is left out of the cable tension (below 2 % of g for the
 
 from __future__ import annotations
 
-from fuzzyservo.components.declare import Component, Param, Signal
+from typing import Any
+
+from fuzzyservo.components.declare import Component, Param, Signal, phase
+
+
+@phase("mass")
+def drum_inertia(P: Any, mass: float) -> float:
+    return mass + P.mass * P.drum_radius * P.drum_radius
+
+
+@phase("t", "f_load")
+def hanging_weight(P: Any, f_load: float) -> tuple[float, float]:
+    t = P.winding * P.mass * P.acceleration * P.drum_radius
+    return t, f_load + t
+
+
+@phase("t", "payout", "z_load", "f_load")
+def platform_weight(P: Any, pos: float, f_ext: float, f_load: float) -> tuple[float, ...]:
+    """:func:`hanging_weight`, and where the load hangs on the platform at height f_ext."""
+    t = P.winding * P.mass * P.acceleration * P.drum_radius
+    payout = -P.winding * P.drum_radius * pos
+    z_load = f_ext + P.winding * P.drum_radius * pos
+    return t, payout, z_load, f_load + t
 
 
 def _drum(type_name: str, doc: str, platform: bool) -> Component:
-    signals = [Signal("t_drum", "N*m", "L.t", "the weight's torque on the shaft")]
+    signals = [Signal("t_drum", "N*m", "t", "the weight's torque on the shaft")]
     if platform:
         signals += [
-            Signal("payout", "m", "-P.winding * P.drum_radius * pos", "cable paid out"),
+            Signal("payout", "m", "payout", "cable paid out"),
             Signal(
                 "z_load",
                 "m",
-                "f_ext + P.winding * P.drum_radius * pos",
+                "z_load",
                 "the load's height: the platform's less the payout",
             ),
         ]
@@ -50,10 +72,7 @@ def _drum(type_name: str, doc: str, platform: bool) -> Component:
             ),
         ),
         signals=tuple(signals),
-        code={
-            "mass": "mass += P.mass * P.drum_radius * P.drum_radius",
-            "load": "L.t = P.winding * P.mass * P.acceleration * P.drum_radius\nf_load += L.t",
-        },
+        code={"mass": drum_inertia, "load": platform_weight if platform else hanging_weight},
         check=lambda v: (
             None
             if v["winding"] in (1.0, -1.0)

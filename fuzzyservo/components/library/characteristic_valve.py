@@ -11,7 +11,13 @@ each passes C·(U/U_max)·√Δp (seed 003's third valve model, C from eq. 7 at 
 
 from __future__ import annotations
 
-from fuzzyservo.components.declare import Component, Param, Signal
+import math
+from typing import Any
+
+from fuzzyservo._jit import njit
+from fuzzyservo.components.declare import Component, Param, Signal, phase
+from fuzzyservo.components.effects import E
+from fuzzyservo.components.valves import metering_edges, polynomial_flow
 
 _SIGNALS = (
     Signal("q_a", "m^3/s", "q_va", "flow out of port A"),
@@ -20,23 +26,60 @@ _SIGNALS = (
     Signal("q_tank", "m^3/s", "q_tank", "flow returned to T"),
 )
 
-# L.k: the edges' coefficient at the clipped command L.uc (positive opens P→A, B→T)
-_EDGES = """
-    L.kp = max(L.k, 0.0)
-    L.kn = max(-L.k, 0.0)
-    L.q_pa, L.q_at, L.q_pb, L.q_bt = metering_edges(
-        L.kp, L.kn, L.kn, L.kp, p_s, p_t, p_a_port, p_b_port,
-        E.line_resistance_pa_s_m3, p_lam,
+_VALVE = ("q_pa", "q_at", "q_pb", "q_bt", "q_va", "q_vb", "q_supply", "q_tank")
+
+
+@njit(cache=True, inline="always")
+def _edges(
+    k: float, p_s: float, p_t: float, p_a_port: float, p_b_port: float, p_lam: float, p: Any
+) -> tuple[float, float, float, float, float, float, float, float]:
+    """The four edges at the coefficient ``k`` (positive opens P→A and B→T)."""
+    kp = max(k, 0.0)
+    kn = max(-k, 0.0)
+    q_pa, q_at, q_pb, q_bt = metering_edges(
+        kp, kn, kn, kp, p_s, p_t, p_a_port, p_b_port, p[E.line_resistance_pa_s_m3], p_lam
     )
-    q_va = L.q_pa - L.q_at
-    q_vb = L.q_pb - L.q_bt
-    q_supply = L.q_pa + L.q_pb
-    q_tank = L.q_at + L.q_bt
-"""
-_CLIP = """
-    L.umax = P.control_voltage_max
-    L.uc = min(max(u, -L.umax), L.umax)
-"""
+    return q_pa, q_at, q_pb, q_bt, q_pa - q_at, q_pb - q_bt, q_pa + q_pb, q_at + q_bt
+
+
+@phase(*_VALVE)
+def measured_curve(
+    P: Any,
+    p: Any,
+    u: float,
+    p_s: float,
+    p_t: float,
+    p_a_port: float,
+    p_b_port: float,
+    p_lam: float,
+) -> tuple[float, ...]:
+    """Each edge passes Q(U)·√(Δp/Δp_nom), U clipped to ±U_max."""
+    umax = P.control_voltage_max
+    uc = min(max(u, -umax), umax)
+    k = polynomial_flow(
+        uc, umax, P.flow_c0, P.flow_c1, P.flow_c2, P.flow_c3, P.flow_c4
+    ) / math.sqrt(P.nominal_pressure_drop)
+    return _edges(k, p_s, p_t, p_a_port, p_b_port, p_lam, p)
+
+
+@phase(*_VALVE)
+def linear_orifice(
+    P: Any,
+    p: Any,
+    u: float,
+    p_s: float,
+    p_t: float,
+    p_a_port: float,
+    p_b_port: float,
+    p_lam: float,
+) -> tuple[float, ...]:
+    """Each edge passes C·(U/U_max)·√Δp, U clipped to ±U_max."""
+    umax = P.control_voltage_max
+    uc = min(max(u, -umax), umax)
+    k = P.orifice_coefficient * uc / umax
+    return _edges(k, p_s, p_t, p_a_port, p_b_port, p_lam, p)
+
+
 _RANGE = Param("control_voltage_max", "V", "U_max: the curve's range", positive=True)
 
 COMPONENTS = (
@@ -60,13 +103,7 @@ COMPONENTS = (
             ),
         ),
         signals=_SIGNALS,
-        code={
-            "valve": _CLIP
-            + """    L.k = polynomial_flow(
-        L.uc, L.umax, P.flow_c0, P.flow_c1, P.flow_c2, P.flow_c3, P.flow_c4
-    ) / math.sqrt(P.nominal_pressure_drop)"""
-            + _EDGES
-        },
+        code={"valve": measured_curve},
         effects=("line_resistance",),
         scales=lambda v: {
             "flow": abs(
@@ -92,7 +129,7 @@ COMPONENTS = (
             ),
         ),
         signals=_SIGNALS,
-        code={"valve": _CLIP + "    L.k = P.orifice_coefficient * L.uc / L.umax\n" + _EDGES},
+        code={"valve": linear_orifice},
         effects=("line_resistance",),
         scales=lambda v: {
             "flow_coefficient": v["orifice_coefficient"],

@@ -20,9 +20,17 @@ where one of them has a pre-sliding distance), ``internal_leakage`` q_leak = K_l
 from __future__ import annotations
 
 import math
+from typing import Any
 
-from fuzzyservo.components.declare import Component, Param, Signal, State
-from fuzzyservo.components.library.oil import CHAMBER_EFFECTS, actuator_motion
+from fuzzyservo._jit import njit
+from fuzzyservo.components.declare import Component, Param, Signal, State, phase
+from fuzzyservo.components.effects import (
+    E,
+    actuator_friction,
+    bristle_rate,
+    friction_force,
+)
+from fuzzyservo.components.library.oil import CHAMBER_EFFECTS, two_chambers
 
 _COMMON = (
     Param("stroke", "m", "stroke L", positive=True),
@@ -52,33 +60,138 @@ _SIGNALS = (
     Signal("p_a", "Pa", "p_a"),
     Signal("p_b", "Pa", "p_b"),
     Signal("f_stop", "N", "f_stop", "end-stop force"),
-    Signal("f_hyd", "N", "p_a * area_a - p_b * area_b", "hydraulic force p_a·A_a − p_b·A_b"),
-    Signal("f_friction", "N", "L.f_fric", "friction of the friction effects"),
-    Signal("q_leak", "m^3/s", "L.q_leak", "internal leakage A→B"),
+    Signal("f_hyd", "N", "f_hyd", "hydraulic force p_a·A_a − p_b·A_b"),
+    Signal("f_friction", "N", "f_fric", "friction of the friction effects"),
+    Signal("q_leak", "m^3/s", "q_leak", "internal leakage A→B"),
 )
 
-_ACTUATOR = """
+
+@njit(cache=True, inline="always")
+def _chambers(
+    P: Any, X: Any, p: Any, area_a: float, area_b: float
+) -> tuple[float, float, float, float, float, float, float, float, float, float, float]:
+    """A cylinder's actuator phase, given its areas: the chamber volumes (floored at 5 %
+    of the dead volumes), the end-stop force beyond 0 and the stroke, the A→B leakage."""
     pos = X.y
     vel = X.v
     p_a = X.p_a
     p_b = X.p_b
-    area_a = {area_a}
-    area_b = {area_b}
-    L.ye = pos + P.zero_position
-    L.va = max(P.dead_volume_a + area_a * L.ye, 0.05 * P.dead_volume_a)
-    L.vb = max(P.dead_volume_b + area_b * (P.stroke - L.ye), 0.05 * P.dead_volume_b)
+    ye = pos + P.zero_position
+    va = max(P.dead_volume_a + area_a * ye, 0.05 * P.dead_volume_a)
+    vb = max(P.dead_volume_b + area_b * (P.stroke - ye), 0.05 * P.dead_volume_b)
     f_stop = 0.0
-    if L.ye < 0.0:
-        f_stop = -P.end_stop_stiffness * L.ye - (P.end_stop_damping * vel if vel < 0.0 else 0.0)
-    elif L.ye > P.stroke:
-        f_stop = -P.end_stop_stiffness * (L.ye - P.stroke) - (
+    if ye < 0.0:
+        f_stop = -P.end_stop_stiffness * ye - (P.end_stop_damping * vel if vel < 0.0 else 0.0)
+    elif ye > P.stroke:
+        f_stop = -P.end_stop_stiffness * (ye - P.stroke) - (
             P.end_stop_damping * vel if vel > 0.0 else 0.0
         )
-    L.q_leak = E.internal_leakage_m3_s_pa * (p_a - p_b)
-"""
-# the motion phase, with and without LuGre friction's bristle state
-_ACCELERATION = "(p_a * area_a - p_b * area_b - L.f_fric - f_load + f_stop) / mass"
-_VOLUMES = ("L.va", "L.vb")
+    q_leak = p[E.internal_leakage_m3_s_pa] * (p_a - p_b)
+    f_hyd = p_a * area_a - p_b * area_b
+    return pos, vel, p_a, p_b, area_a, area_b, f_stop, va, vb, q_leak, f_hyd
+
+
+_ACTUATOR = (
+    "pos",
+    "vel",
+    "p_a",
+    "p_b",
+    "area_a",
+    "area_b",
+    "f_stop",
+    "va",
+    "vb",
+    "q_leak",
+    "f_hyd",
+)
+
+
+@phase(*_ACTUATOR)
+def single_rod(P: Any, X: Any, p: Any) -> tuple[float, ...]:
+    """Piston area A_a on side A, the annulus A_b on side B."""
+    area_a = 0.25 * math.pi * P.piston_diameter**2
+    area_b = 0.25 * math.pi * (P.piston_diameter**2 - P.rod_diameter**2)
+    return _chambers(P, X, p, area_a, area_b)
+
+
+@phase(*_ACTUATOR)
+def double_rod(P: Any, X: Any, p: Any) -> tuple[float, ...]:
+    """The annulus on both sides."""
+    area_a = 0.25 * math.pi * (P.piston_diameter**2 - P.rod_diameter**2)
+    area_b = 0.25 * math.pi * (P.piston_diameter**2 - P.rod_diameter**2)
+    return _chambers(P, X, p, area_a, area_b)
+
+
+@phase("mass")
+def piston_mass(P: Any, mass: float) -> float:
+    return mass + P.piston_mass
+
+
+_MOTION = ("f_fric", "dx_y", "dx_v", "dx_p_a", "dx_p_b")
+
+
+@phase(*_MOTION)
+def motion(
+    p: Any,
+    vel: float,
+    p_a: float,
+    p_b: float,
+    area_a: float,
+    area_b: float,
+    f_load: float,
+    f_stop: float,
+    mass: float,
+    q_a: float,
+    q_b: float,
+    q_leak: float,
+    va: float,
+    vb: float,
+    mass_form: float,
+    beta: float,
+) -> tuple[float, float, float, float, float]:
+    """Newton's law on the piston with the friction effects' static law, and the chambers."""
+    f_fric = friction_force(vel, p)
+    acceleration = (p_a * area_a - p_b * area_b - f_fric - f_load + f_stop) / mass
+    dp_a, dp_b = two_chambers(
+        q_a, q_b, area_a, area_b, vel, p_a, p_b, q_leak, va, vb, mass_form, beta, p
+    )
+    return f_fric, vel, acceleration, dp_a, dp_b
+
+
+@phase(*_MOTION, "dx_z")
+def motion_with_bristles(
+    X: Any,
+    p: Any,
+    vel: float,
+    p_a: float,
+    p_b: float,
+    area_a: float,
+    area_b: float,
+    f_load: float,
+    f_stop: float,
+    mass: float,
+    q_a: float,
+    q_b: float,
+    q_leak: float,
+    va: float,
+    vb: float,
+    mass_form: float,
+    beta: float,
+) -> tuple[float, float, float, float, float, float]:
+    """:func:`motion` with LuGre friction, which reads and moves the bristle state ``z``."""
+    f_fric = actuator_friction(vel, X.z, mass, p)
+    dz = bristle_rate(vel, X.z, p)
+    acceleration = (p_a * area_a - p_b * area_b - f_fric - f_load + f_stop) / mass
+    dp_a, dp_b = two_chambers(
+        q_a, q_b, area_a, area_b, vel, p_a, p_b, q_leak, va, vb, mass_form, beta, p
+    )
+    return f_fric, vel, acceleration, dp_a, dp_b, dz
+
+
+@njit(cache=True)
+def beyond_stroke(P: Any, X: Any) -> bool:
+    """True beyond a mechanical stop."""
+    return X.y + P.zero_position < 0.0 or X.y + P.zero_position > P.stroke
 
 
 def _areas(v: dict[str, float], double: bool) -> tuple[float, float]:
@@ -111,12 +224,6 @@ def _check(v: dict[str, float]) -> str | None:
 
 
 def _cylinder(type_name: str, double: bool, doc: str) -> Component:
-    area_a = (
-        "0.25 * math.pi * (P.piston_diameter ** 2 - P.rod_diameter ** 2)"
-        if double
-        else "0.25 * math.pi * P.piston_diameter ** 2"
-    )
-    area_b = "0.25 * math.pi * (P.piston_diameter ** 2 - P.rod_diameter ** 2)"
     rod_doc = "diameter of each of the two rods" if double else "rod diameter"
     return Component(
         type=type_name,
@@ -131,11 +238,11 @@ def _cylinder(type_name: str, double: bool, doc: str) -> Component:
         states=_STATES,
         signals=_SIGNALS,
         code={
-            "actuator": _ACTUATOR.format(area_a=area_a, area_b=area_b),
-            "mass": "mass += P.piston_mass",
-            "motion": actuator_motion("y", "v", _ACCELERATION, _VOLUMES, bristles=False),
+            "actuator": double_rod if double else single_rod,
+            "mass": piston_mass,
+            "motion": motion,
         },
-        bristle_code={"motion": actuator_motion("y", "v", _ACCELERATION, _VOLUMES, bristles=True)},
+        bristle_code={"motion": motion_with_bristles},
         effects=CHAMBER_EFFECTS,
         initial=_initial(double),
         initial_keys={
@@ -147,7 +254,7 @@ def _cylinder(type_name: str, double: bool, doc: str) -> Component:
         scales=lambda v: {"area": _areas(v, double)[0]},
         load=("f_load", "N"),
         mechanics={"force": "N", "velocity": "m/s", "position": "m", "mass": "kg"},
-        end_stop="X.y + P.zero_position < 0.0 or X.y + P.zero_position > P.stroke",
+        end_stop=beyond_stroke,
         check=_check,
     )
 

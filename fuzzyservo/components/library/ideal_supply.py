@@ -2,7 +2,15 @@
 
 from __future__ import annotations
 
-from fuzzyservo.components.declare import Component, Param, Signal
+from typing import Any
+
+from fuzzyservo.components.declare import Component, Param, Signal, phase
+
+
+@phase("p_s", "p_t")
+def pressures(P: Any) -> tuple[float, float]:
+    return P.supply_pressure, P.tank_pressure
+
 
 COMPONENTS = (
     Component(
@@ -21,7 +29,7 @@ COMPONENTS = (
             ),
         ),
         signals=(Signal("p_s", "Pa", "p_s"), Signal("p_t", "Pa", "p_t")),
-        code={"supply": "p_s = P.supply_pressure\np_t = P.tank_pressure"},
+        code={"supply": pressures},
         initial=lambda v, ctx: {"p_s": v["supply_pressure"], "p_t": v["tank_pressure"]},
         scales=lambda v: {"pressure": v["supply_pressure"] - v["tank_pressure"]},
         refuses={

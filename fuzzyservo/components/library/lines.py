@@ -10,7 +10,29 @@ with E = E_mix(p_line) under the ``entrained_air`` effect (components/effects.py
 
 from __future__ import annotations
 
-from fuzzyservo.components.declare import Component, Param, Signal, State
+from typing import Any
+
+from fuzzyservo.components.declare import Component, Param, Signal, State, phase
+from fuzzyservo.components.effects import chamber_modulus
+
+
+@phase("p_a_port", "p_b_port")
+def line_pressures(X: Any) -> tuple[float, float]:
+    """The valve's ports see the lines' pressures."""
+    return X.p_la, X.p_lb
+
+
+@phase("q_a", "q_b", "ea", "eb", "dx_p_la", "dx_p_lb")
+def laminar_lines(
+    P: Any, X: Any, p: Any, p_a: float, p_b: float, q_va: float, q_vb: float, beta: float
+) -> tuple[float, ...]:
+    """The flows through each line's resistance into the chambers; the lines' pressures."""
+    q_a = (X.p_la - p_a) / P.resistance
+    q_b = (X.p_lb - p_b) / P.resistance
+    ea = chamber_modulus(X.p_la, q_va - q_a, beta, p)
+    eb = chamber_modulus(X.p_lb, q_vb - q_b, beta, p)
+    return q_a, q_b, ea, eb, ea / P.volume * (q_va - q_a), eb / P.volume * (q_vb - q_b)
+
 
 COMPONENTS = (
     Component(
@@ -28,22 +50,12 @@ COMPONENTS = (
             State("p_lb", "Pa", "pressure in line B", "line", 1e3, 1e6),
         ),
         signals=(
-            Signal("p_la", "Pa", "X.p_la"),
-            Signal("p_lb", "Pa", "X.p_lb"),
+            Signal("p_la", "Pa", "p_la"),
+            Signal("p_lb", "Pa", "p_lb"),
             Signal("q_line_a", "m^3/s", "q_a", "flow into chamber A"),
             Signal("q_line_b", "m^3/s", "q_b", "flow into chamber B"),
         ),
-        code={
-            "line": "p_a_port = X.p_la\np_b_port = X.p_lb",
-            "line_flow": """
-                q_a = (X.p_la - p_a) / P.resistance
-                q_b = (X.p_lb - p_b) / P.resistance
-                L.ea = chamber_modulus(X.p_la, q_va - q_a, beta, p)
-                L.eb = chamber_modulus(X.p_lb, q_vb - q_b, beta, p)
-                DX.p_la = L.ea / P.volume * (q_va - q_a)
-                DX.p_lb = L.eb / P.volume * (q_vb - q_b)
-            """,
-        },
+        code={"line": line_pressures, "line_flow": laminar_lines},
         effects=("entrained_air",),
         initial=lambda v, ctx: {"p_la": ctx["p_a"], "p_lb": ctx["p_b"]},
     ),

@@ -7,9 +7,54 @@ motor). A load force measured on the rig is the scenario's ``load`` (any signal 
 
 from __future__ import annotations
 
-from fuzzyservo.components.declare import Component, Param, Signal
+import math
+from typing import Any
+
+from fuzzyservo.components.declare import Component, Param, Signal, phase
 
 _STANDARD_GRAVITY = 9.80665  # m/s², ISO 80000-3
+
+
+@phase("mass")
+def moving_mass(P: Any, mass: float) -> float:
+    return mass + P.mass
+
+
+@phase("f", "f_load")
+def spring(P: Any, pos: float, f_load: float) -> tuple[float, float]:
+    f = P.stiffness * (pos - P.free_position)
+    return f, f_load + f
+
+
+@phase("f", "f_load")
+def damper(P: Any, vel: float, f_load: float) -> tuple[float, float]:
+    f = P.coefficient * vel
+    return f, f_load + f
+
+
+@phase("f", "f_load")
+def gravity(P: Any, mass: float, f_load: float) -> tuple[float, float]:
+    f = mass * P.acceleration * math.sin(P.incline)
+    return f, f_load + f
+
+
+@phase("f_load")
+def constant_force(P: Any, f_load: float) -> float:
+    return f_load + P.force
+
+
+@phase("f", "f_load")
+def friction(P: Any, vel: float, f_load: float) -> tuple[float, float]:
+    f = P.viscous_coefficient * vel + P.coulomb_force * math.tanh(vel / P.smoothing_velocity)
+    return f, f_load + f
+
+
+@phase("f", "f_load")
+def brake(P: Any, vel: float, f_ext: float, f_load: float) -> tuple[float, float]:
+    """f_load starts at the scenario's f_ext: the brake replaces that push by its drag."""
+    f = f_ext * math.tanh(vel / P.smoothing_velocity)
+    return f, f_load + (f - f_ext)
+
 
 COMPONENTS = (
     Component(
@@ -18,7 +63,7 @@ COMPONENTS = (
         doc="a mass moved with the actuator (kg; kg·m² of inertia on a motor)",
         source="Newton's second law; Hopsan MechanicTranslationalMass",
         params=(Param("mass", "mass", "moving mass or inertia", positive=True),),
-        code={"mass": "mass += P.mass"},
+        code={"mass": moving_mass},
     ),
     Component(
         type="spring",
@@ -29,8 +74,8 @@ COMPONENTS = (
             Param("stiffness", "force/position", "k", nonnegative=True),
             Param("free_position", "position", "y_0 where the spring is relaxed", default=0.0),
         ),
-        signals=(Signal("f_spring", "force", "L.f"),),
-        code={"load": "L.f = P.stiffness * (pos - P.free_position)\nf_load += L.f"},
+        signals=(Signal("f_spring", "force", "f"),),
+        code={"load": spring},
     ),
     Component(
         type="damper",
@@ -38,8 +83,8 @@ COMPONENTS = (
         doc="F = c·v: viscous friction of the guides and the load",
         source="seed 002 §4 (f), seed 003 Table 1 (F_vo)",
         params=(Param("coefficient", "force/velocity", "c", nonnegative=True),),
-        signals=(Signal("f_damper", "force", "L.f"),),
-        code={"load": "L.f = P.coefficient * vel\nf_load += L.f"},
+        signals=(Signal("f_damper", "force", "f"),),
+        code={"load": damper},
     ),
     Component(
         type="gravity",
@@ -58,8 +103,8 @@ COMPONENTS = (
             ),
             Param("acceleration", "m/s^2", "g", default=_STANDARD_GRAVITY, positive=True),
         ),
-        signals=(Signal("f_gravity", "force", "L.f"),),
-        code={"load": "L.f = mass * P.acceleration * math.sin(P.incline)\nf_load += L.f"},
+        signals=(Signal("f_gravity", "force", "f"),),
+        code={"load": gravity},
         actuators=("single_rod_cylinder", "double_rod_cylinder"),
     ),
     Component(
@@ -68,7 +113,7 @@ COMPONENTS = (
         doc="a constant force opposing extension (a preload, a weight on a cable)",
         source="Hopsan MechanicForceTransformer",
         params=(Param("force", "force", "F opposing +y", default=0.0),),
-        code={"load": "f_load += P.force"},
+        code={"load": constant_force},
     ),
     Component(
         type="friction",
@@ -80,11 +125,8 @@ COMPONENTS = (
             Param("smoothing_velocity", "velocity", "v_c of tanh(v/v_c)", positive=True),
             Param("viscous_coefficient", "force/velocity", "c", default=0.0, nonnegative=True),
         ),
-        signals=(Signal("f_load_friction", "force", "L.f"),),
-        code={
-            "load": "L.f = P.viscous_coefficient * vel + P.coulomb_force * math.tanh("
-            "vel / P.smoothing_velocity)\nf_load += L.f"
-        },
+        signals=(Signal("f_load_friction", "force", "f"),),
+        code={"load": friction},
     ),
     Component(
         type="brake",
@@ -93,8 +135,7 @@ COMPONENTS = (
         "(a shoe or disc brake slows and holds, never drives)",
         source="seed 000 §2 (shoe brake as a variable load); docs/modelling.md Friction",
         params=(Param("smoothing_velocity", "velocity", "v_c of tanh(v/v_c)", positive=True),),
-        signals=(Signal("f_brake", "force", "L.f"),),
-        # f_load starts at the scenario's f_ext: the brake replaces that push by its drag
-        code={"load": "L.f = f_ext * math.tanh(vel / P.smoothing_velocity)\nf_load += L.f - f_ext"},
+        signals=(Signal("f_brake", "force", "f"),),
+        code={"load": brake},
     ),
 )

@@ -16,8 +16,16 @@ from each port) and ``entrained_air`` (E_a, E_b = E_mix(p) instead of E).
 
 from __future__ import annotations
 
-from fuzzyservo.components.declare import Component, Param, Signal, State
-from fuzzyservo.components.library.oil import CHAMBER_EFFECTS, actuator_motion
+from typing import Any
+
+from fuzzyservo.components.declare import Component, Param, Signal, State, phase
+from fuzzyservo.components.effects import (
+    E,
+    actuator_friction,
+    bristle_rate,
+    friction_force,
+)
+from fuzzyservo.components.library.oil import CHAMBER_EFFECTS, two_chambers
 
 
 def _initial(v: dict[str, float], ctx: dict[str, float]) -> dict[str, float]:
@@ -35,9 +43,97 @@ def _initial(v: dict[str, float], ctx: dict[str, float]) -> dict[str, float]:
     return {"theta": ctx.get("angle", 0.0), "w": ctx.get("speed", 0.0), "p_a": pa, "p_b": pb}
 
 
-# the motion phase, with and without LuGre friction's bristle state
-_ACCELERATION = "(P.hydromechanical_efficiency * (p_a - p_b) * area_a - L.f_fric - f_load) / mass"
-_VOLUMES = ("P.volume_a", "P.volume_b")
+@phase("pos", "vel", "p_a", "p_b", "area_a", "area_b", "f_stop", "q_leak")
+def shaft(P: Any, X: Any, p: Any) -> tuple[float, ...]:
+    """The shaft's angle and speed, the ports' pressures, the cross-port leakage."""
+    q_leak = p[E.internal_leakage_m3_s_pa] * (X.p_a - X.p_b)
+    return X.theta, X.w, X.p_a, X.p_b, P.displacement, P.displacement, 0.0, q_leak
+
+
+@phase("mass")
+def shaft_inertia(P: Any, mass: float) -> float:
+    return mass + P.inertia
+
+
+_MOTION = ("f_fric", "dx_theta", "dx_w", "dx_p_a", "dx_p_b")
+
+
+@phase(*_MOTION)
+def motion(
+    P: Any,
+    p: Any,
+    vel: float,
+    p_a: float,
+    p_b: float,
+    area_a: float,
+    area_b: float,
+    f_load: float,
+    mass: float,
+    q_a: float,
+    q_b: float,
+    q_leak: float,
+    mass_form: float,
+    beta: float,
+) -> tuple[float, float, float, float, float]:
+    """Torque balance on the shaft with the friction effects' static law; the ports."""
+    f_fric = friction_force(vel, p)
+    acceleration = (P.hydromechanical_efficiency * (p_a - p_b) * area_a - f_fric - f_load) / mass
+    dp_a, dp_b = two_chambers(
+        q_a,
+        q_b,
+        area_a,
+        area_b,
+        vel,
+        p_a,
+        p_b,
+        q_leak,
+        P.volume_a,
+        P.volume_b,
+        mass_form,
+        beta,
+        p,
+    )
+    return f_fric, vel, acceleration, dp_a, dp_b
+
+
+@phase(*_MOTION, "dx_z")
+def motion_with_bristles(
+    P: Any,
+    X: Any,
+    p: Any,
+    vel: float,
+    p_a: float,
+    p_b: float,
+    area_a: float,
+    area_b: float,
+    f_load: float,
+    mass: float,
+    q_a: float,
+    q_b: float,
+    q_leak: float,
+    mass_form: float,
+    beta: float,
+) -> tuple[float, float, float, float, float, float]:
+    """:func:`motion` with LuGre friction, which reads and moves the bristle state ``z``."""
+    f_fric = actuator_friction(vel, X.z, mass, p)
+    dz = bristle_rate(vel, X.z, p)
+    acceleration = (P.hydromechanical_efficiency * (p_a - p_b) * area_a - f_fric - f_load) / mass
+    dp_a, dp_b = two_chambers(
+        q_a,
+        q_b,
+        area_a,
+        area_b,
+        vel,
+        p_a,
+        p_b,
+        q_leak,
+        P.volume_a,
+        P.volume_b,
+        mass_form,
+        beta,
+        p,
+    )
+    return f_fric, vel, acceleration, dp_a, dp_b, dz
 
 
 COMPONENTS = (
@@ -73,26 +169,11 @@ COMPONENTS = (
             Signal("w", "rad/s", "vel"),
             Signal("p_a", "Pa", "p_a"),
             Signal("p_b", "Pa", "p_b"),
-            Signal("t_friction", "N*m", "L.f_fric", "friction of the friction effects"),
-            Signal("q_leak", "m^3/s", "L.q_leak", "cross-port leakage A→B"),
+            Signal("t_friction", "N*m", "f_fric", "friction of the friction effects"),
+            Signal("q_leak", "m^3/s", "q_leak", "cross-port leakage A→B"),
         ),
-        code={
-            "actuator": """
-                pos = X.theta
-                vel = X.w
-                p_a = X.p_a
-                p_b = X.p_b
-                area_a = P.displacement
-                area_b = P.displacement
-                f_stop = 0.0
-                L.q_leak = E.internal_leakage_m3_s_pa * (p_a - p_b)
-            """,
-            "mass": "mass += P.inertia",
-            "motion": actuator_motion("theta", "w", _ACCELERATION, _VOLUMES, bristles=False),
-        },
-        bristle_code={
-            "motion": actuator_motion("theta", "w", _ACCELERATION, _VOLUMES, bristles=True)
-        },
+        code={"actuator": shaft, "mass": shaft_inertia, "motion": motion},
+        bristle_code={"motion": motion_with_bristles},
         effects=CHAMBER_EFFECTS,
         initial=_initial,
         initial_keys={

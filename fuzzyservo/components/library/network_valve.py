@@ -9,8 +9,24 @@ measured valve data and writes the file the rig names under ``weights``.
 
 from __future__ import annotations
 
-from fuzzyservo.components.declare import Component, Param, Signal
-from fuzzyservo.components.valves import NN_SIZE
+from typing import Any
+
+from fuzzyservo.components.declare import Component, Param, Signal, phase
+from fuzzyservo.components.valves import NN_SIZE, nn_forward
+
+
+@phase("q_va", "q_vb", "q_supply", "q_tank")
+def network_flows(
+    P: Any, p: Any, u: float, p_s: float, p_a_port: float, p_b_port: float
+) -> tuple[float, float, float, float]:
+    """The network's port flows at the clipped command; the open edge's flow from P."""
+    umax = P.control_voltage_max
+    uc = min(max(u, -umax), umax)
+    q_va, q_vb = nn_forward(p, P.weights, p_s, uc, p_a_port, p_b_port)
+    q_supply = q_va if uc >= 0.0 else q_vb
+    q_tank = q_supply - q_va - q_vb
+    return q_va, q_vb, q_supply, q_tank
+
 
 COMPONENTS = (
     Component(
@@ -34,15 +50,7 @@ COMPONENTS = (
             Signal("q_supply", "m^3/s", "q_supply", "flow drawn from P"),
             Signal("q_tank", "m^3/s", "q_tank", "flow returned to T"),
         ),
-        code={
-            "valve": """
-                L.umax = P.control_voltage_max
-                L.uc = min(max(u, -L.umax), L.umax)
-                q_va, q_vb = nn_forward(p, P.weights, p_s, L.uc, p_a_port, p_b_port)
-                q_supply = q_va if L.uc >= 0.0 else q_vb
-                q_tank = q_supply - q_va - q_vb
-            """
-        },
+        code={"valve": network_flows},
         scales=lambda v: {"input": v["control_voltage_max"]},
         input=("u_c", "V"),
     ),

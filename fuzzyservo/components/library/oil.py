@@ -2,7 +2,11 @@
 
 from __future__ import annotations
 
-from fuzzyservo.components.declare import Component, Param
+from typing import Any
+
+from fuzzyservo._jit import njit
+from fuzzyservo.components.declare import Component, Param, phase
+from fuzzyservo.components.effects import E, bulk_modulus, chamber_modulus
 
 #: the effects an actuator with :func:`two_chambers` reads: friction on its motion, the
 #: leakages and the air in the law below (cylinders and motors declare these alike)
@@ -15,41 +19,42 @@ CHAMBER_EFFECTS = (
 )
 
 
-def two_chambers(volume_a: str, volume_b: str) -> str:
-    """Source lines of an actuator's two chamber pressures under this oil's liquid law.
+@njit(cache=True, inline="always")
+def two_chambers(
+    q_a: float,
+    q_b: float,
+    area_a: float,
+    area_b: float,
+    vel: float,
+    p_a: float,
+    p_b: float,
+    q_leak: float,
+    volume_a: float,
+    volume_b: float,
+    mass_form: float,
+    beta: float,
+    p: Any,
+) -> tuple[float, float]:
+    """dp_a/dt, dp_b/dt of an actuator's two chambers under this oil's liquid law.
 
-    Needs ``q_a``, ``q_b`` (port flows), ``area_a``, ``area_b`` (displacement per unit of
-    motion), ``vel``, ``p_a``, ``p_b`` and ``L.q_leak`` (A→B leakage): the net inflows
-    ``L.na``, ``L.nb`` lose the external leakage; the mass form's compression term
-    ``L.ma``, ``L.mb`` (zero in the pressure form); each chamber's modulus is
-    ``chamber_modulus`` (the oil's E unless ``entrained_air`` is on). Cylinders and motors
-    share it, so the law is written once."""
-    return f"""
-L.na = q_a - area_a * vel - L.q_leak - E.external_leakage_m3_s_pa * p_a
-L.nb = q_b + area_b * vel + L.q_leak - E.external_leakage_m3_s_pa * p_b
-L.ma = mass_form * area_a * vel * p_a
-L.mb = mass_form * area_b * vel * p_b
-L.ea = chamber_modulus(p_a, L.na - L.ma / beta, beta, p)
-L.eb = chamber_modulus(p_b, L.nb + L.mb / beta, beta, p)
-DX.p_a = (L.ea * L.na - L.ma * (L.ea / beta)) / {volume_a}
-DX.p_b = (L.eb * L.nb + L.mb * (L.eb / beta)) / {volume_b}
-"""
+    ``q_a``, ``q_b`` the port flows, ``area_a``, ``area_b`` the displacement per unit of
+    motion, ``q_leak`` the A→B leakage: the net inflows lose the external leakage; the
+    mass form's compression term (zero in the pressure form); each chamber's modulus is
+    ``chamber_modulus`` (the oil's E unless ``entrained_air`` is on). Cylinders and
+    motors share it, so the law is written once."""
+    na = q_a - area_a * vel - q_leak - p[E.external_leakage_m3_s_pa] * p_a
+    nb = q_b + area_b * vel + q_leak - p[E.external_leakage_m3_s_pa] * p_b
+    ma = mass_form * area_a * vel * p_a
+    mb = mass_form * area_b * vel * p_b
+    ea = chamber_modulus(p_a, na - ma / beta, beta, p)
+    eb = chamber_modulus(p_b, nb + mb / beta, beta, p)
+    return (ea * na - ma * (ea / beta)) / volume_a, (eb * nb + mb * (eb / beta)) / volume_b
 
 
-def actuator_motion(
-    position: str, velocity: str, acceleration: str, volumes: tuple[str, str], bristles: bool
-) -> str:
-    """Source lines of an actuator's motion phase: its friction ``L.f_fric`` (the
-    static law, or with ``bristles`` LuGre's, which reads and moves the bristle state
-    ``z``), ``DX.<position> = vel``, ``DX.<velocity> = <acceleration>`` (an expression that
-    subtracts ``L.f_fric``) and the two chambers (:func:`two_chambers` on ``volumes``).
-    Cylinders and motors share it."""
-    friction = "actuator_friction(vel, X.z, mass, p)" if bristles else "friction_force(vel, p)"
-    rate = "DX.z = bristle_rate(vel, X.z, p)\n" if bristles else ""
-    return (
-        f"L.f_fric = {friction}\nDX.{position} = vel\n{rate}DX.{velocity} = {acceleration}\n"
-        + two_chambers(*volumes)
-    )
+@phase("beta", "p_lam", "mass_form")
+def fluid(P: Any, p: Any) -> tuple[float, float, float]:
+    """The oil's effective bulk modulus, orifice regularisation and liquid law."""
+    return bulk_modulus(p, P.bulk_modulus), P.laminar_pressure, P.mass_form
 
 
 COMPONENTS = (
@@ -80,10 +85,7 @@ COMPONENTS = (
                 maximum=1.0,
             ),
         ),
-        code={
-            "fluid": "beta = bulk_modulus(p, P.bulk_modulus)\np_lam = P.laminar_pressure\n"
-            "mass_form = P.mass_form"
-        },
+        code={"fluid": fluid},
         effects=("bulk_modulus",),
         scales=lambda v: {"bulk_modulus": v["bulk_modulus"]},
     ),

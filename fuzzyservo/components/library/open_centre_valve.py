@@ -13,7 +13,39 @@ A and B. The valve's null is the bias current.
 
 from __future__ import annotations
 
-from fuzzyservo.components.declare import Component, Param, Signal
+from typing import Any
+
+from fuzzyservo.components.declare import Component, Param, Signal, phase
+from fuzzyservo.components.effects import E
+from fuzzyservo.components.valves import metering_edges
+
+
+@phase("q1", "q2", "q3", "q4", "q_va", "q_vb", "q_supply", "q_tank")
+def slots(
+    P: Any,
+    p: Any,
+    u: float,
+    p_s: float,
+    p_t: float,
+    p_a_port: float,
+    p_b_port: float,
+    p_lam: float,
+) -> tuple[float, ...]:
+    """The four slots' flows at Δi = u − I_bias, each shut beyond its closing current."""
+    di = u - P.bias_current
+    c14 = P.slot_coefficient_a + P.slot_coefficient_b * di
+    c23 = P.slot_coefficient_a - P.slot_coefficient_b * di
+    if di >= P.closing_current:
+        c23 = 0.0
+    if di <= -P.closing_current:
+        c14 = 0.0
+    c14 = max(c14, 0.0)
+    c23 = max(c23, 0.0)
+    q1, q2, q3, q4 = metering_edges(
+        c14, c23, c23, c14, p_s, p_t, p_a_port, p_b_port, p[E.line_resistance_pa_s_m3], p_lam
+    )
+    return q1, q2, q3, q4, q1 - q2, q3 - q4, q1 + q3, q2 + q4
+
 
 COMPONENTS = (
     Component(
@@ -30,36 +62,16 @@ COMPONENTS = (
             Param("bias_current", "A", "I_bias: the current of hydraulic null", default=0.0),
         ),
         signals=(
-            Signal("q1", "m^3/s", "L.q1", "slot 1: P→A"),
-            Signal("q2", "m^3/s", "L.q2", "slot 2: A→T"),
-            Signal("q3", "m^3/s", "L.q3", "slot 3: P→B"),
-            Signal("q4", "m^3/s", "L.q4", "slot 4: B→T"),
+            Signal("q1", "m^3/s", "q1", "slot 1: P→A"),
+            Signal("q2", "m^3/s", "q2", "slot 2: A→T"),
+            Signal("q3", "m^3/s", "q3", "slot 3: P→B"),
+            Signal("q4", "m^3/s", "q4", "slot 4: B→T"),
             Signal("q_a", "m^3/s", "q_va", "flow out of port A"),
             Signal("q_b", "m^3/s", "q_vb", "flow out of port B"),
             Signal("q_supply", "m^3/s", "q_supply", "flow drawn from P"),
             Signal("q_tank", "m^3/s", "q_tank", "flow returned to T"),
         ),
-        code={
-            "valve": """
-                L.di = u - P.bias_current
-                L.c14 = P.slot_coefficient_a + P.slot_coefficient_b * L.di
-                L.c23 = P.slot_coefficient_a - P.slot_coefficient_b * L.di
-                if L.di >= P.closing_current:
-                    L.c23 = 0.0
-                if L.di <= -P.closing_current:
-                    L.c14 = 0.0
-                L.c14 = max(L.c14, 0.0)
-                L.c23 = max(L.c23, 0.0)
-                L.q1, L.q2, L.q3, L.q4 = metering_edges(
-                    L.c14, L.c23, L.c23, L.c14, p_s, p_t, p_a_port, p_b_port,
-                    E.line_resistance_pa_s_m3, p_lam,
-                )
-                q_va = L.q1 - L.q2
-                q_vb = L.q3 - L.q4
-                q_supply = L.q1 + L.q3
-                q_tank = L.q2 + L.q4
-            """
-        },
+        code={"valve": slots},
         effects=("line_resistance",),
         scales=lambda v: {
             "flow_coefficient": v["slot_coefficient_a"]

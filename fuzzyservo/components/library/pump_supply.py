@@ -10,7 +10,28 @@ nominal pressure; when the valve draws more than the pump delivers, p_s sags.
 
 from __future__ import annotations
 
-from fuzzyservo.components.declare import Component, Param, Signal, State
+import math
+from typing import Any
+
+from fuzzyservo.components.declare import Component, Param, Signal, State, phase
+from fuzzyservo.components.effects import chamber_modulus
+
+
+@phase("p_s", "p_t")
+def pump_pressure(P: Any, X: Any) -> tuple[float, float]:
+    return X.p_s, P.tank_pressure
+
+
+@phase("d", "kr", "q_relief", "q_net", "dx_p_s")
+def relief(
+    P: Any, p: Any, p_s: float, q_supply: float, beta: float
+) -> tuple[float, float, float, float, float]:
+    """The relief's flow and the supply volume's pressure."""
+    d = p_s - P.relief_cracking_pressure
+    kr = P.pump_flow / (P.supply_pressure - P.relief_cracking_pressure)
+    q_relief = 0.5 * kr * (d + math.sqrt(d * d + P.relief_knee * P.relief_knee))
+    q_net = P.pump_flow - q_relief - q_supply
+    return d, kr, q_relief, q_net, chamber_modulus(p_s, q_net, beta, p) / P.supply_volume * q_net
 
 
 def _resting(v: dict[str, float]) -> float:
@@ -65,19 +86,10 @@ COMPONENTS = (
         signals=(
             Signal("p_s", "Pa", "p_s"),
             Signal("p_t", "Pa", "p_t"),
-            Signal("q_pump", "m^3/s", "P.pump_flow"),
-            Signal("q_relief", "m^3/s", "L.q_relief"),
+            Signal("q_pump", "m^3/s", "pump_flow"),
+            Signal("q_relief", "m^3/s", "q_relief"),
         ),
-        code={
-            "supply": "p_s = X.p_s\np_t = P.tank_pressure",
-            "supply_flow": """
-                L.d = p_s - P.relief_cracking_pressure
-                L.kr = P.pump_flow / (P.supply_pressure - P.relief_cracking_pressure)
-                L.q_relief = 0.5 * L.kr * (L.d + math.sqrt(L.d * L.d + P.relief_knee * P.relief_knee))
-                L.q_net = P.pump_flow - L.q_relief - q_supply
-                DX.p_s = chamber_modulus(p_s, L.q_net, beta, p) / P.supply_volume * L.q_net
-            """,
-        },
+        code={"supply": pump_pressure, "supply_flow": relief},
         initial_keys={"pressure_s": ("p_s", "Pa")},
         initial=lambda v, ctx: {
             "p_s": ctx.get("p_s", _resting(v)),

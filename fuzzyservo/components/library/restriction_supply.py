@@ -9,7 +9,41 @@ E_mix(p) instead of E.
 
 from __future__ import annotations
 
-from fuzzyservo.components.declare import Component, Param, Signal, State
+from typing import Any
+
+from fuzzyservo.components.declare import Component, Param, Signal, State, phase
+from fuzzyservo.components.effects import chamber_modulus, pump_limited
+from fuzzyservo.components.orifice import signed_sqrt_flow
+
+
+@phase("p_s", "p_t")
+def chamber_pressures(X: Any) -> tuple[float, float]:
+    return X.p_s, X.p_t
+
+
+@phase("q_in", "q_ret", "dx_p_s", "dx_p_t")
+def restrictions(
+    P: Any,
+    p: Any,
+    p_s: float,
+    p_t: float,
+    q_supply: float,
+    q_tank: float,
+    beta: float,
+    p_lam: float,
+) -> tuple[float, float, float, float]:
+    """Flows through R_a (capped by ``supply_droop``) and R_r; the chambers' pressures."""
+    q_in = pump_limited(signed_sqrt_flow(P.supply_resistance, P.supply_pressure - p_s, p_lam), p)
+    q_ret = signed_sqrt_flow(P.return_resistance, p_t - P.return_pressure, p_lam)
+    es = chamber_modulus(p_s, q_in - q_supply, beta, p)
+    et = chamber_modulus(p_t, q_tank - q_ret, beta, p)
+    return (
+        q_in,
+        q_ret,
+        es / P.supply_volume * (q_in - q_supply),
+        et / P.return_volume * (q_tank - q_ret),
+    )
+
 
 COMPONENTS = (
     Component(
@@ -35,22 +69,10 @@ COMPONENTS = (
         signals=(
             Signal("p_s", "Pa", "p_s"),
             Signal("p_t", "Pa", "p_t"),
-            Signal("q_in", "m^3/s", "L.q_in", "flow through R_a"),
-            Signal("q_ret", "m^3/s", "L.q_ret", "flow through R_r"),
+            Signal("q_in", "m^3/s", "q_in", "flow through R_a"),
+            Signal("q_ret", "m^3/s", "q_ret", "flow through R_r"),
         ),
-        code={
-            "supply": "p_s = X.p_s\np_t = X.p_t",
-            "supply_flow": """
-                L.q_in = pump_limited(
-                    signed_sqrt_flow(P.supply_resistance, P.supply_pressure - p_s, p_lam), p
-                )
-                L.q_ret = signed_sqrt_flow(P.return_resistance, p_t - P.return_pressure, p_lam)
-                L.es = chamber_modulus(p_s, L.q_in - q_supply, beta, p)
-                L.et = chamber_modulus(p_t, q_tank - L.q_ret, beta, p)
-                DX.p_s = L.es / P.supply_volume * (L.q_in - q_supply)
-                DX.p_t = L.et / P.return_volume * (q_tank - L.q_ret)
-            """,
-        },
+        code={"supply": chamber_pressures, "supply_flow": restrictions},
         effects=("supply_droop", "entrained_air"),
         initial_keys={"pressure_s": ("p_s", "Pa"), "pressure_t": ("p_t", "Pa")},
         initial=lambda v, ctx: {

@@ -26,7 +26,12 @@ laminar flow, is taken at the pressure behind that line.
 
 from __future__ import annotations
 
-from fuzzyservo.components.declare import Component, Param, Signal, State
+import math
+from typing import Any
+
+from fuzzyservo.components.declare import Component, Param, Signal, State, phase
+from fuzzyservo.components.effects import E
+from fuzzyservo.components.valves import metering_edges
 
 _PARAMS = (
     Param("rated_flow", "m^3/s", "Q_N at rated signal and rated pressure drop", positive=True),
@@ -46,53 +51,69 @@ _PARAMS = (
           default=0.0, nonnegative=True),
 )  # fmt: skip
 
+
 # The spool, by order: a second-order type keeps the spool velocity as a state; a
 # first-order one does without (one state fewer to integrate and to difference in the
 # Jacobian: the seed-000 and seed-001 valves are first order).
-_SPOOL_SECOND_ORDER = """
-        L.lim = P.stroke_limit
-        L.xc = min(max(u / P.rated_signal, -L.lim), L.lim)
-        if P.spool_natural_frequency > 0.0:
-            L.w = 2.0 * math.pi * P.spool_natural_frequency
-            DX.xs = X.vs
-            DX.vs = L.w * L.w * (L.xc - X.xs) - 2.0 * P.spool_damping * L.w * X.vs
-            L.x = min(max(X.xs, -L.lim), L.lim)
-        elif P.spool_time_constant > 0.0:
-            DX.xs = (L.xc - X.xs) / P.spool_time_constant
-            DX.vs = 0.0
-            L.x = min(max(X.xs, -L.lim), L.lim)
-        else:
-            DX.xs = 0.0
-            DX.vs = 0.0
-            L.x = L.xc
-"""
-_SPOOL_FIRST_ORDER = """
-        L.lim = P.stroke_limit
-        L.xc = min(max(u / P.rated_signal, -L.lim), L.lim)
-        if P.spool_time_constant > 0.0:
-            DX.xs = (L.xc - X.xs) / P.spool_time_constant
-            L.x = min(max(X.xs, -L.lim), L.lim)
-        else:
-            DX.xs = 0.0
-            L.x = L.xc
-"""
-_EDGES = """
-        L.k = P.rated_flow / ((1.0 - P.overlap) * math.sqrt(0.5 * P.rated_pressure_drop))
-        L.c_pa = L.k * max(L.x - P.overlap, 0.0)
-        L.c_pb = L.k * max(-L.x - P.overlap, 0.0)
-        L.q_pa, L.q_at, L.q_pb, L.q_bt = metering_edges(
-            L.c_pa, L.c_pb, L.c_pb, L.c_pa, p_s, p_t, p_a_port, p_b_port,
-            E.line_resistance_pa_s_m3, p_lam,
-        )
-        L.q_pa += P.land_leakage * (p_s - p_a_port)
-        L.q_at += P.land_leakage * (p_a_port - p_t)
-        L.q_pb += P.land_leakage * (p_s - p_b_port)
-        L.q_bt += P.land_leakage * (p_b_port - p_t)
-        q_va = L.q_pa - L.q_at
-        q_vb = L.q_pb - L.q_bt
-        q_supply = L.q_pa + L.q_pb
-        q_tank = L.q_at + L.q_bt
-"""
+@phase("lim", "xc", "dx_xs", "dx_vs", "x")
+def second_order_spool(P: Any, X: Any, u: float) -> tuple[float, float, float, float, float]:
+    """The spool's opening x and its derivatives: second order, first order or static."""
+    lim = P.stroke_limit
+    xc = min(max(u / P.rated_signal, -lim), lim)
+    if P.spool_natural_frequency > 0.0:
+        w = 2.0 * math.pi * P.spool_natural_frequency
+        dxs = X.vs
+        dvs = w * w * (xc - X.xs) - 2.0 * P.spool_damping * w * X.vs
+        x = min(max(X.xs, -lim), lim)
+    elif P.spool_time_constant > 0.0:
+        dxs = (xc - X.xs) / P.spool_time_constant
+        dvs = 0.0
+        x = min(max(X.xs, -lim), lim)
+    else:
+        dxs = 0.0
+        dvs = 0.0
+        x = xc
+    return lim, xc, dxs, dvs, x
+
+
+@phase("lim", "xc", "dx_xs", "x")
+def first_order_spool(P: Any, X: Any, u: float) -> tuple[float, float, float, float]:
+    """The spool's opening x and its derivative: first order or static."""
+    lim = P.stroke_limit
+    xc = min(max(u / P.rated_signal, -lim), lim)
+    if P.spool_time_constant > 0.0:
+        dxs = (xc - X.xs) / P.spool_time_constant
+        x = min(max(X.xs, -lim), lim)
+    else:
+        dxs = 0.0
+        x = xc
+    return lim, xc, dxs, x
+
+
+@phase("q_pa", "q_at", "q_pb", "q_bt", "q_va", "q_vb", "q_supply", "q_tank")
+def edges(
+    P: Any,
+    p: Any,
+    x: float,
+    p_s: float,
+    p_t: float,
+    p_a_port: float,
+    p_b_port: float,
+    p_lam: float,
+) -> tuple[float, ...]:
+    """The four metering edges at the opening x, and the lands' clearance leakage."""
+    k = P.rated_flow / ((1.0 - P.overlap) * math.sqrt(0.5 * P.rated_pressure_drop))
+    c_pa = k * max(x - P.overlap, 0.0)
+    c_pb = k * max(-x - P.overlap, 0.0)
+    q_pa, q_at, q_pb, q_bt = metering_edges(
+        c_pa, c_pb, c_pb, c_pa, p_s, p_t, p_a_port, p_b_port, p[E.line_resistance_pa_s_m3], p_lam
+    )
+    q_pa += P.land_leakage * (p_s - p_a_port)
+    q_at += P.land_leakage * (p_a_port - p_t)
+    q_pb += P.land_leakage * (p_s - p_b_port)
+    q_bt += P.land_leakage * (p_b_port - p_t)
+    return q_pa, q_at, q_pb, q_bt, q_pa - q_at, q_pb - q_bt, q_pa + q_pb, q_at + q_bt
+
 
 _POSITION = State("xs", "1", "spool position (1 = rated opening)", "valve", 1e-5, 1.0)
 # A first-order spool is a lag, not a resonance: 1e-4 of its rated opening is the local
@@ -101,7 +122,7 @@ _POSITION = State("xs", "1", "spool position (1 = rated opening)", "valve", 1e-5
 _LAG_POSITION = State("xs", "1", "spool position (1 = rated opening)", "valve", 1e-4, 1.0)
 _VELOCITY = State("vs", "1/s", "spool velocity", "valve", 1e-2, 100.0)
 _SIGNALS = (
-    Signal("x_spool", "1", "L.x", "spool opening, limited to the stroke"),
+    Signal("x_spool", "1", "x", "spool opening, limited to the stroke"),
     Signal("q_a", "m^3/s", "q_va", "flow out of port A"),
     Signal("q_b", "m^3/s", "q_vb", "flow out of port B"),
     Signal("q_supply", "m^3/s", "q_supply", "flow drawn from P"),
@@ -115,7 +136,6 @@ def _valve(type_name: str, input_: tuple[str, str], doc: str, second_order: bool
         if second_order
         else tuple(p for p in _PARAMS if p.key not in ("spool_natural_frequency", "spool_damping"))
     )
-    spool = _SPOOL_SECOND_ORDER if second_order else _SPOOL_FIRST_ORDER
     return Component(
         type=type_name,
         role="valve",
@@ -126,7 +146,7 @@ def _valve(type_name: str, input_: tuple[str, str], doc: str, second_order: bool
         params=params,
         states=(_POSITION, _VELOCITY) if second_order else (_LAG_POSITION,),
         signals=_SIGNALS,
-        code={"valve": spool + _EDGES},
+        code={"valve": (second_order_spool if second_order else first_order_spool, edges)},
         effects=("line_resistance",),
         initial=(lambda v, ctx: {"xs": 0.0, "vs": 0.0})
         if second_order

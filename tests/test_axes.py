@@ -100,11 +100,10 @@ def test_the_twin_lift_loses_synchronisation_under_its_uneven_load() -> None:
         return float(lead[np.searchsorted(t, time_s)])
 
     assert at(0.5) == 0.0  # at rest, both at mid-stroke
-    assert at(2.9) > 0.5e-3  # after the lift of 50 mm
-    assert at(5.4) - at(2.9) > 1e-3  # after lowering 100 mm
-    assert at(7.9) > at(5.4)  # after the last lift
+    # the figures docs/rigs.md gives: after the lift, the lowering and the last lift [mm]
+    assert [round(at(s) * 1e3, 1) for s in (2.9, 5.4, 7.9)] == [1.1, 3.2, 3.9]
     lowering = (t > 3.0) & (t < 3.5)
-    assert run.signals["p_s"][lowering].min() < 100e5  # 140 bar at rest
+    assert round(run.signals["p_s"][lowering].min() / 1e5) == 63  # 140 bar at rest
     # the left axis follows the reference (P 4 V/V holds it to a few µm)
     assert abs(run.signals["left_y"][np.searchsorted(t, 2.9)] - 0.200) < 1e-4
 

@@ -7,10 +7,11 @@ from pathlib import Path
 
 import pytest
 import yaml
-from support import DATA
+from support import DATA, controller_named
 
+from fuzzyservo.controllers.base import parameter_path
 from fuzzyservo.errors import ConfigError
-from fuzzyservo.io.studies import load_study, split_path
+from fuzzyservo.io.studies import load_study
 from fuzzyservo.metrics import result_metrics
 from fuzzyservo.simulation import simulate
 from fuzzyservo.tuning.objective import build_evaluator
@@ -92,10 +93,18 @@ def test_cli_rejects_a_bad_study_with_exit_2(tmp_path, capsys):
     assert len(err) == 1 and err[0].startswith("fuzzyservo: error:")
 
 
-def test_parameter_paths():
-    assert split_path("input.increments[3]") == ["input", "increments", 3]
+def test_parameter_paths_are_parsed_in_one_place():
+    """Warm start reads a controller file's numbers, and a design changes its own, by
+    one parser of paths like ``input.increments[3]``."""
+
+    assert parameter_path("input.increments[3]") == ("input", "increments", 3)
     with pytest.raises(ValueError, match="cannot read"):
-        split_path("input..reshape")
+        parameter_path("input..reshape")
+    design = controller_named("flc2_reshaped").design
+    changed = design.with_params(**{"input.increments[3]": 0.5, "output.reshape": 1.5})
+    assert changed.params()["input.increments[3]"] == 0.5
+    assert changed.params()["output.reshape"] == 1.5
+    assert changed.params()["input.increments[2]"] == design.params()["input.increments[2]"]
 
 
 def test_a_trial_changes_the_design_through_its_own_api():

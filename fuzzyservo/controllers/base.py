@@ -9,9 +9,26 @@ fast loop and a replay of measured data all compute the same numbers.
 from __future__ import annotations
 
 import dataclasses
+import re
 from typing import ClassVar
 
 import numpy as np
+
+_STEP = re.compile(r"([^.\[\]]+)|\[(\d+)\]")
+
+
+def parameter_path(path: str) -> tuple[str | int, ...]:
+    """``'input.increments[3]'`` → ``('input', 'increments', 3)``: where a searchable
+    number sits in a controller (its name in ``params()``, its place in the file).
+    ``ValueError`` for a path written any other way."""
+    parts = tuple(int(index) if index else name for name, index in _STEP.findall(path))
+    rebuilt = "".join(f"[{p}]" if isinstance(p, int) else f".{p}" for p in parts).lstrip(".")
+    if not parts or rebuilt != path:
+        raise ValueError(
+            f"cannot read parameter path {path[:60]!r}; write it like 'input.reshape' or "
+            "'input.increments[3]'"
+        )
+    return parts
 
 
 class Controller:

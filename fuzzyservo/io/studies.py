@@ -46,10 +46,10 @@ uncertainty:                       # optional: tune on sampled plants (tuning/un
 from __future__ import annotations
 
 import math
-import re
 from pathlib import Path
 from typing import Any
 
+from fuzzyservo.controllers.base import parameter_path
 from fuzzyservo.errors import ConfigError, did_you_mean, excerpt
 from fuzzyservo.io._yaml import Node, read_yaml
 from fuzzyservo.io.controllers import load_controller
@@ -234,27 +234,10 @@ def load_study(path: str | Path) -> Study:
         raise ConfigError(str(exc), file=file) from None
 
 
-_STEP = re.compile(r"([^.\[\]]+)|\[(\d+)\]")
-
-
-def split_path(path: str) -> list[str | int]:
-    """``'input.increments[3]'`` → ``['input', 'increments', 3]``: where a searched number
-    sits in a controller file."""
-    parts: list[str | int] = []
-    for name, index in _STEP.findall(path):
-        parts.append(int(index) if index else name)
-    rebuilt = "".join(f"[{p}]" if isinstance(p, int) else f".{p}" for p in parts).lstrip(".")
-    if not parts or rebuilt != path:
-        raise ValueError(
-            f"cannot read parameter path {excerpt(path)}; write it like 'input.reshape' or 'input.increments[3]'"
-        )
-    return parts
-
-
 def _number_at(data: Any, path: str) -> float | None:
     """The number a controller file writes at ``path``, or None when it writes none."""
     node = data
-    for part in split_path(path):
+    for part in parameter_path(path):
         try:
             node = node[part]
         except (KeyError, IndexError, TypeError):

@@ -24,6 +24,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from fuzzyservo.controllers.base import parameter_path
 from fuzzyservo.controllers.fuzzy.controller import FuzzyController
 from fuzzyservo.controllers.fuzzy.system import (
     AGGREGATIONS,
@@ -162,16 +163,18 @@ class FuzzyDesign:
             if name in _GAINS:
                 gains[_GAINS[name]] = float(value)
             else:
-                slot, _, key = name.partition(".")
-                changed.setdefault(slot, {})[key] = float(value)
+                slot, *place = parameter_path(name)  # ("input", "increments", 3)
+                changed.setdefault(str(slot), {})[tuple(place)] = float(value)
         slots = self.slots()
-        for slot, keys in changed.items():
+        for slot, places in changed.items():
             var = slots[slot]
             increments = list(var.increments)
-            for key, value in keys.items():
-                if key.startswith("increments["):
-                    increments[int(key[len("increments[") : -1])] = value
-            scalars = {k: v for k, v in keys.items() if not k.startswith("increments[")}
+            scalars: dict[str, float] = {}
+            for (key, *index), value in places.items():
+                if index:
+                    increments[int(index[0])] = value
+                else:
+                    scalars[str(key)] = value
             slots[slot] = dataclasses.replace(var, increments=tuple(increments), **scalars)
         inputs = tuple(v for k, v in slots.items() if k != "output")
         return dataclasses.replace(self, inputs=inputs, output=slots["output"], **gains)

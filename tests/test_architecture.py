@@ -145,6 +145,7 @@ COMPUTING = (
     "fuzzyservo.components.nn_fit",
     "fuzzyservo.controllers.fuzzy.evaluate",
     "fuzzyservo.codegen._check",
+    "fuzzyservo.codegen._fmu",
 )
 
 

@@ -14,11 +14,27 @@ interpolated linearly (bilinearly); :func:`lut_error` measures how far it is fro
 from fuzzyservo.codegen._c import c_sources, identifier, system_c_sources, write_c, write_st
 from fuzzyservo.codegen._check import c_compiler, single_precision_error
 from fuzzyservo.codegen._fmi import fmu_model, fmu_sources, model_description
+from fuzzyservo.codegen._fmu import FmuBuild, fmi_headers, fmu_build
 from fuzzyservo.codegen._lut import LutError, lut_error, lut_interp, lut_table
 from fuzzyservo.codegen._st_system import system_st_source
 
 __all__ = [
-    "LutError", "c_compiler", "c_sources", "fmu_model", "fmu_sources", "identifier", "lut_error",
-    "lut_interp", "lut_table", "model_description", "single_precision_error", "system_c_sources", "system_st_source",
-    "write_c", "write_st",
+    "FmuBuild",
+    "LutError",
+    "c_compiler",
+    "c_sources",
+    "fmi_headers",
+    "fmu_build",
+    "fmu_model",
+    "fmu_sources",
+    "identifier",
+    "lut_error",
+    "lut_interp",
+    "lut_table",
+    "model_description",
+    "single_precision_error",
+    "system_c_sources",
+    "system_st_source",
+    "write_c",
+    "write_st",
 ]  # fmt: skip

@@ -1,50 +1,21 @@
-"""FMU files: a fuzzy controller or inference system zipped as a co-simulation FMU
-(:mod:`fuzzyservo.codegen._fmi` writes its text), with a binary for this platform built
-by the system C compiler.
-
-The FMU holds ``modelDescription.xml``, ``sources/`` (the generated C99 and the FMI
-wrapper: any platform can rebuild it), ``binaries/<platform>/<id>.<so|dylib|dll>`` and
-``documentation/index.html``. The FMI headers come from FMPy's package (the ``[fmi]``
-extra). Without a C compiler the FMU is written with its sources only and
+"""FMU files: the archive :func:`fuzzyservo.codegen.fmu_build` makes (a fuzzy controller
+or inference system as a co-simulation FMU, with a binary for this platform), zipped and
+written. Without a C compiler the FMU is written with its sources only and
 :class:`~fuzzyservo.errors.ConfigError` says so.
 """
 
 from __future__ import annotations
 
-import platform
-import subprocess
-import sys
-import tempfile
 import zipfile
 from pathlib import Path
 
 from fuzzyservo.atomic import atomic_write
-from fuzzyservo.codegen import c_compiler, fmu_model, fmu_sources, model_description
+from fuzzyservo.codegen import fmu_build
 from fuzzyservo.controllers.fuzzy.controller import FuzzyController
 from fuzzyservo.controllers.fuzzy.system import FuzzySystem
-from fuzzyservo.errors import ConfigError, require
+from fuzzyservo.errors import ConfigError
 
-__all__ = ["fmi_headers", "write_fmu"]
-
-_EXTENSIONS = {"darwin": ".dylib", "win32": ".dll"}
-
-
-def fmi_headers(fmi: int) -> Path:
-    """The folder holding ``fmi<fmi>Functions.h`` (FMPy ships the standard's headers)."""
-    fmpy = require("fmpy", "fmi", "building an FMU (from the FMI headers FMPy ships)")
-    folder = Path(fmpy.__file__).parent / "c-code"
-    if not (folder / f"fmi{fmi}Functions.h").is_file():
-        raise ConfigError(f"FMPy at {folder.parent} has no fmi{fmi}Functions.h; update fmpy")
-    return folder
-
-
-def _platform(fmi: int) -> str:
-    """The binaries/ folder name: FMI 3.0 ``x86_64-linux``, FMI 2.0 ``linux64``."""
-    machine = platform.machine().lower().replace("amd64", "x86_64").replace("arm64", "aarch64")
-    system = {"darwin": "darwin", "win32": "windows"}.get(sys.platform, "linux")
-    if fmi == 3:
-        return f"{machine}-{system}"
-    return {"darwin": "darwin64", "windows": "win64", "linux": "linux64"}[system]
+__all__ = ["write_fmu"]
 
 
 def write_fmu(
@@ -57,59 +28,14 @@ def write_fmu(
     """Write the FMU of ``target`` to ``path``; returns the path and a line saying what
     it holds. Raises :class:`ConfigError` (after writing a source-only FMU) when no C
     compiler is found or the build fails."""
-    model = fmu_model(target, sample_time_s)
-    headers = fmi_headers(fmi)
-    sources = fmu_sources(model, fmi)
-    files = {"modelDescription.xml": model_description(model, fmi)}
-    files |= {f"sources/{name}": text for name, text in sources.items()}
-    files["documentation/index.html"] = _documentation(model.description, fmi)
+    build = fmu_build(target, fmi=fmi, sample_time_s=sample_time_s)
     out = Path(path)
-    cc = c_compiler()
-    binary: tuple[str, bytes] | None = None
-    problem = None
-    if cc is None:
-        problem = "no C compiler found (cc, gcc, clang or $CC)"
-    else:
-        ext = _EXTENSIONS.get(sys.platform, ".so")
-        name = f"binaries/{_platform(fmi)}/{model.identifier}{ext}"
-        with tempfile.TemporaryDirectory() as tmp:
-            for file, text in sources.items():
-                (Path(tmp) / file).write_text(text, encoding="utf-8")
-            lib = Path(tmp) / f"lib{ext}"
-            c_files = [str(Path(tmp) / f) for f in sources if f.endswith(".c")]
-            run = subprocess.run(
-                [cc, "-std=c99", "-O2", "-shared", "-fPIC", f"-I{headers}", "-o", str(lib),
-                 *c_files, "-lm"], capture_output=True, text=True,
-            )  # fmt: skip
-            if run.returncode == 0:
-                binary = (name, lib.read_bytes())
-            else:
-                problem = f"{cc} failed: {run.stderr.strip().splitlines()[:3]}"
     with atomic_write(out, "wb") as fh, zipfile.ZipFile(fh, "w", zipfile.ZIP_DEFLATED) as z:
-        for file, text in files.items():
+        for file, text in build.files.items():
             z.writestr(file, text)
-        if binary:
-            z.writestr(*binary)
-    if binary is None:
-        raise ConfigError(f"{problem}; wrote a source-only FMU (rebuild it from sources/)",
+        if build.binary:
+            z.writestr(*build.binary)
+    if build.binary is None:
+        raise ConfigError(f"{build.problem}; wrote a source-only FMU (rebuild it from sources/)",
                           file=str(out))  # fmt: skip
-    return out, f"FMI {fmi}.0 co-simulation, sources and {binary[0]}"
-
-
-def _documentation(description: str, fmi: int) -> str:
-    return f"""<!DOCTYPE html>
-<html><head><meta charset="utf-8"><title>{description}</title></head><body>
-<h1>{description}</h1>
-<p>FMI {fmi}.0 co-simulation FMU generated by fuzzyservo. A controller is sampled every
-<code>sample_period</code> seconds: a step that starts at or after the next sample time reads
-the inputs, runs one sample of the control law and holds the command (zero-order hold).
-An inference system has no state: its outputs follow its inputs. Inputs beyond a
-variable's range (its min/max) are clipped by the evaluator, so the output stays at its
-value at the range's edge. The gains, the output limits and the sample period are tunable
-parameters.</p>
-<p>Rebuild for another platform from <code>sources/</code> (C99, no library but libm):
-compile every <code>.c</code> file with the FMI headers on the include path into a shared
-library named after the model identifier.</p>
-<p>The generated code is yours: it is output of fuzzyservo, under the licence you choose.</p>
-</body></html>
-"""
+    return out, f"FMI {fmi}.0 co-simulation, sources and {build.binary[0]}"

@@ -203,8 +203,7 @@ def test_a_component_runs_alone() -> None:
 
     from fuzzyservo.components.declare import registry
     from fuzzyservo.components.effects import EffectParams
-    from fuzzyservo.components.library.cylinders import single_rod
-    from fuzzyservo.params import pack
+    from fuzzyservo.components.library.cylinders import chambers, single_rod_areas
 
     cylinder = registry()["single_rod_cylinder"]
     values = dict(
@@ -214,14 +213,18 @@ def test_a_component_runs_alone() -> None:
     )  # fmt: skip
     P = cylinder.values(**values)
     p = pack(EffectParams())
-    state = cylinder.state(0.05, 0.0, 2e6, 1e6, 0.0)
-    out = dict(zip(single_rod.returns, single_rod(P, state, p), strict=True))
-    area = 0.25 * math.pi * 0.03**2
-    assert out["area_a"] == pytest.approx(area)
-    assert out["va"] == pytest.approx(1e-6 + area * 0.05)
-    assert out["f_hyd"] == pytest.approx(2e6 * area - 1e6 * out["area_b"])
-    beyond = single_rod(P, cylinder.state(-0.001, 0.0, 2e6, 1e6, 0.0), p)
-    assert dict(zip(single_rod.returns, beyond, strict=True))["f_stop"] == pytest.approx(1e5)
+    area_a, area_b = single_rod_areas(P)
+    assert area_a == pytest.approx(0.25 * math.pi * 0.03**2)
+
+    def actuator(y: float) -> dict[str, float]:
+        state = cylinder.state(y, 0.0, 2e6, 1e6, 0.0)
+        return dict(zip(chambers.returns, chambers(P, state, p, area_a, area_b), strict=True))
+
+    out = actuator(0.05)
+    assert out["va"] == pytest.approx(1e-6 + area_a * 0.05)
+    assert out["f_hyd"] == pytest.approx(2e6 * area_a - 1e6 * area_b)
+    assert out["f_stop"] == 0.0
+    assert actuator(-0.001)["f_stop"] == pytest.approx(1e5)
 
 
 def test_rig_file_errors_name_the_component_key(tmp_path: Path) -> None:

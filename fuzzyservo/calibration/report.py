@@ -247,7 +247,9 @@ def report_markdown(
 def by_improvement(r: Round) -> list[Candidate]:
     """A round's candidates by fitted improvement, the held-out cost reduction against
     the round's start (lowest score first; a failed run last), ties in the round's order."""
-    return sorted(r.candidates, key=lambda c: c.score if math.isfinite(c.score) else math.inf)
+    return sorted(
+        r.candidates, key=lambda c: (c.score if math.isfinite(c.score) else math.inf, c.name)
+    )
 
 
 def signature_rows(

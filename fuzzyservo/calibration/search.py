@@ -144,7 +144,9 @@ def search_effects(
                                      screen=screen_samples)  # fmt: skip
             done = None if progress is None else (lambda k, todo=todo: progress(todo[k]))
             results = executor.map(task, todo, done)
-            results.sort(key=lambda c: c.score)
+            results.sort(
+                key=lambda c: (c.score, c.name)
+            )  # ties: by name, not by which worker ended first
             screened = screened_replay(replay, screen_samples) is not replay
             if screened:
                 results = _confirm(replay, current, current_model, results)
@@ -283,7 +285,7 @@ def _confirm(
         refit = _refit(replay, base, base_model, ranked.pop(0))
         refitted.add(refit.name)
         ranked.append(refit)
-        ranked.sort(key=lambda c: c.score)
+        ranked.sort(key=lambda c: (c.score, c.name))
     return ranked
 
 

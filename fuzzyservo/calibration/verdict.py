@@ -181,8 +181,9 @@ def _failed_fit(c: dict[str, Any]) -> bool:
     return str(c.get("status", "")).startswith("failed fit")
 
 
-def _score_key(c: dict[str, Any]) -> float:
-    return c["score"] if is_finite(c["score"]) else math.inf
+def _score_key(c: dict[str, Any]) -> tuple[float, str]:
+    """Lowest held-out cost first; exact ties (fits that found nothing) by name."""
+    return (c["score"] if is_finite(c["score"]) else math.inf, c["name"])
 
 
 def is_finite(value: float | None) -> bool:

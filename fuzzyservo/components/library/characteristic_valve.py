@@ -14,7 +14,6 @@ from __future__ import annotations
 import math
 from typing import Any
 
-from fuzzyservo._jit import njit
 from fuzzyservo.components.declare import Component, Param, Signal, phase
 from fuzzyservo.components.effects import E
 from fuzzyservo.components.valves import metering_edges, polynomial_flow
@@ -26,12 +25,10 @@ _SIGNALS = (
     Signal("q_tank", "m^3/s", "q_tank", "flow returned to T"),
 )
 
-_VALVE = ("q_pa", "q_at", "q_pb", "q_bt", "q_va", "q_vb", "q_supply", "q_tank")
 
-
-@njit(cache=True, inline="always")
-def _edges(
-    k: float, p_s: float, p_t: float, p_a_port: float, p_b_port: float, p_lam: float, p: Any
+@phase("q_pa", "q_at", "q_pb", "q_bt", "q_va", "q_vb", "q_supply", "q_tank")
+def edges(
+    p: Any, k: float, p_s: float, p_t: float, p_a_port: float, p_b_port: float, p_lam: float
 ) -> tuple[float, float, float, float, float, float, float, float]:
     """The four edges at the coefficient ``k`` (positive opens P→A and B→T)."""
     kp = max(k, 0.0)
@@ -42,42 +39,24 @@ def _edges(
     return q_pa, q_at, q_pb, q_bt, q_pa - q_at, q_pb - q_bt, q_pa + q_pb, q_at + q_bt
 
 
-@phase(*_VALVE)
-def measured_curve(
-    P: Any,
-    p: Any,
-    u: float,
-    p_s: float,
-    p_t: float,
-    p_a_port: float,
-    p_b_port: float,
-    p_lam: float,
-) -> tuple[float, ...]:
-    """Each edge passes Q(U)·√(Δp/Δp_nom), U clipped to ±U_max."""
+# the opening runs apart from the edges: it reads no pressure, so the loop's Jacobian
+# does not evaluate it again for each pressure it perturbs
+@phase("k")
+def measured_curve(P: Any, u: float) -> float:
+    """The edges' coefficient Q(U)/√Δp_nom, U clipped to ±U_max."""
     umax = P.control_voltage_max
     uc = min(max(u, -umax), umax)
-    k = polynomial_flow(
+    return polynomial_flow(
         uc, umax, P.flow_c0, P.flow_c1, P.flow_c2, P.flow_c3, P.flow_c4
     ) / math.sqrt(P.nominal_pressure_drop)
-    return _edges(k, p_s, p_t, p_a_port, p_b_port, p_lam, p)
 
 
-@phase(*_VALVE)
-def linear_orifice(
-    P: Any,
-    p: Any,
-    u: float,
-    p_s: float,
-    p_t: float,
-    p_a_port: float,
-    p_b_port: float,
-    p_lam: float,
-) -> tuple[float, ...]:
-    """Each edge passes C·(U/U_max)·√Δp, U clipped to ±U_max."""
+@phase("k")
+def linear_orifice(P: Any, u: float) -> float:
+    """The edges' coefficient C·(U/U_max), U clipped to ±U_max."""
     umax = P.control_voltage_max
     uc = min(max(u, -umax), umax)
-    k = P.orifice_coefficient * uc / umax
-    return _edges(k, p_s, p_t, p_a_port, p_b_port, p_lam, p)
+    return P.orifice_coefficient * uc / umax
 
 
 _RANGE = Param("control_voltage_max", "V", "U_max: the curve's range", positive=True)
@@ -103,7 +82,7 @@ COMPONENTS = (
             ),
         ),
         signals=_SIGNALS,
-        code={"valve": measured_curve},
+        code={"valve": (measured_curve, edges)},
         effects=("line_resistance",),
         scales=lambda v: {
             "flow": abs(
@@ -129,7 +108,7 @@ COMPONENTS = (
             ),
         ),
         signals=_SIGNALS,
-        code={"valve": linear_orifice},
+        code={"valve": (linear_orifice, edges)},
         effects=("line_resistance",),
         scales=lambda v: {
             "flow_coefficient": v["orifice_coefficient"],

@@ -66,12 +66,28 @@ _SIGNALS = (
 )
 
 
-@njit(cache=True, inline="always")
-def _chambers(
+@phase("area_a", "area_b")
+def single_rod_areas(P: Any) -> tuple[float, float]:
+    """Piston area A_a on side A, the annulus A_b on side B."""
+    area_a = 0.25 * math.pi * P.piston_diameter**2
+    area_b = 0.25 * math.pi * (P.piston_diameter**2 - P.rod_diameter**2)
+    return area_a, area_b
+
+
+@phase("area_a", "area_b")
+def double_rod_areas(P: Any) -> tuple[float, float]:
+    """The annulus on both sides."""
+    area_a = 0.25 * math.pi * (P.piston_diameter**2 - P.rod_diameter**2)
+    area_b = 0.25 * math.pi * (P.piston_diameter**2 - P.rod_diameter**2)
+    return area_a, area_b
+
+
+@phase("pos", "vel", "p_a", "p_b", "f_stop", "va", "vb", "q_leak", "f_hyd")
+def chambers(
     P: Any, X: Any, p: Any, area_a: float, area_b: float
-) -> tuple[float, float, float, float, float, float, float, float, float, float, float]:
-    """A cylinder's actuator phase, given its areas: the chamber volumes (floored at 5 %
-    of the dead volumes), the end-stop force beyond 0 and the stroke, the A→B leakage."""
+) -> tuple[float, float, float, float, float, float, float, float, float]:
+    """The motion and the chamber pressures; the chamber volumes (floored at 5 % of the
+    dead volumes), the end-stop force beyond 0 and the stroke, the A→B leakage."""
     pos = X.y
     vel = X.v
     p_a = X.p_a
@@ -88,38 +104,7 @@ def _chambers(
         )
     q_leak = p[E.internal_leakage_m3_s_pa] * (p_a - p_b)
     f_hyd = p_a * area_a - p_b * area_b
-    return pos, vel, p_a, p_b, area_a, area_b, f_stop, va, vb, q_leak, f_hyd
-
-
-_ACTUATOR = (
-    "pos",
-    "vel",
-    "p_a",
-    "p_b",
-    "area_a",
-    "area_b",
-    "f_stop",
-    "va",
-    "vb",
-    "q_leak",
-    "f_hyd",
-)
-
-
-@phase(*_ACTUATOR)
-def single_rod(P: Any, X: Any, p: Any) -> tuple[float, ...]:
-    """Piston area A_a on side A, the annulus A_b on side B."""
-    area_a = 0.25 * math.pi * P.piston_diameter**2
-    area_b = 0.25 * math.pi * (P.piston_diameter**2 - P.rod_diameter**2)
-    return _chambers(P, X, p, area_a, area_b)
-
-
-@phase(*_ACTUATOR)
-def double_rod(P: Any, X: Any, p: Any) -> tuple[float, ...]:
-    """The annulus on both sides."""
-    area_a = 0.25 * math.pi * (P.piston_diameter**2 - P.rod_diameter**2)
-    area_b = 0.25 * math.pi * (P.piston_diameter**2 - P.rod_diameter**2)
-    return _chambers(P, X, p, area_a, area_b)
+    return pos, vel, p_a, p_b, f_stop, va, vb, q_leak, f_hyd
 
 
 @phase("mass")
@@ -238,7 +223,7 @@ def _cylinder(type_name: str, double: bool, doc: str) -> Component:
         states=_STATES,
         signals=_SIGNALS,
         code={
-            "actuator": double_rod if double else single_rod,
+            "actuator": (double_rod_areas if double else single_rod_areas, chambers),
             "mass": piston_mass,
             "motion": motion,
         },

@@ -20,18 +20,11 @@ from fuzzyservo.components.effects import E
 from fuzzyservo.components.valves import metering_edges
 
 
-@phase("q1", "q2", "q3", "q4", "q_va", "q_vb", "q_supply", "q_tank")
-def slots(
-    P: Any,
-    p: Any,
-    u: float,
-    p_s: float,
-    p_t: float,
-    p_a_port: float,
-    p_b_port: float,
-    p_lam: float,
-) -> tuple[float, ...]:
-    """The four slots' flows at Δi = u − I_bias, each shut beyond its closing current."""
+# the openings run apart from the flows: they read no pressure, so the loop's Jacobian
+# does not evaluate them again for each pressure it perturbs
+@phase("c14", "c23")
+def openings(P: Any, u: float) -> tuple[float, float]:
+    """The slots' coefficients at Δi = u − I_bias, each shut beyond its closing current."""
     di = u - P.bias_current
     c14 = P.slot_coefficient_a + P.slot_coefficient_b * di
     c23 = P.slot_coefficient_a - P.slot_coefficient_b * di
@@ -39,8 +32,21 @@ def slots(
         c23 = 0.0
     if di <= -P.closing_current:
         c14 = 0.0
-    c14 = max(c14, 0.0)
-    c23 = max(c23, 0.0)
+    return max(c14, 0.0), max(c23, 0.0)
+
+
+@phase("q1", "q2", "q3", "q4", "q_va", "q_vb", "q_supply", "q_tank")
+def slots(
+    p: Any,
+    c14: float,
+    c23: float,
+    p_s: float,
+    p_t: float,
+    p_a_port: float,
+    p_b_port: float,
+    p_lam: float,
+) -> tuple[float, ...]:
+    """The four slots' flows."""
     q1, q2, q3, q4 = metering_edges(
         c14, c23, c23, c14, p_s, p_t, p_a_port, p_b_port, p[E.line_resistance_pa_s_m3], p_lam
     )
@@ -71,7 +77,7 @@ COMPONENTS = (
             Signal("q_supply", "m^3/s", "q_supply", "flow drawn from P"),
             Signal("q_tank", "m^3/s", "q_tank", "flow returned to T"),
         ),
-        code={"valve": slots},
+        code={"valve": (openings, slots)},
         effects=("line_resistance",),
         scales=lambda v: {
             "flow_coefficient": v["slot_coefficient_a"]

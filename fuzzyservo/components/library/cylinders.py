@@ -24,13 +24,13 @@ from typing import Any
 
 from fuzzyservo._jit import njit
 from fuzzyservo.components.declare import Component, Param, Signal, State, phase
-from fuzzyservo.components.effects import (
-    E,
-    actuator_friction,
-    bristle_rate,
-    friction_force,
+from fuzzyservo.components.effects import E
+from fuzzyservo.components.library.oil import (
+    CHAMBER_EFFECTS,
+    lugre_friction,
+    static_friction,
+    two_chambers,
 )
-from fuzzyservo.components.library.oil import CHAMBER_EFFECTS, two_chambers
 
 _COMMON = (
     Param("stroke", "m", "stroke L", positive=True),
@@ -112,10 +112,7 @@ def piston_mass(P: Any, mass: float) -> float:
     return mass + P.piston_mass
 
 
-_MOTION = ("f_fric", "dx_y", "dx_v", "dx_p_a", "dx_p_b")
-
-
-@phase(*_MOTION)
+@phase("dx_y", "dx_v", "dx_p_a", "dx_p_b")
 def motion(
     p: Any,
     vel: float,
@@ -123,6 +120,7 @@ def motion(
     p_b: float,
     area_a: float,
     area_b: float,
+    f_fric: float,
     f_load: float,
     f_stop: float,
     mass: float,
@@ -133,44 +131,13 @@ def motion(
     vb: float,
     mass_form: float,
     beta: float,
-) -> tuple[float, float, float, float, float]:
-    """Newton's law on the piston with the friction effects' static law, and the chambers."""
-    f_fric = friction_force(vel, p)
+) -> tuple[float, float, float, float]:
+    """Newton's law on the piston, and the chambers."""
     acceleration = (p_a * area_a - p_b * area_b - f_fric - f_load + f_stop) / mass
     dp_a, dp_b = two_chambers(
         q_a, q_b, area_a, area_b, vel, p_a, p_b, q_leak, va, vb, mass_form, beta, p
     )
-    return f_fric, vel, acceleration, dp_a, dp_b
-
-
-@phase(*_MOTION, "dx_z")
-def motion_with_bristles(
-    X: Any,
-    p: Any,
-    vel: float,
-    p_a: float,
-    p_b: float,
-    area_a: float,
-    area_b: float,
-    f_load: float,
-    f_stop: float,
-    mass: float,
-    q_a: float,
-    q_b: float,
-    q_leak: float,
-    va: float,
-    vb: float,
-    mass_form: float,
-    beta: float,
-) -> tuple[float, float, float, float, float, float]:
-    """:func:`motion` with LuGre friction, which reads and moves the bristle state ``z``."""
-    f_fric = actuator_friction(vel, X.z, mass, p)
-    dz = bristle_rate(vel, X.z, p)
-    acceleration = (p_a * area_a - p_b * area_b - f_fric - f_load + f_stop) / mass
-    dp_a, dp_b = two_chambers(
-        q_a, q_b, area_a, area_b, vel, p_a, p_b, q_leak, va, vb, mass_form, beta, p
-    )
-    return f_fric, vel, acceleration, dp_a, dp_b, dz
+    return vel, acceleration, dp_a, dp_b
 
 
 @njit(cache=True)
@@ -225,9 +192,9 @@ def _cylinder(type_name: str, double: bool, doc: str) -> Component:
         code={
             "actuator": (double_rod_areas if double else single_rod_areas, chambers),
             "mass": piston_mass,
-            "motion": motion,
+            "motion": (static_friction, motion),
         },
-        bristle_code={"motion": motion_with_bristles},
+        bristle_code={"motion": (lugre_friction, motion)},
         effects=CHAMBER_EFFECTS,
         initial=_initial(double),
         initial_keys={

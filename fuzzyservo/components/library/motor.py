@@ -19,13 +19,13 @@ from __future__ import annotations
 from typing import Any
 
 from fuzzyservo.components.declare import Component, Param, Signal, State, phase
-from fuzzyservo.components.effects import (
-    E,
-    actuator_friction,
-    bristle_rate,
-    friction_force,
+from fuzzyservo.components.effects import E
+from fuzzyservo.components.library.oil import (
+    CHAMBER_EFFECTS,
+    lugre_friction,
+    static_friction,
+    two_chambers,
 )
-from fuzzyservo.components.library.oil import CHAMBER_EFFECTS, two_chambers
 
 
 def _initial(v: dict[str, float], ctx: dict[str, float]) -> dict[str, float]:
@@ -55,10 +55,7 @@ def shaft_inertia(P: Any, mass: float) -> float:
     return mass + P.inertia
 
 
-_MOTION = ("f_fric", "dx_theta", "dx_w", "dx_p_a", "dx_p_b")
-
-
-@phase(*_MOTION)
+@phase("dx_theta", "dx_w", "dx_p_a", "dx_p_b")
 def motion(
     P: Any,
     p: Any,
@@ -67,6 +64,7 @@ def motion(
     p_b: float,
     area_a: float,
     area_b: float,
+    f_fric: float,
     f_load: float,
     mass: float,
     q_a: float,
@@ -74,9 +72,8 @@ def motion(
     q_leak: float,
     mass_form: float,
     beta: float,
-) -> tuple[float, float, float, float, float]:
-    """Torque balance on the shaft with the friction effects' static law; the ports."""
-    f_fric = friction_force(vel, p)
+) -> tuple[float, float, float, float]:
+    """Torque balance on the shaft, and the ports."""
     acceleration = (P.hydromechanical_efficiency * (p_a - p_b) * area_a - f_fric - f_load) / mass
     dp_a, dp_b = two_chambers(
         q_a,
@@ -93,47 +90,7 @@ def motion(
         beta,
         p,
     )
-    return f_fric, vel, acceleration, dp_a, dp_b
-
-
-@phase(*_MOTION, "dx_z")
-def motion_with_bristles(
-    P: Any,
-    X: Any,
-    p: Any,
-    vel: float,
-    p_a: float,
-    p_b: float,
-    area_a: float,
-    area_b: float,
-    f_load: float,
-    mass: float,
-    q_a: float,
-    q_b: float,
-    q_leak: float,
-    mass_form: float,
-    beta: float,
-) -> tuple[float, float, float, float, float, float]:
-    """:func:`motion` with LuGre friction, which reads and moves the bristle state ``z``."""
-    f_fric = actuator_friction(vel, X.z, mass, p)
-    dz = bristle_rate(vel, X.z, p)
-    acceleration = (P.hydromechanical_efficiency * (p_a - p_b) * area_a - f_fric - f_load) / mass
-    dp_a, dp_b = two_chambers(
-        q_a,
-        q_b,
-        area_a,
-        area_b,
-        vel,
-        p_a,
-        p_b,
-        q_leak,
-        P.volume_a,
-        P.volume_b,
-        mass_form,
-        beta,
-        p,
-    )
-    return f_fric, vel, acceleration, dp_a, dp_b, dz
+    return vel, acceleration, dp_a, dp_b
 
 
 COMPONENTS = (
@@ -172,8 +129,8 @@ COMPONENTS = (
             Signal("t_friction", "N*m", "f_fric", "friction of the friction effects"),
             Signal("q_leak", "m^3/s", "q_leak", "cross-port leakage A→B"),
         ),
-        code={"actuator": shaft, "mass": shaft_inertia, "motion": motion},
-        bristle_code={"motion": motion_with_bristles},
+        code={"actuator": shaft, "mass": shaft_inertia, "motion": (static_friction, motion)},
+        bristle_code={"motion": (lugre_friction, motion)},
         effects=CHAMBER_EFFECTS,
         initial=_initial,
         initial_keys={

@@ -6,7 +6,14 @@ from typing import Any
 
 from fuzzyservo._jit import njit
 from fuzzyservo.components.declare import Component, Param, phase
-from fuzzyservo.components.effects import E, bulk_modulus, chamber_modulus
+from fuzzyservo.components.effects import (
+    E,
+    actuator_friction,
+    bristle_rate,
+    bulk_modulus,
+    chamber_modulus,
+    friction_force,
+)
 
 #: the effects an actuator with :func:`two_chambers` reads: friction on its motion, the
 #: leakages and the air in the law below (cylinders and motors declare these alike)
@@ -49,6 +56,19 @@ def two_chambers(
     ea = chamber_modulus(p_a, na - ma / beta, beta, p)
     eb = chamber_modulus(p_b, nb + mb / beta, beta, p)
     return (ea * na - ma * (ea / beta)) / volume_a, (eb * nb + mb * (eb / beta)) / volume_b
+
+
+@phase("f_fric")
+def static_friction(p: Any, vel: float) -> float:
+    """An actuator's friction under the friction effects' static law."""
+    return friction_force(vel, p)
+
+
+@phase("f_fric", "dx_z")
+def lugre_friction(X: Any, p: Any, vel: float, mass: float) -> tuple[float, float]:
+    """An actuator's friction under LuGre's law, which reads and moves the actuator's
+    bristle state ``z`` (a composition that carries the ``bristles`` states)."""
+    return actuator_friction(vel, X.z, mass, p), bristle_rate(vel, X.z, p)
 
 
 @phase("beta", "p_lam", "mass_form")

@@ -136,7 +136,7 @@ def phase(*returns: str) -> Callable[[Callable[..., Any]], Any]:
     that order (one name: the value itself; several: a tuple)."""
 
     def compiled(function: Callable[..., Any]) -> Any:
-        dispatcher = njit(cache=True, inline="always")(function)
+        dispatcher = njit(cache=True)(function)
         dispatcher.returns = returns
         return dispatcher
 

@@ -183,7 +183,8 @@ def test_phase_functions_are_joined_by_argument_name() -> None:
         states=(State("y", "m", "y", "motion", 1e-6, 1e-3),),
         code={"load": _spring_force},
     )
-    calls = _Calls({("ld", "k"): (False, 20)}, {("ld", "y"): 3}, bristles=False)
+    calls = _Calls({("ld", "k"): (False, 20)}, {("ld", "y"): 3})
+    calls.circuit.add("f_load")  # as compose sets it before the first phase
     assert calls.records("ld", load) == ["ld_P = _c0(p[20])", "ld_X = _c1(x[3])"]
     line = calls.call("ld", load, "load", _spring_force)
     assert line == "ld_f, f_load, dx[3] = _c2(ld_P, ld_X, f_load)"

@@ -14,11 +14,13 @@ flat float vector of :data:`NN_SIZE` entries, in this order:
 from __future__ import annotations
 
 import math
+from typing import Any
 
 import numpy as np
 
 from fuzzyservo._jit import njit
-from fuzzyservo.components.effects import port_pressure
+from fuzzyservo.components.declare import phase
+from fuzzyservo.components.effects import E, port_pressure
 from fuzzyservo.components.orifice import signed_sqrt_flow
 
 NN_INPUTS = 4
@@ -83,6 +85,25 @@ def metering_edges(
         _edge(c_pb, ps - pb, p_lam),
         _edge(c_bt, pb - pt, p_lam),
     )
+
+
+@phase("q_pa", "q_at", "q_pb", "q_bt", "q_va", "q_vb", "q_supply", "q_tank")
+def four_edges(
+    p: Any,
+    c_pa: float,
+    c_pb: float,
+    p_s: float,
+    p_t: float,
+    p_a_port: float,
+    p_b_port: float,
+    p_lam: float,
+) -> tuple[float, float, float, float, float, float, float, float]:
+    """A 4-way valve's edges as a phase: P→A and B→T open with ``c_pa``, P→B and A→T
+    with ``c_pb`` (:func:`metering_edges`); the flows out of ports A and B, from P, to T."""
+    q_pa, q_at, q_pb, q_bt = metering_edges(
+        c_pa, c_pb, c_pb, c_pa, p_s, p_t, p_a_port, p_b_port, p[E.line_resistance_pa_s_m3], p_lam
+    )
+    return q_pa, q_at, q_pb, q_bt, q_pa - q_at, q_pb - q_bt, q_pa + q_pb, q_at + q_bt
 
 
 @njit(cache=True, inline="always")

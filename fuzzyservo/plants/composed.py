@@ -171,7 +171,7 @@ def _compose(parts: tuple[tuple[str, ...], ...], bristles: bool) -> PlantModel:
     if len(set(state_names)) != len(state_names):
         raise CompositionError(f"two components declare the same state name: {state_names}")
 
-    calls = _Calls(param_index, state_index, bristles, axis_of)
+    calls = _Calls(param_index, state_index, axis_of)
     # the body: phases in order, instances in file order; defaults where a role is absent
     body: list[str] = []
     for axis in axes:
@@ -182,12 +182,10 @@ def _compose(parts: tuple[tuple[str, ...], ...], bristles: bool) -> PlantModel:
     lined = {axis_of[n] for n, c in instances if c.role == "line"}
     for phase in PHASES:
         for axis in axes:
-            pairs = {"line": ("p_a_port", "p_a", "p_b_port", "p_b"),
-                     "line_flow": ("q_a", "q_va", "q_b", "q_vb")}.get(phase)  # fmt: skip
-            if pairs and axis not in lined:
-                names = [_local(axis, v) for v in pairs]
-                body += [f"{names[0]} = {names[1]}", f"{names[2]} = {names[3]}"]
-                calls.circuit |= {names[0], names[2]}
+            if phase in _WITHOUT_LINES and axis not in lined:
+                for target, source in _WITHOUT_LINES[phase]:
+                    body.append(f"{_local(axis, target)} = {_local(axis, source)}")
+                    calls.circuit.add(_local(axis, target))
         for name, comp in instances:
             functions = (bristles and comp.bristle_code.get(phase)) or comp.code.get(phase)
             if functions is not None:
@@ -250,7 +248,9 @@ def _compose(parts: tuple[tuple[str, ...], ...], bristles: bool) -> PlantModel:
         input=(input_name, input_unit),
         load=next(iter(takers.values())).load if takers else actuator.load or ("f_load", "N"),
         initial_keys=initial_keys,
-        initial_state=lambda params, **kw: _initial_state(model, instances, axis_of, params, kw),
+        initial_state=lambda params, **kw: _initial_state(
+            model, instances, axis_of, axes, params, kw
+        ),
         state_scale=lambda params: scale.copy(),
         typical_state=lambda params: typical.copy(),
         description=" + ".join(f"{n} ({c.type})" for n, c in instances),
@@ -280,14 +280,13 @@ class _Calls:
         self,
         param_index: Mapping[tuple[str, str], tuple[bool, int]],
         state_index: Mapping[tuple[str, str], int],
-        bristles: bool,
         axis_of: Mapping[str, str] | None = None,
     ) -> None:
-        self.param_index, self.state_index, self.bristles = param_index, state_index, bristles
+        self.param_index, self.state_index = param_index, state_index
         self.axis_of = axis_of or {}
         self.imports: list[str] = ["from fuzzyservo.components.declare import record"]
         self.aliases: dict[int, str] = {}  # id(function or record) -> its name in the source
-        self.circuit: set[str] = {"mass", "f_load"}  # circuit variables set so far
+        self.circuit: set[str] = set()  # circuit variables set so far
         self.own: dict[str, set[str]] = {}  # instance -> the values it returned so far
 
     def _alias(self, thing: Any, statement: str) -> str:
@@ -404,6 +403,11 @@ class _Calls:
 _SHARED_ROLES = ("fluid", "supply", "accumulator")
 # circuit variables every axis shares: the fluid's, the supply's pressures and its flows
 _SHARED = ("beta", "p_lam", "mass_form", "p_s", "p_t", "q_supply", "q_tank")
+# an axis without lines: its valve's ports see the chambers, its chambers the valve's flows
+_WITHOUT_LINES = {
+    "line": (("p_a_port", "p_a"), ("p_b_port", "p_b")),
+    "line_flow": (("q_a", "q_va"), ("q_b", "q_vb")),
+}
 # what each axis's valve draws from the supply and returns, summed for the supply
 _SUPPLY_FLOWS = ("q_supply", "q_tank")
 
@@ -521,6 +525,7 @@ def _initial_state(
     model: Any,
     instances: list[tuple[str, Component]],
     axis_of: dict[str, str],
+    axes: tuple[str, ...],
     params: Any,
     given: dict[str, float],
 ) -> np.ndarray:
@@ -528,7 +533,6 @@ def _initial_state(
     values (``p_s``, ``p_t``, ...) with the shared components and those of its own axis;
     then, unless the chamber pressures are given, once more with each axis's static load
     force at that state so that every piston starts in balance."""
-    axes = tuple(dict.fromkeys(axis_of[n] for n, c in instances if c.role == "actuator"))
 
     def once(static_force: dict[str, float]) -> np.ndarray:
         shared: dict[str, float] = dict(given)

@@ -15,8 +15,7 @@ import math
 from typing import Any
 
 from fuzzyservo.components.declare import Component, Param, Signal, phase
-from fuzzyservo.components.effects import E
-from fuzzyservo.components.valves import metering_edges, polynomial_flow
+from fuzzyservo.components.valves import four_edges, polynomial_flow
 
 _SIGNALS = (
     Signal("q_a", "m^3/s", "q_va", "flow out of port A"),
@@ -26,37 +25,27 @@ _SIGNALS = (
 )
 
 
-@phase("q_pa", "q_at", "q_pb", "q_bt", "q_va", "q_vb", "q_supply", "q_tank")
-def edges(
-    p: Any, k: float, p_s: float, p_t: float, p_a_port: float, p_b_port: float, p_lam: float
-) -> tuple[float, float, float, float, float, float, float, float]:
-    """The four edges at the coefficient ``k`` (positive opens P→A and B→T)."""
-    kp = max(k, 0.0)
-    kn = max(-k, 0.0)
-    q_pa, q_at, q_pb, q_bt = metering_edges(
-        kp, kn, kn, kp, p_s, p_t, p_a_port, p_b_port, p[E.line_resistance_pa_s_m3], p_lam
-    )
-    return q_pa, q_at, q_pb, q_bt, q_pa - q_at, q_pb - q_bt, q_pa + q_pb, q_at + q_bt
-
-
-# the opening runs apart from the edges: it reads no pressure, so the loop's Jacobian
-# does not evaluate it again for each pressure it perturbs
-@phase("k")
-def measured_curve(P: Any, u: float) -> float:
-    """The edges' coefficient Q(U)/√Δp_nom, U clipped to ±U_max."""
+# the openings run apart from the edges (components/valves.py four_edges): they read no
+# pressure, so the loop's Jacobian does not evaluate them again for each pressure it perturbs
+@phase("c_pa", "c_pb")
+def measured_curve(P: Any, u: float) -> tuple[float, float]:
+    """The edges' coefficients from Q(U)/√Δp_nom, U clipped to ±U_max (positive opens
+    P→A and B→T)."""
     umax = P.control_voltage_max
     uc = min(max(u, -umax), umax)
-    return polynomial_flow(
+    k = polynomial_flow(
         uc, umax, P.flow_c0, P.flow_c1, P.flow_c2, P.flow_c3, P.flow_c4
     ) / math.sqrt(P.nominal_pressure_drop)
+    return max(k, 0.0), max(-k, 0.0)
 
 
-@phase("k")
-def linear_orifice(P: Any, u: float) -> float:
-    """The edges' coefficient C·(U/U_max), U clipped to ±U_max."""
+@phase("c_pa", "c_pb")
+def linear_orifice(P: Any, u: float) -> tuple[float, float]:
+    """The edges' coefficients C·(U/U_max), U clipped to ±U_max."""
     umax = P.control_voltage_max
     uc = min(max(u, -umax), umax)
-    return P.orifice_coefficient * uc / umax
+    k = P.orifice_coefficient * uc / umax
+    return max(k, 0.0), max(-k, 0.0)
 
 
 _RANGE = Param("control_voltage_max", "V", "U_max: the curve's range", positive=True)
@@ -82,7 +71,7 @@ COMPONENTS = (
             ),
         ),
         signals=_SIGNALS,
-        code={"valve": (measured_curve, edges)},
+        code={"valve": (measured_curve, four_edges)},
         effects=("line_resistance",),
         scales=lambda v: {
             "flow": abs(
@@ -108,7 +97,7 @@ COMPONENTS = (
             ),
         ),
         signals=_SIGNALS,
-        code={"valve": (linear_orifice, edges)},
+        code={"valve": (linear_orifice, four_edges)},
         effects=("line_resistance",),
         scales=lambda v: {
             "flow_coefficient": v["orifice_coefficient"],

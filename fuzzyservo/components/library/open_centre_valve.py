@@ -16,15 +16,15 @@ from __future__ import annotations
 from typing import Any
 
 from fuzzyservo.components.declare import Component, Param, Signal, phase
-from fuzzyservo.components.effects import E
-from fuzzyservo.components.valves import metering_edges
+from fuzzyservo.components.valves import four_edges
 
 
-# the openings run apart from the flows: they read no pressure, so the loop's Jacobian
-# does not evaluate them again for each pressure it perturbs
-@phase("c14", "c23")
+# the openings run apart from the slots' flows (components/valves.py four_edges): they
+# read no pressure, so the loop's Jacobian does not evaluate them again per pressure
+@phase("c_pa", "c_pb")
 def openings(P: Any, u: float) -> tuple[float, float]:
-    """The slots' coefficients at Δi = u − I_bias, each shut beyond its closing current."""
+    """The slots' coefficients at Δi = u − I_bias (slots 1 and 4: P→A, B→T; slots 2 and
+    3: A→T, P→B), each shut beyond its closing current."""
     di = u - P.bias_current
     c14 = P.slot_coefficient_a + P.slot_coefficient_b * di
     c23 = P.slot_coefficient_a - P.slot_coefficient_b * di
@@ -33,24 +33,6 @@ def openings(P: Any, u: float) -> tuple[float, float]:
     if di <= -P.closing_current:
         c14 = 0.0
     return max(c14, 0.0), max(c23, 0.0)
-
-
-@phase("q1", "q2", "q3", "q4", "q_va", "q_vb", "q_supply", "q_tank")
-def slots(
-    p: Any,
-    c14: float,
-    c23: float,
-    p_s: float,
-    p_t: float,
-    p_a_port: float,
-    p_b_port: float,
-    p_lam: float,
-) -> tuple[float, ...]:
-    """The four slots' flows."""
-    q1, q2, q3, q4 = metering_edges(
-        c14, c23, c23, c14, p_s, p_t, p_a_port, p_b_port, p[E.line_resistance_pa_s_m3], p_lam
-    )
-    return q1, q2, q3, q4, q1 - q2, q3 - q4, q1 + q3, q2 + q4
 
 
 COMPONENTS = (
@@ -68,16 +50,16 @@ COMPONENTS = (
             Param("bias_current", "A", "I_bias: the current of hydraulic null", default=0.0),
         ),
         signals=(
-            Signal("q1", "m^3/s", "q1", "slot 1: P→A"),
-            Signal("q2", "m^3/s", "q2", "slot 2: A→T"),
-            Signal("q3", "m^3/s", "q3", "slot 3: P→B"),
-            Signal("q4", "m^3/s", "q4", "slot 4: B→T"),
+            Signal("q1", "m^3/s", "q_pa", "slot 1: P→A"),
+            Signal("q2", "m^3/s", "q_at", "slot 2: A→T"),
+            Signal("q3", "m^3/s", "q_pb", "slot 3: P→B"),
+            Signal("q4", "m^3/s", "q_bt", "slot 4: B→T"),
             Signal("q_a", "m^3/s", "q_va", "flow out of port A"),
             Signal("q_b", "m^3/s", "q_vb", "flow out of port B"),
             Signal("q_supply", "m^3/s", "q_supply", "flow drawn from P"),
             Signal("q_tank", "m^3/s", "q_tank", "flow returned to T"),
         ),
-        code={"valve": (openings, slots)},
+        code={"valve": (openings, four_edges)},
         effects=("line_resistance",),
         scales=lambda v: {
             "flow_coefficient": v["slot_coefficient_a"]

@@ -83,6 +83,30 @@ def _composition(node: Node, unknowns: dict[str, tuple[float, float]]) -> tuple[
     return plant, _build_params(plant, values, node)
 
 
+def _fmu(
+    node: Node, params_node: Node, unknowns: dict[str, tuple[float, float]]
+) -> tuple[PlantModel, Any]:
+    """``plant.fmu``: {file (relative to the rig file), input, load, signals}; the FMU's
+    parameters under ``plant.parameters``."""
+    from fuzzyservo.plants.fmu import FmuPlantError, fmu_plant
+
+    node.only(("file", "input", "load", "signals", "source", "note"))
+    signals = node.child("signals", default={})
+    for key, value in signals.data.items():
+        if not isinstance(value, str):
+            signals.fail("must name an FMU variable (e.g. position: x0)", key=str(key))
+    try:
+        plant = fmu_plant(
+            Path(node.file).parent / node.str("file"),
+            input=node.str("input") if node.has("input") else None,
+            load=node.str("load") if node.has("load") else None,
+            signals={str(k): v for k, v in signals.data.items()} or None,
+        )
+    except FmuPlantError as exc:
+        node.fail(str(exc))
+    return plant, _params(plant, params_node, unknowns)
+
+
 def _quantity(
     node: Node,
     key: str,

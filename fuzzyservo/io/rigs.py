@@ -6,7 +6,8 @@ Layout of a rig file (every number as ``{value, unit, source}``; see ``rigs/``):
     title: ...
     source: ...
     plant:    {components: {valve: {type: servo_valve, parameters: {...}}, ...}, initial: {...}}
-      # a composition of components (fuzzyservo.components.library)
+      # a composition of components (fuzzyservo.components.library), or a plant FMU:
+    plant:    {fmu: {file: plant.fmu, input: u, load: f, signals: {y: x}}, parameters: {...}}
     feedback: {signal: y, offset: ..., gain: ..., ratio: ...,
                noise: ..., adc_bits: ..., adc_lower: ..., adc_upper: ...}  # noise: std dev
     sensors:  {name: {signal, offset, gain, ratio}}          # optional extra readings
@@ -46,7 +47,7 @@ from fuzzyservo.atomic import write_text
 from fuzzyservo.errors import ConfigError, excerpt
 from fuzzyservo.io._rig_loop import _actuator, _scenario, _sensor
 from fuzzyservo.io._rig_measured import _measured
-from fuzzyservo.io._rig_plant import _composition, _effects, _initial, _params
+from fuzzyservo.io._rig_plant import _composition, _effects, _fmu, _initial, _params
 from fuzzyservo.io._yaml import Node, read_yaml
 from fuzzyservo.io.paths import name_problem, shipped_or_path
 from fuzzyservo.limits import duration_problem, period_problem
@@ -98,7 +99,12 @@ def rig_from_data(
             "the plant from components under 'plant.components' (e.g. rigs/dinca_cylinder.yaml)",
             key="type",
         )
-    if plant_node.has("components") or not plant_node.has("type"):
+    if plant_node.has("fmu"):
+        plant_node.only(("fmu", "parameters", "initial"))
+        plant, params = _fmu(
+            plant_node.child("fmu"), plant_node.child("parameters", default={}), unknowns
+        )
+    elif plant_node.has("components") or not plant_node.has("type"):
         plant_node.only(("components", "initial"))
         plant, params = _composition(plant_node.child("components"), unknowns)
     else:

@@ -55,14 +55,30 @@ class PlantModel:
     # how a composition is made again from its parts and bristle form (compose itself:
     # a module-level function, so a plant pickles as its parts); None for any other plant
     rebuild: Callable[[tuple[tuple[str, str], ...], bool], PlantModel] | None = None
+    # numbers the compiled kernels read after the packed parameters, for a parameter set
+    # (an FMU plant's instance and C function addresses, plants/_fmi_calls.py); None: none.
+    # Such a plant holds state outside the loop, so its runs are never batched in parallel
+    attach: Callable[[Any], np.ndarray] | None = None
+    # how any other plant is made again in another process: (function, arguments)
+    recipe: tuple[Callable[..., PlantModel], tuple[Any, ...]] | None = None
 
     def __reduce_ex__(self, protocol: int) -> Any:
         """A composition pickles as its parts (its functions are closures made at load
-        time; :func:`~fuzzyservo.plants.composed.compose` rebuilds the same plant), any
-        other plant as its fields."""
+        time; :func:`~fuzzyservo.plants.composed.compose` rebuilds the same plant), a plant
+        with a ``recipe`` as that, any other plant as its fields."""
+        if self.recipe is not None:
+            return self.recipe
         if self.rebuild is not None:
             return self.rebuild, (self.components, bool(self.bristles))
         return super().__reduce_ex__(protocol)
+
+    def packed(self, params: Any) -> np.ndarray:
+        """The vector ``p`` the compiled loop reads: ``params`` packed
+        (:func:`fuzzyservo.params.pack`), then what the plant attaches for them."""
+        from fuzzyservo.params import pack
+
+        p = pack(params)
+        return p if self.attach is None else np.concatenate([p, self.attach(params)])
 
     def for_params(self, params: Any) -> PlantModel:
         """The form of this plant that simulates ``params``: a composition carries LuGre
@@ -110,6 +126,11 @@ class PlantModel:
             return (
                 f"effect {effect!r} is not modelled by this composition: none of its components "
                 f"reads it; components that do: {readers}"
+            )
+        if self.attach is not None:  # a black box (an FMU): only the loop's stages reach it
+            return (
+                f"effect {effect!r} is not applicable: it acts inside the plant, a black box "
+                f"({self.description}); the effects on its command are {list(self.effects)}"
             )
         return (
             f"effect {effect!r} is not modelled for plant type {self.type_name!r}; "

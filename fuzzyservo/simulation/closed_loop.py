@@ -78,8 +78,6 @@ def prepare(
     (so both paths see the same sequence and runs reproduce); ``noise`` None follows
     the scenario's ``noise`` switch.
     """
-    from fuzzyservo.params import pack
-
     sc = scenario if isinstance(scenario, Scenario) else rig.scenario(scenario)
     params = rig.params_for(sc)
     duration = sc.duration_s if duration_s is None else float(duration_s)
@@ -105,7 +103,7 @@ def prepare(
             typical = np.append(typical, rate)
     if not controller.has_limits:
         controller = controller.with_limits(*rig.actuator.command_limits)
-    p = pack(params)
+    p = plant.packed(params)
     std = rig.feedback.noise_std if (sc.noise if noise is None else noise) else 0.0
     draws = np.random.default_rng(noise_seed).standard_normal(n) * std if std > 0 else np.zeros(n)
     return Prepared(
@@ -199,7 +197,7 @@ def simulate_batch(
     stepped in Python (an FMU)."""
     from numba.typed import List
 
-    if getattr(controller, "stepped", False):
+    if getattr(controller, "stepped", False) or any(r.plant.attach for r in rigs):
         return [simulate(r, controller, scenario, tol=tol, noise_seed=n)
                 for r, n in zip(rigs, noise_seeds, strict=True)]  # fmt: skip
     preps = [prepare(r, controller, scenario, noise_seed=n) for r, n in zip(rigs, noise_seeds,

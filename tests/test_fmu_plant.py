@@ -24,32 +24,11 @@ from fuzzyservo.errors import ConfigError
 
 fmpy = pytest.importorskip("fmpy", reason="FMU plants need FMPy (the fmi extra)")
 
-#: a linear plant of first order on the first input: dx1/dt = A[1]·x1 + u1 (A[1] = -2 /s),
-#: the other two states unforced; y[1] = x1 + u1 (StateSpace's D is the identity)
-STATE_SPACE_RIG = {
-    "name": "state_space",
-    "title": "The Reference FMU StateSpace as a plant",
-    "plant": {
-        "fmu": {"file": "StateSpace_fmi3.fmu", "input": "u[1]", "signals": {"y": "y[1]"}},
-        "parameters": {"A[1]": {"value": -2, "unit": "1", "source": "test: a stable pole"}},
-    },
-    "feedback": {"signal": "x[1]", "gain": {"value": 1, "unit": "V"}},
-    "actuator": {
-        "gain": {"value": 1, "unit": "1/V"},
-        "lower": {"value": -10, "unit": "1"},
-        "upper": {"value": 10, "unit": "1"},
-    },
-    "controller": {"sample_time": {"value": 10, "unit": "ms"}},
-    "output": {"signal": "x[1]"},
-    "scenarios": {
-        "step": {
-            "duration": {"value": 3, "unit": "s"},
-            "reference": {
-                "type": "steps", "unit": "V", "initial": 0, "times_s": [0.5, 2], "values": [1, 0.5]
-            },
-        }
-    },
-}  # fmt: skip
+#: the docs' example (docs/fmu-plants.md): the Reference FMU StateSpace, first order on its
+#: first input, dx1/dt = A[1]·x1 + u1 with A[1] = -2 /s, the other two states unforced;
+#: y[1] = x1 + u1 (StateSpace's D is the identity)
+EXAMPLE = Path(__file__).resolve().parents[1] / "examples" / "fmu" / "state_space.yaml"
+STATE_SPACE_RIG = yaml.safe_load(EXAMPLE.read_text(encoding="utf-8"))
 
 VAN_DER_POL_RIG = {
     "name": "van_der_pol",
@@ -57,14 +36,14 @@ VAN_DER_POL_RIG = {
         "fmu": {"file": "VanDerPol.fmu", "signals": {"position": "x0", "speed": "x1"}},
         "parameters": {"mu": {"value": 1, "unit": "1", "source": "Reference FMUs default"}},
     },
-    "feedback": {"signal": "x0", "gain": {"value": 1, "unit": "V"}},
+    "feedback": {"signal": "position", "gain": {"value": 1, "unit": "V"}},
     "actuator": {
         "gain": {"value": 1, "unit": "1/V"},
         "lower": {"value": -10, "unit": "1"},
         "upper": {"value": 10, "unit": "1"},
     },
     "controller": {"sample_time": {"value": 10, "unit": "ms"}},
-    "output": {"signal": "x0"},
+    "output": {"signal": "position"},
     "scenarios": {
         "free": {
             "duration": {"value": 20, "unit": "s"},
@@ -80,6 +59,7 @@ def fmus(tmp_path_factory) -> Path:
     for model, version in (("VanDerPol", 2), ("VanDerPol", 3), ("StateSpace", 3)):
         build(model, version, folder)
     build("BouncingBall", 2, folder)
+    (folder / "StateSpace.fmu").write_bytes((folder / "StateSpace_fmi3.fmu").read_bytes())
     return folder
 
 
@@ -96,7 +76,7 @@ def test_van_der_pol_runs_as_fmpy_simulates_it(fmus, tmp_path, version):
     fmu = fmus / f"VanDerPol_fmi{version}.fmu"
     (tmp_path / "VanDerPol.fmu").write_bytes(fmu.read_bytes())
     rig = fs.load_rig(write_rig(tmp_path, VAN_DER_POL_RIG))
-    assert rig.plant.states == ("x0", "x1")
+    assert rig.plant.states == ("position", "speed")  # named by the signals reading them
     assert f"FMI {version}.0 model exchange" in rig.plant.description
     run = fs.simulate(rig, fs.load_controller("p_k10"), noise=False, tol=1e-6)
     assert run.status == "ok"
@@ -111,20 +91,20 @@ def test_van_der_pol_runs_as_fmpy_simulates_it(fmus, tmp_path, version):
 def test_state_space_under_p_control_matches_fmpy(fmus, tmp_path):
     """A P controller drives u[1]; FMPy, fed the same held command, gives the same y[1]
     (a direct feedthrough) at every sample within 1e-6."""
-    (tmp_path / "StateSpace_fmi3.fmu").write_bytes((fmus / "StateSpace_fmi3.fmu").read_bytes())
+    (tmp_path / "StateSpace.fmu").write_bytes((fmus / "StateSpace.fmu").read_bytes())
     rig = fs.load_rig(write_rig(tmp_path, STATE_SPACE_RIG))
-    assert rig.plant.states == ("x[1]", "x[2]", "x[3]")
+    assert rig.plant.states == ("x1", "x[2]", "x[3]")
     run = fs.simulate(rig, fs.load_controller("p_k10"), noise=False, tol=1e-6)
     assert run.status == "ok"
-    # P 10 on dx/dt = -2x + u settles at x = 10/12 of the reference
-    assert run.signal("x[1]")[190] == pytest.approx(10 / 12, rel=1e-3)
+    # P 10 on dx/dt = -2x + u settles at x = 10/12 of the reference (docs/fmu-plants.md)
+    assert run.signal("x1")[190] == pytest.approx(10 / 12, rel=1e-3)
     t, held = run.t, run.actuator
     inputs = np.zeros(2 * t.size - 1, dtype=[("time", float), ("u", float, (3,))])
     inputs["time"] = np.repeat(t, 2)[1:]
     inputs["u"][:, 0] = np.repeat(held, 2)[:-1]
     inputs["u"][:, 1:] = (2.0, 3.0)  # the other inputs at their start values
     ref = fmpy.simulate_fmu(
-        str(tmp_path / "StateSpace_fmi3.fmu"), fmi_type="ModelExchange", stop_time=t[-1],
+        str(tmp_path / "StateSpace.fmu"), fmi_type="ModelExchange", stop_time=t[-1],
         output_interval=0.01, relative_tolerance=1e-12, input=inputs, output=["y"],
         start_values={"A": [-2.0, 0, 0, 0, 1, 0, 0, 0, 1]},
     )  # fmt: skip
@@ -135,7 +115,7 @@ def test_state_space_under_p_control_matches_fmpy(fmus, tmp_path):
 
 def test_an_fmu_plant_pickles_as_its_file_and_mapping(fmus, tmp_path):
     """Worker processes (tuning, calibration) rebuild the plant and its parameters."""
-    (tmp_path / "StateSpace_fmi3.fmu").write_bytes((fmus / "StateSpace_fmi3.fmu").read_bytes())
+    (tmp_path / "StateSpace.fmu").write_bytes((fmus / "StateSpace.fmu").read_bytes())
     rig = fs.load_rig(write_rig(tmp_path, STATE_SPACE_RIG))
     again = pickle.loads(pickle.dumps(rig))
     assert again.plant is rig.plant  # the cached plant of the same file and mapping
@@ -156,7 +136,7 @@ def test_an_fmu_plant_pickles_as_its_file_and_mapping(fmus, tmp_path):
     ],
 )
 def test_a_mapping_that_does_not_fit_is_one_line(fmus, tmp_path, edit, hint):
-    for name in ("StateSpace_fmi3.fmu", "BouncingBall_fmi2.fmu"):
+    for name in ("StateSpace.fmu", "BouncingBall_fmi2.fmu"):
         (tmp_path / name).write_bytes((fmus / name).read_bytes())
     _fmi1_copy(fmus / "VanDerPol_fmi2.fmu", tmp_path / "Old.fmu")
     data = json.loads(json.dumps(STATE_SPACE_RIG))
@@ -184,7 +164,7 @@ def _fmi1_copy(source: Path, target: Path) -> None:
 def test_commands_run_on_an_fmu_plant(fmus, tmp_path):
     """compare, margins, robustness (sampling the FMU's parameter A[1]) and tune on the
     StateSpace plant from the command line."""
-    (tmp_path / "StateSpace_fmi3.fmu").write_bytes((fmus / "StateSpace_fmi3.fmu").read_bytes())
+    (tmp_path / "StateSpace.fmu").write_bytes((fmus / "StateSpace.fmu").read_bytes())
     rig = write_rig(tmp_path, STATE_SPACE_RIG)
     study = {
         "name": "fmu_p",
@@ -227,11 +207,9 @@ def test_calibrate_fits_an_fmu_parameter_with_an_interval(fmus, tmp_path):
     and effects inside the black box are reported as not applicable, not tried."""
     from fuzzyservo.calibration.synthetic import synthetic_run
 
-    (tmp_path / "StateSpace_fmi3.fmu").write_bytes((fmus / "StateSpace_fmi3.fmu").read_bytes())
+    (tmp_path / "StateSpace.fmu").write_bytes((fmus / "StateSpace.fmu").read_bytes())
     data = json.loads(json.dumps(STATE_SPACE_RIG))
-    data["plant"]["fmu"]["signals"] = {"x1": "x[1]", "y": "y[1]"}  # the state by a name
-    data["feedback"].update(signal="x1", noise={"value": 2, "unit": "mV"})
-    data["output"]["signal"] = "x1"
+    data["feedback"].update(noise={"value": 2, "unit": "mV"})
     truth = json.loads(json.dumps(data))
     truth["plant"]["parameters"]["A[1]"]["value"] = -1.4
     data["plant"]["parameters"]["A[1]"]["fit"] = [-4, -0.5]

@@ -102,8 +102,9 @@ SNIPPET = re.compile(r'^\s*--8<--\s+"([^"]+)"\s*$', re.MULTILINE)
 
 
 def _as_rendered(page: Path) -> str:
-    """The page's text with the repository files it includes (pymdownx snippets) put in."""
-    return SNIPPET.sub(lambda m: (ROOT / m.group(1)).read_text(encoding="utf-8"),
+    """The page's text with the repository files it includes (pymdownx snippets) put in,
+    whole (``"file:9:21"`` includes lines 9-21 of it: the check reads them all)."""
+    return SNIPPET.sub(lambda m: (ROOT / m.group(1).split(":")[0]).read_text(encoding="utf-8"),
                        page.read_text(encoding="utf-8"))  # fmt: skip
 
 

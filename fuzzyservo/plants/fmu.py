@@ -70,6 +70,7 @@ class _Variable:
     variability: str
     start: tuple[float, ...]
     description: str
+    nominal: float = 1.0
 
 
 def fmu_plant(
@@ -109,7 +110,7 @@ def _fmu_plant(
         )
     version = int(md.fmiVersion.split(".")[0])
     variables = _variables(md, name)
-    states = _states(md, variables)
+    states = _states(md)
     nx = sum(variables[s].size for s in states)
 
     def element(ref: str, what: str, *, inputs_only: bool = False) -> tuple[_Variable, int]:
@@ -184,7 +185,8 @@ def _fmu_plant(
         reads,
     )
     pool = _Pool(file, md, unzipped, version, nx, parameters, slots)
-    nominal = np.ones(nx)
+    # a state's size: its nominal value where the FMU declares one, else 1
+    nominal = np.array([variables[s].nominal for s in states for _ in range(variables[s].size)])
     model = PlantModel(
         type_name="fmu",
         binding=binding,
@@ -256,7 +258,7 @@ def _variables(md: Any, name: str) -> dict[str, _Variable]:
         unit = v.unit or (v.declaredType.unit if v.declaredType is not None else None) or "1"
         out[v.name] = _Variable(
             v.name, v.valueReference, size, _si_unit(unit, v.name, name), v.causality,
-            v.variability, start, v.description or "",
+            v.variability, start, v.description or "", abs(float(v.nominal or 1.0)) or 1.0,
         )  # fmt: skip
     return out
 
@@ -278,7 +280,7 @@ def _si_unit(unit: str, variable: str, name: str) -> str:
     return unit
 
 
-def _states(md: Any, variables: dict[str, _Variable]) -> list[str]:
+def _states(md: Any) -> list[str]:
     """The continuous states, in the order of the model description's derivatives."""
     return [d.variable.derivative.name for d in md.derivatives if d.variable.derivative is not None]
 

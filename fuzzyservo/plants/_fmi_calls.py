@@ -93,18 +93,11 @@ def _handle(p: np.ndarray, which: int) -> int:
 
 
 @njit(cache=True)
-def set_reals(p: np.ndarray, vr: np.ndarray, values: np.ndarray, n_values: int) -> int:
-    """``values`` (``n_values`` of them, arrays flattened) into the variables ``vr``."""
-    fn, inst = _handle(p, H_SET_REAL), _handle(p, H_INSTANCE)
-    if _handle(p, H_VERSION) == 2:
-        return call4(fn, inst, vr.ctypes.data, vr.size, values.ctypes.data)
-    return call5(fn, inst, vr.ctypes.data, vr.size, values.ctypes.data, n_values)
-
-
-@njit(cache=True)
-def get_reals(p: np.ndarray, vr: np.ndarray, values: np.ndarray, n_values: int) -> int:
-    """The variables ``vr`` (``n_values`` numbers, arrays flattened) into ``values``."""
-    fn, inst = _handle(p, H_GET_REAL), _handle(p, H_INSTANCE)
+def reals(p: np.ndarray, which: int, vr: np.ndarray, values: np.ndarray, n_values: int) -> int:
+    """``values`` (``n_values`` numbers, arrays flattened) into the variables ``vr``
+    (``which`` = :data:`H_SET_REAL`), or those variables' values into ``values``
+    (:data:`H_GET_REAL`)."""
+    fn, inst = _handle(p, which), _handle(p, H_INSTANCE)
     if _handle(p, H_VERSION) == 2:
         return call4(fn, inst, vr.ctypes.data, vr.size, values.ctypes.data)
     return call5(fn, inst, vr.ctypes.data, vr.size, values.ctypes.data, n_values)
@@ -133,7 +126,7 @@ def set_point(
             buffer[at[0]] = u
         if at[1] >= 0:
             buffer[at[1]] = load
-        status = max(status, set_reals(p, vr_in, buffer, buffer.size))
+        status = max(status, reals(p, H_SET_REAL, vr_in, buffer, buffer.size))
     return status
 
 

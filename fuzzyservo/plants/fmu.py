@@ -369,7 +369,7 @@ def _binding(
 import numpy as np
 
 from fuzzyservo._jit import njit
-from fuzzyservo.plants._fmi_calls import derivatives, get_reals, set_point
+from fuzzyservo.plants._fmi_calls import H_GET_REAL, derivatives, reals, set_point
 
 _NX = {nx}
 _VR_IN = np.array({[v.vr for v in inputs]!r}, dtype=np.uint32)
@@ -392,7 +392,7 @@ def plant_rhs(x, u, f_ext, p, dx):
 def plant_signals(x, u, f_ext, p, out):
     status = set_point(p, x, _NX, _VR_IN, _INPUTS, _AT, u, f_ext)
     values = np.empty(_N_OUT)
-    status = max(status, get_reals(p, _VR_OUT, values, _N_OUT))
+    status = max(status, reals(p, H_GET_REAL, _VR_OUT, values, _N_OUT))
     for k in range(_PICK.size):
         out[k] = values[_PICK[k]] if status <= 1 else np.nan
 

@@ -67,7 +67,6 @@ class _Variable:
     size: int
     unit: str
     causality: str
-    variability: str
     start: tuple[float, ...]
     description: str
     nominal: float = 1.0
@@ -110,8 +109,9 @@ def _fmu_plant(
         )
     version = int(md.fmiVersion.split(".")[0])
     variables = _variables(md, name)
-    states = _states(md)
-    nx = sum(variables[s].size for s in states)
+    # the continuous states, element by element (an array state holds several)
+    elements = [(variables[s], i) for s in _states(md) for i in range(variables[s].size)]
+    nx = len(elements)
 
     def element(ref: str, what: str, *, inputs_only: bool = False) -> tuple[_Variable, int]:
         match = re.fullmatch(r"(.+)\[(\d+)\]", ref)
@@ -162,17 +162,14 @@ def _fmu_plant(
     # signal that reads one, else by their own (``x[2]`` for an array's element)
     named = {(var.name, index): signal for signal, var, index in reads}
     state_names = [
-        named.get((s, i), s if variables[s].size == 1 else f"{s}[{i + 1}]")
-        for s in states
-        for i in range(variables[s].size)
+        named.get((var.name, i), var.name if var.size == 1 else f"{var.name}[{i + 1}]")
+        for var, i in elements
     ]
-    for state, (var, index) in zip(
-        state_names,
-        [(variables[s], i) for s in states for i in range(variables[s].size)],
-        strict=True,
-    ):
-        if state not in {r[0] for r in reads}:
-            reads.append((state, var, index))
+    reads += [
+        (state, var, i)
+        for state, (var, i) in zip(state_names, elements, strict=True)
+        if state not in named.values()
+    ]
 
     parameters = [v for v in variables.values() if v.causality == "parameter" and v.start]
     slots = _slots(parameters)
@@ -186,7 +183,7 @@ def _fmu_plant(
     )
     pool = _Pool(file, md, unzipped, version, nx, parameters, slots)
     # a state's size: its nominal value where the FMU declares one, else 1
-    nominal = np.array([variables[s].nominal for s in states for _ in range(variables[s].size)])
+    nominal = np.array([var.nominal for var, _ in elements])
     model = PlantModel(
         type_name="fmu",
         binding=binding,
@@ -258,7 +255,7 @@ def _variables(md: Any, name: str) -> dict[str, _Variable]:
         unit = v.unit or (v.declaredType.unit if v.declaredType is not None else None) or "1"
         out[v.name] = _Variable(
             v.name, v.valueReference, size, _si_unit(unit, v.name, name), v.causality,
-            v.variability, start, v.description or "", abs(float(v.nominal or 1.0)) or 1.0,
+            start, v.description or "", abs(float(v.nominal or 1.0)) or 1.0,
         )  # fmt: skip
     return out
 

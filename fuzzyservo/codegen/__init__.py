@@ -1,4 +1,5 @@
-"""Code generation: a fuzzy controller as self-contained C99 or IEC 61131-3 Structured Text.
+"""Code generation: a fuzzy controller as self-contained C99 or IEC 61131-3 Structured Text,
+and a rig's composed plant as C99 and an FMU (:func:`plant_fmu`).
 
 The generated code computes the controller step exactly as the compiled evaluator does:
 it embeds the packed parameter vector (:meth:`FuzzyController.pack`) and ports the
@@ -16,11 +17,13 @@ from fuzzyservo.codegen._check import c_compiler, single_precision_error
 from fuzzyservo.codegen._fmi import fmu_model, fmu_sources, model_description
 from fuzzyservo.codegen._fmu import FmuBuild, fmi_headers, fmu_build
 from fuzzyservo.codegen._lut import LutError, lut_error, lut_interp, lut_table
+from fuzzyservo.codegen._plant_c import TranslationError, plant_c_sources
 from fuzzyservo.codegen._st_system import system_st_source
 
 __all__ = [
     "FmuBuild",
     "LutError",
+    "TranslationError",
     "c_compiler",
     "c_sources",
     "fmi_headers",
@@ -32,6 +35,7 @@ __all__ = [
     "lut_interp",
     "lut_table",
     "model_description",
+    "plant_c_sources",
     "single_precision_error",
     "system_c_sources",
     "system_st_source",

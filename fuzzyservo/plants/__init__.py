@@ -61,6 +61,10 @@ class PlantModel:
     attach: Callable[[Any], np.ndarray] | None = None
     # how any other plant is made again in another process: (function, arguments)
     recipe: tuple[Callable[..., PlantModel], tuple[Any, ...]] | None = None
+    # each state as its component names it, ``<instance>.<state>``, and its SI unit (a
+    # composition's: what an exported plant FMU calls its states); empty where unknown
+    state_paths: tuple[str, ...] = ()
+    state_units: tuple[str, ...] = ()
 
     def __reduce_ex__(self, protocol: int) -> Any:
         """A composition pickles as its parts (its functions are closures made at load

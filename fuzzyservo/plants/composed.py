@@ -265,6 +265,8 @@ def _compose(parts: tuple[tuple[str, ...], ...], bristles: bool) -> PlantModel:
         # every pressure a component declares is a node pressure against the tank
         pressures=tuple(name for name in signal_names if units[name] == "Pa"),
         rebuild=compose,
+        state_paths=tuple(f"{name}.{st.name}" for name, _, st in declared),
+        state_units=tuple(_resolve_unit(st.unit, mechanics, input_unit) for _, _, st in declared),
     )
     return model
 

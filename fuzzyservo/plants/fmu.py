@@ -94,7 +94,7 @@ def fmu_plant(
 def _fmu_plant(
     file: str, input: str | None, load: str | None, signals: tuple[tuple[str, str], ...] | None
 ) -> PlantModel:
-    md, unzipped = _read(file)
+    md, unzipped, error_scales = _read(file)
     name = Path(file).name
     if md.modelExchange is None:
         raise FmuPlantError(
@@ -182,8 +182,13 @@ def _fmu_plant(
         reads,
     )
     pool = _Pool(file, md, unzipped, version, nx, parameters, slots)
-    # a state's size: its nominal value where the FMU declares one, else 1
+    # a state's size: its nominal value where the FMU declares one, else 1; its error
+    # scale 1e-6 of that, or the one a plant exported by fuzzyservo carries
     nominal = np.array([var.nominal for var, _ in elements])
+    scale = np.array(
+        [error_scales.get(var.name, 1e-6 * var.nominal) if var.size == 1 else 1e-6 * var.nominal
+         for var, _ in elements]
+    )  # fmt: skip
     model = PlantModel(
         type_name="fmu",
         binding=binding,
@@ -196,7 +201,7 @@ def _fmu_plant(
         load=(_identifier(load or "load"), units[1]),
         initial_keys={},
         initial_state=lambda params, **_: pool.initial_state(params),
-        state_scale=lambda params: 1e-6 * nominal,
+        state_scale=lambda params: scale.copy(),
         typical_state=lambda params: nominal.copy(),
         description=f"FMU {name} ({md.modelName}, FMI {md.fmiVersion} model exchange)",
         effects=INPUT_EFFECTS,  # the loop's stages on the command wrap any plant
@@ -209,8 +214,15 @@ def _fmu_plant(
     return model
 
 
-def _read(file: str) -> tuple[Any, str]:
-    """The model description and the folder the FMU is unzipped into (removed at exit)."""
+# the annotation in which a plant FMU exported by fuzzyservo (codegen/_plant_fmi.py)
+# carries each state's error scale: the local error per unit of tolerance the loop's
+# solver allows, so that the FMU runs with the steps its native composition takes
+ERROR_SCALE_ANNOTATION = "org.fuzzyservo.error_scale"
+
+
+def _read(file: str) -> tuple[Any, str, dict[str, float]]:
+    """The model description, the folder the FMU is unzipped into (removed at exit) and
+    the states' error scales a fuzzyservo annotation gives (:data:`ERROR_SCALE_ANNOTATION`)."""
     try:
         from fmpy import extract, read_model_description
     except ImportError:  # pragma: no cover - the fmi extra is missing
@@ -221,7 +233,8 @@ def _read(file: str) -> tuple[Any, str]:
         raise FmuPlantError(f"{file}: no such FMU file; give the path of a .fmu file")
     try:
         with zipfile.ZipFile(file) as zf:
-            version = ElementTree.fromstring(zf.read("modelDescription.xml")).get("fmiVersion")
+            root = ElementTree.fromstring(zf.read("modelDescription.xml"))
+        version = root.get("fmiVersion")
         if version not in ("2.0", "3.0"):
             raise FmuPlantError(
                 f"{Path(file).name}: FMI {version} is not supported; export FMI 2.0 or 3.0"
@@ -236,7 +249,26 @@ def _read(file: str) -> tuple[Any, str]:
         ) from None
     folder = tempfile.mkdtemp(prefix="fuzzyservo-fmu-")
     atexit.register(shutil.rmtree, folder, ignore_errors=True)
-    return md, extract(file, unzipdir=folder)
+    return md, extract(file, unzipdir=folder), _error_scales(root)
+
+
+def _error_scales(root: Any) -> dict[str, float]:
+    """State name -> error scale, from ``<Annotation type=...>`` (FMI 3.0) or ``<Tool
+    name=...>`` (FMI 2.0) elements named :data:`ERROR_SCALE_ANNOTATION`."""
+    out = {}
+    for element in root.iter():
+        if element.tag in ("Annotation", "Tool") and ERROR_SCALE_ANNOTATION in (
+            element.get("type"),
+            element.get("name"),
+        ):
+            for state in element.iter("State"):
+                try:
+                    value = float(state.get("errorScale", "nan"))
+                except ValueError:
+                    continue
+                if np.isfinite(value) and value > 0:
+                    out[state.get("name", "")] = value
+    return out
 
 
 def _variables(md: Any, name: str) -> dict[str, _Variable]:

@@ -150,8 +150,7 @@ def cmd_show(args: argparse.Namespace) -> int:
 def cmd_export(args: argparse.Namespace) -> int:
     from fuzzyservo.workflows import export_file
 
-    source = resolve(args.controller, "studies/controllers", "controller")
-    result = export_file(source, fis=args.fis, fcl=args.fcl, c_dir=args.c, st=args.st,
+    result = export_file(args.controller, fis=args.fis, fcl=args.fcl, c_dir=args.c, st=args.st,
                          fmu=args.fmu, fmi=args.fmi, lut=args.lut, sample_time_s=args.sample_time,
                          real="float" if args.float else "double")  # fmt: skip
     for note in result.notes:
@@ -454,12 +453,13 @@ ROBUSTNESS = [
     CLUSTER,
 ]  # fmt: skip
 EXPORT = [
-    _arg("controller", help=f"{FUZZY} under studies/controllers/, or any .fis/.fcl system"),
+    _arg("controller", help=f"{FUZZY} under studies/controllers/, any .fis/.fcl system, a rig"),
     _arg("--fis", metavar="FILE", help="the .fis file to write"),
     _arg("--fcl", metavar="FILE", help="the IEC 61131-7 FCL file to write"),
     _arg("--c", metavar="DIR", help="write <name>.c and <name>.h (C99) into DIR"),
     _arg("--st", metavar="FILE", help="the IEC 61131-3 Structured Text file to write"),
-    _arg("--fmu", metavar="FILE", help="the co-simulation FMU to write (FILE.fmu)"),
+    _arg("--fmu", metavar="FILE", help="the FMU to write (FILE.fmu): a controller's "
+         "co-simulation, a rig's plant for model exchange and co-simulation"),
     _arg("--fmi", type=int, choices=(2, 3), default=3, help="FMI version of --fmu (default: 3)"),
     _arg("--lut", type=int, metavar="N",
          help="code with a lookup table of N points per input instead of the evaluator; "
@@ -564,8 +564,8 @@ COMMANDS = [  # name, help, function, arguments
     ("show", "a fuzzy controller: terms, rules, membership functions and control curve", cmd_show,
      [_arg("controller", help=f"{FUZZY} under studies/controllers/"),
       _arg("--out", default="out", help="folder for the PNG figures (default: out)")]),
-    ("export", "write a fuzzy controller as .fis, IEC 61131-7 FCL, C99, Structured Text or FMU",
-     cmd_export, EXPORT),
+    ("export", "a fuzzy controller as .fis, FCL, C99, Structured Text or FMU; a rig's plant as an "
+     "FMU", cmd_export, EXPORT),
     ("evaluate", "evaluate a fuzzy system on a table of inputs (what evalfis does)", cmd_evaluate,
      EVALUATE),
     ("designer", "web app: shape a fuzzy controller and watch the loop respond", cmd_designer,

@@ -36,9 +36,11 @@ from fuzzyservo.io.evaluation import (
 )
 from fuzzyservo.io.fcl import fcl_names, write_fcl
 from fuzzyservo.io.fis import law_text, write_fis
+from fuzzyservo.io.paths import find_file
 from fuzzyservo.io.valve_data import read_valve_csv, write_valve_network
 from fuzzyservo.limits import lut_problem
 from fuzzyservo.results import Result
+from fuzzyservo.rig import Rig
 from fuzzyservo.tuning.outcome import StudyOutcome
 from fuzzyservo.tuning.report import StudyReport, best_controller, study_report
 
@@ -208,7 +210,23 @@ def export_file(
     sample_time_s: float = 0.01,
 ) -> ExportResult:
     """:func:`export` of the controller or system in the file ``source``, the options
-    checked first (:class:`ConfigError` naming the option)."""
+    checked first (:class:`ConfigError` naming the option); a rig file or a shipped rig's
+    name exports the rig's plant (:func:`export_plant`, ``fmu`` only)."""
+    from fuzzyservo.io.rigs import load_rig, rig_file
+
+    rig = rig_file(source)
+    if rig is not None:
+        if any([fis, fcl, c_dir, st, lut is not None]) or not fmu:
+            raise ConfigError(
+                f"{rig}: a rig exports its plant as an FMU; give --fmu FILE.fmu (and --fmi), "
+                "and no --fis, --fcl, --c, --st or --lut"
+            )
+        if Path(fmu).suffix.lower() != ".fmu" or Path(fmu).is_dir():
+            raise ConfigError(f"--fmu {fmu}: an FMU file ends in .fmu; e.g. {Path(fmu).stem}.fmu")
+        if fmi not in (2, 3):
+            raise ConfigError(f"must be 2 or 3, got {fmi}", argument="fmi")
+        return export_plant(load_rig(rig), fmu, fmi=fmi)
+    source = find_file(str(source), "studies/controllers", "controller")
     if not any([fis, fcl, c_dir, st, fmu]):
         raise ConfigError(
             "give at least one of --fis FILE, --fcl FILE, --c DIR, --st FILE, --fmu FILE"
@@ -303,6 +321,46 @@ def export(
         paths.append(path)
         lines.append(f"{name}: FMU ({what}) written to {path}")
     return ExportResult(name, tuple(paths), tuple(lines), tuple(notes))
+
+
+def export_plant(rig: Rig, fmu: str | Path, *, fmi: int = 3) -> ExportResult:
+    """Write ``rig``'s plant as an FMU ``fmu`` (FMI ``fmi`` 3 or 2; model exchange and
+    co-simulation, from C generated from the components' equations, binary built for this
+    platform); FMPy's validation of it (when the ``fmi`` extra is installed) is one of
+    the lines. Raises :class:`ConfigError` for a plant that cannot be written as C."""
+    from fuzzyservo.codegen import TranslationError, fmu_signals, plant_fmu
+    from fuzzyservo.io.fmu import write_fmu_build
+    from fuzzyservo.io.rigs import write_fmu_rig
+
+    try:
+        build = plant_fmu(rig, fmi=fmi)
+    except TranslationError as exc:
+        raise ConfigError(str(exc), file=rig.path or rig.name) from None
+    path = write_fmu_build(build, fmu)
+    paths = [path]
+    n_states = sum(1 for line in build.files["modelDescription.xml"].splitlines()
+                   if "derivative=" in line)  # fmt: skip
+    lines = [f"{rig.name}: plant FMU (FMI {fmi}.0 model exchange and co-simulation, "
+             f"{n_states} states, sources and {build.binary[0]}) written to {path}"]  # type: ignore[index]  # fmt: skip
+    if rig.path:  # a rig that runs the FMU as its plant, with this rig's loop and scenarios
+        plant = rig.plant.for_params(rig.params_for(rig.scenario()))
+        paths.append(write_fmu_rig(
+            rig.path, path.with_suffix(".yaml"), fmu=path, input=plant.input[0],
+            load=plant.load[0], signals=fmu_signals(plant),
+            header=f"{rig.name} with its plant from {path.name} (fuzzyservo export --fmu): the "
+            "same loop, stages and scenarios; the FMU's parameters start at this rig's values",
+        ))  # fmt: skip
+        lines.append(f"a rig that runs it as its plant written to {paths[-1]}")
+    notes = ["note: the FMU holds the plant only; the loop's stages (delay, valve lag, sensor, "
+             "converter) stay in the rig that runs it"]  # fmt: skip
+    try:
+        from fmpy.validation import validate_fmu
+    except ImportError:
+        notes.append("note: not validated: FMPy is missing (pip install 'fuzzyservo[fmi]')")
+    else:
+        problems = validate_fmu(str(path))
+        lines.append("FMPy validation: " + ("no problems" if not problems else "; ".join(problems)))
+    return ExportResult(rig.name, tuple(paths), tuple(lines), tuple(notes))
 
 
 def _system_st(system: FuzzySystem) -> str:

@@ -18,6 +18,7 @@ from fuzzyservo.codegen._fmi import fmu_model, fmu_sources, model_description
 from fuzzyservo.codegen._fmu import FmuBuild, fmi_headers, fmu_build
 from fuzzyservo.codegen._lut import LutError, lut_error, lut_interp, lut_table
 from fuzzyservo.codegen._plant_c import TranslationError, plant_c_sources
+from fuzzyservo.codegen._plant_export import fmu_signals, plant_fmu, plant_fmu_model
 from fuzzyservo.codegen._st_system import system_st_source
 
 __all__ = [
@@ -29,6 +30,7 @@ __all__ = [
     "fmi_headers",
     "fmu_build",
     "fmu_model",
+    "fmu_signals",
     "fmu_sources",
     "identifier",
     "lut_error",
@@ -36,6 +38,8 @@ __all__ = [
     "lut_table",
     "model_description",
     "plant_c_sources",
+    "plant_fmu",
+    "plant_fmu_model",
     "single_precision_error",
     "system_c_sources",
     "system_st_source",

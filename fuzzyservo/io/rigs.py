@@ -83,6 +83,26 @@ def load_rig(path: str | Path, *, plants: Mapping[str, PlantModel] | None = None
     return rig_from_data(read_yaml(path), str(path), plants=plants)
 
 
+def rig_file(name: str | Path) -> Path | None:
+    """The rig file ``name`` names — a YAML file whose top level has ``plant:``, or a
+    shipped rig's name — else None (a controller file, say, or nothing)."""
+    text = str(name)
+    path = Path(text)
+    if not path.is_file():
+        if path.suffix or "/" in text or "\\" in text:
+            return None
+        try:
+            path = Path(shipped_or_path(text, "rigs", "rig"))
+        except ConfigError:
+            return None
+    if path.suffix.lower() not in (".yaml", ".yml"):
+        return None
+    try:
+        return path if "plant" in read_yaml(path) else None
+    except ConfigError:
+        return None
+
+
 def rig_from_data(
     data: dict[str, Any], file: str, *, plants: Mapping[str, PlantModel] | None = None
 ) -> Rig:
@@ -373,3 +393,37 @@ def _fitted(node: Node, key: str) -> FittedInterval:
     at_bound = node.flag("at_bound", False, "the fit ended on its bound")
     unit = node.data.get("unit", "")
     return FittedInterval(key, float(pair[0]), float(pair[1]), str(unit or ""), at_bound)
+
+
+def write_fmu_rig(
+    source: str | Path,
+    out: str | Path,
+    *,
+    fmu: str | Path,
+    input: str,
+    load: str,
+    signals: Mapping[str, str],
+    header: str,
+) -> Path:
+    """Write a copy of rig file ``source`` whose plant is the FMU ``fmu`` (its plant
+    exported): ``plant.fmu`` maps the ``input``, ``load`` and ``signals`` (loop name ->
+    FMU variable); the rest of the rig — loop stages, scenarios, effects — stays as it
+    is. Comments of the original are not kept; ``header`` opens the file."""
+    import os
+
+    import yaml
+
+    data = read_yaml(source)
+    out = Path(out)
+    data["name"] = f"{data.get('name', Path(source).stem)}_fmu"
+    data["plant"] = {
+        "fmu": {
+            "file": os.path.relpath(Path(fmu).resolve(), out.parent.resolve()),
+            "input": input,
+            "load": load,
+            "signals": dict(signals),
+        }
+    }
+    text = yaml.safe_dump(data, sort_keys=False, allow_unicode=True, width=100)
+    lines = "".join(f"# {line}\n" for line in header.splitlines())
+    return write_text(out, lines + text)

@@ -337,6 +337,20 @@ def _cases() -> list[Case]:
             needs=("fuzzy",),
         )
     )
+    add(
+        Case(
+            "cli export a rig as C",
+            ("export", "dinca_cylinder", "--c", "{work}/c"),
+            needs=("dinca_cylinder", "--fmu"),
+        )
+    )
+    add(
+        Case(
+            "cli export a rig's plant to a file not ending in .fmu",
+            ("export", "dinca_cylinder", "--fmu", "{work}/plant.zip"),
+            needs=("--fmu", ".fmu"),
+        )
+    )
     add(Case("cli show a P controller", ("show", "p_k10", "--out", "{work}/o"), needs=("fuzzy",)))
     add(
         Case(

@@ -247,3 +247,21 @@ def test_every_command_runs_on_the_exported_plant(exported, tmp_path):
     fitted = result.to_dict()["uncertainty"]["supply.supply_pressure"]
     low, high = fitted["interval"]
     assert low <= 65e5 <= high or low <= 65 <= high
+
+
+def test_the_designer_runs_on_the_exported_plant(exported, tmp_path):
+    """The designer's session on the exported plant's rig: FLC2 and a slider move run
+    on the FMU as on the composition."""
+    from fuzzyservo import load_controller, simulate
+    from fuzzyservo.designer.files import Folders
+    from fuzzyservo.designer.session import Session
+
+    rig_file = exported[3].paths[1]
+    flc2 = ROOT / "studies" / "controllers" / "flc2_reshaped.yaml"
+    session = Session.open(Folders.make(ROOT, tmp_path / "out", rig_file.parent), rig_file, flc2)
+    run = session.run()
+    native = simulate(load_rig("dinca_cylinder"), load_controller(flc2), session.scenario)
+    assert run.result.status == "ok"
+    assert np.max(np.abs(run.result.output - native.output)) <= 1e-6 * np.ptp(native.output)
+    session.set_design("input", "reshape", 1.2)
+    assert session.run().metrics["settling_time_s"] != run.metrics["settling_time_s"]

@@ -265,3 +265,16 @@ def test_the_designer_runs_on_the_exported_plant(exported, tmp_path):
     assert np.max(np.abs(run.result.output - native.output)) <= 1e-6 * np.ptp(native.output)
     session.set_design("input", "reshape", 1.2)
     assert session.run().metrics["settling_time_s"] != run.metrics["settling_time_s"]
+
+
+def test_margins_on_the_exported_plant_are_the_native_ones(exported):
+    """The gain and delay margins by bisection on the FMU plant: its instance is shared
+    by every run with the same parameters, so the two searches run one after the other
+    (side by side they would interleave their calls on it) and give the native margins."""
+    from fuzzyservo import load_controller, margins
+
+    p_k10 = load_controller("p_k10")
+    native = margins(load_rig("dinca_cylinder"), p_k10, "steps")
+    ours = margins(load_rig(exported[3].paths[1]), p_k10, "steps")
+    assert ours.gain.value == pytest.approx(native.gain.value, rel=1e-9)
+    assert ours.delay.value == pytest.approx(native.delay.value, rel=1e-9)

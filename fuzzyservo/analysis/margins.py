@@ -413,11 +413,13 @@ def margins(
     The two searches are independent: they run side by side in two threads (the
     compiled loop releases the GIL), each run as it runs alone, so the margins are the
     same as one after the other, in about half the time on two cores. A controller
-    stepped in Python (an FMU, one instance) runs them one after the other.
+    stepped in Python (an FMU, one instance) or a plant holding state outside the loop (an
+    FMU plant: one instance per parameter set, which both searches would share) runs them
+    one after the other.
     """
     sc = scenario if isinstance(scenario, Scenario) else rig.scenario(scenario)
     options = {"rel_tol": rel_tol, "duration_s": duration_s, "ratio": ratio, "floor": floor}
-    if getattr(controller, "stepped", False):
+    if getattr(controller, "stepped", False) or rig.plant.attach is not None:
         gain = gain_margin(rig, controller, sc, **options)
         delay = delay_margin(rig, controller, sc, **options)
     else:

@@ -86,11 +86,14 @@ def _composition(node: Node, unknowns: dict[str, tuple[float, float]]) -> tuple[
 def _fmu(
     node: Node, params_node: Node, unknowns: dict[str, tuple[float, float]]
 ) -> tuple[PlantModel, Any]:
-    """``plant.fmu``: {file (relative to the rig file), input, load, signals}; the FMU's
-    parameters under ``plant.parameters``."""
-    from fuzzyservo.plants.fmu import FmuPlantError, fmu_plant
+    """``plant.fmu``: {file (relative to the rig file), input, load, signals, interface};
+    the FMU's parameters under ``plant.parameters``."""
+    from fuzzyservo.plants.fmu import INTERFACES, FmuPlantError, fmu_plant
 
-    node.only(("file", "input", "load", "signals", "source", "note"))
+    node.only(("file", "input", "load", "signals", "interface", "source", "note"))
+    interface = node.str("interface") if node.has("interface") else None
+    if interface is not None and interface not in INTERFACES:
+        node.fail(f"must be one of {list(INTERFACES)}, got {interface!r}", key="interface")
     signals = node.child("signals", default={})
     for key, value in signals.data.items():
         if not isinstance(value, str):
@@ -101,6 +104,7 @@ def _fmu(
             input=node.str("input") if node.has("input") else None,
             load=node.str("load") if node.has("load") else None,
             signals={str(k): v for k, v in signals.data.items()} or None,
+            interface=interface,
         )
     except FmuPlantError as exc:
         node.fail(str(exc))

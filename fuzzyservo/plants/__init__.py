@@ -65,6 +65,9 @@ class PlantModel:
     # composition's: what an exported plant FMU calls its states); empty where unknown
     state_paths: tuple[str, ...] = ()
     state_units: tuple[str, ...] = ()
+    # stepped by its own solver once per control interval (a co-simulation FMU's binding
+    # defines plant_advance), not integrated by the loop
+    stepped: bool = False
 
     def __reduce_ex__(self, protocol: int) -> Any:
         """A composition pickles as its parts (its functions are closures made at load
@@ -130,6 +133,12 @@ class PlantModel:
             return (
                 f"effect {effect!r} is not modelled by this composition: none of its components "
                 f"reads it; components that do: {readers}"
+            )
+        if self.stepped and effect == "valve_lag":
+            return (
+                f"effect {effect!r} is not applicable: the spool's lag is a state the loop "
+                f"integrates, and {self.description} is stepped by its own solver; take the "
+                "FMU's model-exchange interface"
             )
         if self.attach is not None:  # a black box (an FMU): only the loop's stages reach it
             return (

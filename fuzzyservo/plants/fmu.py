@@ -1,4 +1,4 @@
-"""A plant from outside: a model-exchange FMU (FMI 2.0 or 3.0) integrated by the loop.
+"""A plant from outside: an FMU (FMI 2.0 or 3.0), integrated by the loop or stepped.
 
 Simscape, Amesim, Dymola/OpenModelica and Hopsan all export FMUs; :func:`fmu_plant`
 makes one the plant of a rig, so every command (simulate, compare, tune, robustness,
@@ -6,6 +6,9 @@ calibrate, ...) runs on it exactly as on a composed plant. The FMU is integrated
 closed loop's own Rosenbrock solver: its right-hand side sets the states and the
 command on an FMU instance and reads the derivatives through the FMU's C functions,
 called from the compiled loop (:mod:`fuzzyservo.plants._fmi_calls`), not from Python.
+Through its co-simulation interface (``interface``) the FMU is stepped instead, once per
+control interval by its own solver (the loop's ``plant_advance`` slot): the held command
+set, one ``doStep``, the mapped variables read back as the loop's states.
 
 What a rig maps (``plant.fmu`` in a rig file):
 
@@ -14,13 +17,15 @@ What a rig maps (``plant.fmu`` in a rig file):
 * ``load``: optionally, the input variable a scenario's load drives;
 * ``signals``: the loop's signal names and the FMU variables they read (outputs, states,
   locals); an array element is ``name[i]`` (1-based, as Modelica writes it);
+* ``interface``: ``model-exchange`` (where offered, the default) or ``co-simulation``;
 * the FMU's scalar real parameters are the plant's parameters: a rig may set them (with
   units), fit them and sample them like any parameter.
 
-Not handled: event indicators and time events (an FMU declaring event indicators is
-refused), explicit dependence on time (the instance stays at t = 0: a plant is
-autonomous but for its inputs), and co-simulation-only FMUs. FMPy (the ``fmi`` extra)
-reads the model description and loads the library.
+Not handled: event indicators and time events (a model-exchange FMU declaring event
+indicators is refused), explicit dependence on time in model exchange (the instance
+stays at t = 0: a plant is autonomous but for its inputs), and loop stages integrated
+beside a stepped plant (the valve lag). FMPy (the ``fmi`` extra) reads the model
+description and loads the library.
 """
 
 from __future__ import annotations
@@ -45,7 +50,7 @@ import numpy as np
 from fuzzyservo.components.effects import INPUT_EFFECTS, EffectParams
 from fuzzyservo.params import quantity
 from fuzzyservo.plants import PlantModel
-from fuzzyservo.plants._fmi_calls import FUNCTIONS, HANDLES
+from fuzzyservo.plants._fmi_calls import FUNCTIONS, FUNCTIONS_CS, HANDLES
 
 __all__ = ["FmuPlantError", "fmu_plant"]
 
@@ -78,30 +83,46 @@ def fmu_plant(
     input: str | None = None,
     load: str | None = None,
     signals: Mapping[str, str] | None = None,
+    interface: str | None = None,
 ) -> PlantModel:
-    """The plant of the model-exchange FMU ``file`` (FMI 2.0 or 3.0): the command drives
-    its input variable ``input``, a scenario's load ``load``, and ``signals`` names the
-    loop's signals by FMU variable (default: every output, by its own name). Raises
-    :class:`FmuPlantError` (one line) when the FMU cannot be a plant or a name does not
-    fit it. Cached: the same file and mapping give the same plant.
+    """The plant of the FMU ``file`` (FMI 2.0 or 3.0): the command drives its input
+    variable ``input``, a scenario's load ``load``, and ``signals`` names the loop's
+    signals by FMU variable (default: every output, by its own name). ``interface``:
+    ``model-exchange`` (integrated by the loop), ``co-simulation`` (stepped once per
+    control interval by its own solver) or None (model exchange where the FMU offers
+    it). Raises :class:`FmuPlantError` (one line) when the FMU cannot be a plant or a
+    name does not fit it. Cached: the same file and mapping give the same plant.
     """
     return _fmu_plant(
-        str(Path(file).resolve()), input, load, tuple((signals or {}).items()) or None
-    )
+        str(Path(file).resolve()), input, load, tuple((signals or {}).items()) or None,
+        interface,
+    )  # fmt: skip
+
+
+#: how a rig names an FMU's interfaces (``plant.fmu.interface``)
+INTERFACES = ("model-exchange", "co-simulation")
 
 
 @cache
 def _fmu_plant(
-    file: str, input: str | None, load: str | None, signals: tuple[tuple[str, str], ...] | None
+    file: str,
+    input: str | None,
+    load: str | None,
+    signals: tuple[tuple[str, str], ...] | None,
+    interface: str | None = None,
 ) -> PlantModel:
     md, unzipped, error_scales = _read(file)
     name = Path(file).name
-    if md.modelExchange is None:
+    if interface not in (None, *INTERFACES):
+        raise FmuPlantError(f"{name}: interface {interface!r}: choose one of {list(INTERFACES)}")
+    stepped = interface == "co-simulation" or (interface is None and md.modelExchange is None)
+    offered = md.coSimulation if stepped else md.modelExchange
+    if offered is None:
         raise FmuPlantError(
-            f"{name}: the FMU has no model exchange interface (co-simulation only); export "
-            "it for model exchange"
+            f"{name}: the FMU has no {'co-simulation' if stepped else 'model exchange'} "
+            "interface; export it with one, or name the interface it has"
         )
-    if int(md.numberOfEventIndicators or 0) > 0:
+    if not stepped and int(md.numberOfEventIndicators or 0) > 0:
         raise FmuPlantError(
             f"{name}: the FMU declares {md.numberOfEventIndicators} event indicators; the loop "
             "integrates plants without events: export the plant without them (smooth "
@@ -109,8 +130,10 @@ def _fmu_plant(
         )
     version = int(md.fmiVersion.split(".")[0])
     variables = _variables(md, name)
-    # the continuous states, element by element (an array state holds several)
-    elements = [(variables[s], i) for s in _states(md) for i in range(variables[s].size)]
+    # the continuous states, element by element (an array state holds several); a
+    # co-simulation FMU's are its own: the loop keeps what it reads after each step
+    states = [] if stepped else _states(md)
+    elements = [(variables[s], i) for s in states for i in range(variables[s].size)]
     nx = len(elements)
 
     def element(ref: str, what: str, *, inputs_only: bool = False) -> tuple[_Variable, int]:
@@ -171,17 +194,21 @@ def _fmu_plant(
         if state not in named.values()
     ]
 
+    if stepped:  # the loop keeps what it reads: those values are its states
+        state_names = [signal for signal, _, _ in reads]
+        elements = [(var, i) for _, var, i in reads]
     parameters = [v for v in variables.values() if v.causality == "parameter" and v.start]
     slots = _slots(parameters)
-    params_cls = _params_class(file, slots, (file, input, load, signals))
+    params_cls = _params_class(file, slots, (file, input, load, signals, interface))
     binding = _binding(
         nx,
         input_vars,
         [v.start[i] if i < len(v.start) else 0.0 for v in input_vars for i in range(v.size)],
         at,
         reads,
+        stepped,
     )
-    pool = _Pool(file, md, unzipped, version, nx, parameters, slots)
+    pool = _Pool(file, md, unzipped, version, nx, parameters, slots, stepped, reads)
     # a state's size: its nominal value where the FMU declares one, else 1; its error
     # scale 1e-6 of that, or the one a plant exported by fuzzyservo carries
     nominal = np.array([var.nominal for var, _ in elements])
@@ -203,15 +230,23 @@ def _fmu_plant(
         initial_state=lambda params, **_: pool.initial_state(params),
         state_scale=lambda params: scale.copy(),
         typical_state=lambda params: nominal.copy(),
-        description=f"FMU {name} ({md.modelName}, FMI {md.fmiVersion} model exchange)",
-        effects=INPUT_EFFECTS,  # the loop's stages on the command wrap any plant
+        description=f"FMU {name} ({md.modelName}, FMI {md.fmiVersion} "
+        f"{'co-simulation' if stepped else 'model exchange'})",
+        # the loop's stages on the command wrap any plant; a stepped one takes no stage
+        # the loop would integrate beside it (the spool's lag)
+        effects=tuple(e for e in INPUT_EFFECTS if not (stepped and e in _INTEGRATED)),
         mechanics={"force": units[1], "velocity": "1", "position": "1"},
         null_input=lambda params: 0.0,
         effect_scales=None,
         attach=pool.handles,
-        recipe=(_fmu_plant, (file, input, load, signals)),
+        recipe=(_fmu_plant, (file, input, load, signals, interface)),
+        stepped=stepped,
     )
     return model
+
+
+# the stages on the command the loop integrates as states beside the plant
+_INTEGRATED = ("valve_lag",)
 
 
 # the annotation in which a plant FMU exported by fuzzyservo (codegen/_plant_fmi.py)
@@ -380,6 +415,7 @@ def _binding(
     starts: list[float],
     at: list[int],
     reads: list[tuple[str, _Variable, int]],
+    stepped: bool = False,
 ) -> str:
     """The plant slots of the closed loop for an FMU: calls through the handle block. It
     names no file, model or FMI version, so FMUs of the same layout (2.0 and 3.0 exports
@@ -393,13 +429,7 @@ def _binding(
             where[(vr, i)] = offset + i
         offset += sizes[vr]
     picks = [where[(var.vr, index)] for _, var, index in reads]
-    return f"""
-# generated by {__name__} for a model-exchange FMU
-import numpy as np
-
-from fuzzyservo._jit import njit
-from fuzzyservo.plants._fmi_calls import H_GET_REAL, derivatives, reals, set_point
-
+    tables = f"""
 _NX = {nx}
 _VR_IN = np.array({[v.vr for v in inputs]!r}, dtype=np.uint32)
 _INPUTS = np.array({starts!r}, dtype=np.float64)
@@ -407,7 +437,16 @@ _AT = np.array({at!r}, dtype=np.int64)
 _VR_OUT = np.array({read_vrs!r}, dtype=np.uint32)
 _N_OUT = {offset}
 _PICK = np.array({picks!r}, dtype=np.int64)
+"""
+    if stepped:
+        return _STEPPED.format(module=__name__, tables=tables)
+    return f"""
+# generated by {__name__} for a model-exchange FMU
+import numpy as np
 
+from fuzzyservo._jit import njit
+from fuzzyservo.plants._fmi_calls import H_GET_REAL, derivatives, reals, set_point
+{tables}
 
 @njit(cache=True)
 def plant_rhs(x, u, f_ext, p, dx):
@@ -433,8 +472,9 @@ def plant_in_end_stop(x, p):
 
 
 class _Pool:
-    """Initialised model-exchange instances of one FMU, one per parameter set (the last
-    :data:`_INSTANCES` used), each in continuous-time mode at t = 0."""
+    """Initialised instances of one FMU, one per parameter set (the last :data:`_INSTANCES`
+    used): model exchange in continuous-time mode at t = 0; co-simulation ready to step
+    from t = 0, and initialised again for every run (:meth:`handles`)."""
 
     def __init__(
         self,
@@ -445,41 +485,51 @@ class _Pool:
         nx: int,
         params: list[_Variable],
         slots: list[tuple[str, str, _Variable, int]],
+        stepped: bool = False,
+        reads: list[tuple[str, _Variable, int]] | None = None,
     ) -> None:
         self.file, self.md, self.unzipped, self.version, self.nx = file, md, unzipped, version, nx
-        self.params, self.slots = params, slots
+        self.params, self.slots, self.stepped, self.reads = params, slots, stepped, reads or []
         self.instances: OrderedDict[tuple[float, ...], tuple[Any, np.ndarray]] = OrderedDict()
 
-    def _get(self, params: Any) -> tuple[Any, np.ndarray]:
+    def _get(self, params: Any) -> tuple[tuple[float, ...], Any, np.ndarray]:
         key = tuple(float(getattr(params, field)) for field, *_ in self.slots)
         if key in self.instances:
             self.instances.move_to_end(key)
-            return self.instances[key]
-        fmu, x0 = self._start(key)
+            return key, *self.instances[key]
+        fmu = self._new()
+        x0 = self._initialise(fmu, key)
         self.instances[key] = (fmu, x0)
         if len(self.instances) > _INSTANCES:
             _, (old, _) = self.instances.popitem(last=False)
             old.terminate()
             old.freeInstance()
-        return fmu, x0
+        return key, fmu, x0
 
-    def _start(self, key: tuple[float, ...]) -> tuple[Any, np.ndarray]:
-        from fmpy.fmi2 import FMU2Model
-        from fmpy.fmi3 import FMU3Model
+    def _new(self) -> Any:
+        from fmpy.fmi2 import FMU2Model, FMU2Slave
+        from fmpy.fmi3 import FMU3Model, FMU3Slave
 
-        cls = FMU2Model if self.version == 2 else FMU3Model
-        fmu = cls(
+        kinds = {(2, False): FMU2Model, (3, False): FMU3Model, (2, True): FMU2Slave,
+                 (3, True): FMU3Slave}  # fmt: skip
+        interface = self.md.coSimulation if self.stepped else self.md.modelExchange
+        fmu = kinds[(self.version, self.stepped)](
             guid=self.md.guid,
             unzipDirectory=self.unzipped,
-            modelIdentifier=self.md.modelExchange.modelIdentifier,
+            modelIdentifier=interface.modelIdentifier,
             instanceName=f"plant{len(self.instances)}",
         )
+        fmu.instantiate()
+        return fmu
+
+    def _initialise(self, fmu: Any, key: tuple[float, ...]) -> np.ndarray:
+        """Parameters set, initialisation done: the states (model exchange) or the values
+        read (co-simulation) at t = 0."""
         arrays = {v.vr: list(v.start) + [0.0] * (v.size - len(v.start)) for v in self.params}
         for (_, _, v, i), value in zip(self.slots, key, strict=True):
             arrays[v.vr][i] = value
         vrs = list(arrays)
         values = [x for vr in vrs for x in arrays[vr]]
-        fmu.instantiate()
         try:
             if self.version == 2:
                 fmu.setupExperiment(startTime=0.0)
@@ -487,15 +537,22 @@ class _Pool:
                     fmu.setReal(vrs, values)
                 fmu.enterInitializationMode()
                 fmu.exitInitializationMode()
-                while fmu.newDiscreteStates()[0]:
+                while not self.stepped and fmu.newDiscreteStates()[0]:
                     pass
             else:
                 if vrs:
                     fmu.setFloat64(vrs, values)
                 fmu.enterInitializationMode(startTime=0.0)
                 fmu.exitInitializationMode()
-                while fmu.updateDiscreteStates()[0]:
+                while not self.stepped and fmu.updateDiscreteStates()[0]:
                     pass
+            if self.stepped:
+                sizes = {v.vr: v.size for _, v, _ in self.reads}
+                vrs_out = sorted(sizes)
+                got = (fmu.getReal(vrs_out) if self.version == 2
+                       else fmu.getFloat64(vrs_out, nValues=sum(sizes.values())))  # fmt: skip
+                at = dict(zip(vrs_out, np.cumsum([0] + [sizes[v] for v in vrs_out]), strict=False))
+                return np.array([got[at[v.vr] + i] for _, v, i in self.reads], dtype=float)
             fmu.enterContinuousTimeMode()
             x0 = np.zeros(self.nx)
             if self.nx:
@@ -505,21 +562,67 @@ class _Pool:
                 f"{Path(self.file).name}: the FMU failed to initialise ({exc}); check the "
                 "parameters the rig sets"
             ) from None
-        return fmu, x0
+        return x0
 
     def initial_state(self, params: Any) -> np.ndarray:
-        """The FMU's continuous states after initialisation with ``params``."""
-        return self._get(params)[1].copy()
+        """The FMU's continuous states (co-simulation: the values read) after
+        initialisation with ``params``."""
+        return self._get(params)[2].copy()
 
     def handles(self, params: Any) -> np.ndarray:
         """The handle block :mod:`~fuzzyservo.plants._fmi_calls` reads at the end of ``p``:
-        the instance initialised with ``params`` and the addresses of its C functions."""
-        fmu, _ = self._get(params)
+        the instance initialised with ``params``, the addresses of its C functions and
+        the time 0. A co-simulation instance is reset and initialised again: a run
+        steps it from t = 0."""
+        key, fmu, _ = self._get(params)
+        if self.stepped:
+            fmu.reset()
+            self._initialise(fmu, key)
+        functions = (FUNCTIONS_CS if self.stepped else FUNCTIONS)[self.version]
         addresses = [self.version, fmu.component] + [
-            ctypes.cast(getattr(fmu.dll, f), ctypes.c_void_p).value for f in FUNCTIONS[self.version]
+            ctypes.cast(getattr(fmu.dll, f), ctypes.c_void_p).value for f in functions
         ]
-        block = np.array(addresses, dtype=np.float64)
+        block = np.array([*addresses, 0.0], dtype=np.float64)
         assert block.size == HANDLES and all(
-            int(b) == a for b, a in zip(block, addresses, strict=True)
+            int(b) == a for b, a in zip(block[:-1], addresses, strict=True)
         )
         return block
+
+
+# The plant slots of a co-simulation FMU: the loop's states are the values it reads after
+# each step, which plant_advance makes (the right-hand side is never integrated).
+_STEPPED = """
+# generated by {module} for a co-simulation FMU
+import numpy as np
+
+from fuzzyservo._jit import njit
+from fuzzyservo.plants._fmi_calls import H_GET_REAL, do_step, reals, set_inputs
+{tables}
+
+@njit(cache=True)
+def plant_advance(x, u, f_ext, p, duration):
+    status = set_inputs(p, _VR_IN, _INPUTS, _AT, u, f_ext)
+    status = max(status, do_step(p, duration))
+    values = np.empty(_N_OUT)
+    status = max(status, reals(p, H_GET_REAL, _VR_OUT, values, _N_OUT))
+    for k in range(_PICK.size):
+        x[k] = values[_PICK[k]] if status <= 1 else np.nan
+    return 1 if status <= 1 else 0
+
+
+@njit(cache=True)
+def plant_rhs(x, u, f_ext, p, dx):
+    for k in range(_PICK.size):
+        dx[k] = 0.0
+
+
+@njit(cache=True)
+def plant_signals(x, u, f_ext, p, out):
+    for k in range(_PICK.size):
+        out[k] = x[k]
+
+
+@njit(cache=True)
+def plant_in_end_stop(x, p):
+    return False
+"""

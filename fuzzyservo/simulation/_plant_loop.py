@@ -61,7 +61,15 @@ plant_in_end_stop = plant_rhs = plant_signals = None
 # states first; ``x`` may carry more after them (the spool of ``valve_lag``).
 PLANT_SLOTS = ("plant_rhs", "plant_signals", "plant_in_end_stop")
 # What a binding may define, else the template's own serves (below).
-PLANT_DEFAULTS = ("plant_jacobian",)
+PLANT_DEFAULTS = ("plant_jacobian", "plant_advance")
+
+
+@njit(cache=True)
+def plant_advance(x: np.ndarray, u: float, load: float, p: np.ndarray, duration: float) -> int:
+    """A plant with its own solver (a co-simulation FMU) advances its states in ``x`` over
+    ``duration`` seconds with the input ``u`` and ``load`` held: 1 when done, 0 when it
+    failed. This default, -1, has the loop integrate the plant (:func:`integrate_interval`)."""
+    return -1
 
 
 @njit(cache=True)
@@ -168,7 +176,12 @@ def integrate_interval(
     Stage equations in transformed variables ``u_i = Σ_j γ_ij·k_j`` (Hairer & Wanner,
     Solving ODEs II, §IV.7, eq. 7.25, autonomous form; constants in :mod:`_loop`):
     ``(I/(hγ) − J)·u_i = f(x + Σ_j a_ij·u_j) + Σ_j c_ij·u_j / h``, ``x1 = x + Σ m_i·u_i``.
+
+    A plant with its own solver is stepped instead (:func:`plant_advance`), one step.
     """
+    stepped = plant_advance(x, input_stage(x, u, p, null, work[_STAGES]), load, p, duration)
+    if stepped >= 0:
+        return (STATUS_OK if stepped == 1 else STATUS_STEP_FAILURE), h, 1
     n = x.size
     u_st = work[:_STAGES]
     f0 = work[_STAGES]

@@ -14,6 +14,7 @@ import numpy as np
 from scipy.integrate import solve_ivp
 
 from fuzzyservo.controllers.base import Controller
+from fuzzyservo.errors import ConfigError
 from fuzzyservo.rig import Rig, Scenario
 from fuzzyservo.simulation._loop import delay_split, held_inputs, sample, spool_start
 from fuzzyservo.simulation.closed_loop import assemble, loop_settings, prepare
@@ -35,8 +36,14 @@ def simulate_reference(
     (the same sensor noise sequence for the same ``noise`` and ``noise_seed``).
 
     Absolute tolerances are ``rtol`` times each state's scale of 1 kPa (or its
-    equivalent: ``state_scale`` times 1e3).
+    equivalent: ``state_scale`` times 1e3). A plant stepped by its own solver (a
+    co-simulation FMU) has no right-hand side to integrate: :class:`ConfigError`.
     """
+    if rig.plant.stepped:
+        raise ConfigError(
+            f"{rig.plant.description} is stepped by its own solver: there is no reference "
+            "path to integrate; use the FMU's model-exchange interface"
+        )
     prep = prepare(rig, controller, scenario, duration_s, noise=noise, noise_seed=noise_seed)
     loop = prep.plant.loop
     p = prep.p

@@ -27,7 +27,7 @@ from dataclasses import dataclass
 from xml.sax.saxutils import quoteattr
 
 from fuzzyservo.codegen._c import c_sources, identifier, system_c_sources
-from fuzzyservo.codegen._fmi_api import FMI2, FMI3
+from fuzzyservo.codegen._fmi_api import COMMON2, COMMON3, FMI2, FMI3
 from fuzzyservo.controllers.fuzzy.controller import FUZZY_PARAMS, FuzzyController
 from fuzzyservo.controllers.fuzzy.system import FuzzySystem
 from fuzzyservo.controllers.layout import slots
@@ -274,7 +274,7 @@ def wrapper(model: FmuModel, fmi: int = 3) -> str:
     kinds = ", ".join({"input": "1", "parameter": "2"}.get(x.causality, "0") for x in v)
     api = FMI3 if fmi == 3 else FMI2
     body = (_CORE + (_FMI3 if fmi == 3 else _FMI2)).replace("@MODEL@", _model_code(model))
-    body = body.replace("@ADVANCE@", _ADVANCE)
+    body = body.replace("@ADVANCE@", _ADVANCE).replace("@COMMON@", COMMON3 if fmi == 3 else COMMON2)
     body = body.replace("@P@", model.identifier).replace("@NV@", str(len(v)))
     body = body.replace("@START@", start).replace("@KINDS@", kinds)
     body = body.replace("@INCLUDE@", f'#include "fmi{fmi}Functions.h"')
@@ -323,6 +323,14 @@ _ADVANCE = r"""static void model_reset(Instance *m)
     m->next_sample = 0;
 }
 
+static const char *refuse(Instance *m, size_t vr, double value)
+{
+    (void)m;
+    if (vr >= N_VARS || KIND[vr] == 0) return "value reference not settable";
+    if ((int)vr == PERIOD_VR && !(value > 0)) return "sample_period must be > 0";
+    return NULL;
+}
+
 static void advance(Instance *m, double t, double h)
 {
 #if IS_CONTROLLER
@@ -350,21 +358,7 @@ typedef struct {
 
 @MODEL@
 @ADVANCE@
-
-static fmi3Status fail(Instance *m, const char *message)
-{
-    if (m && m->log) m->log(m->env, fmi3Error, "logStatusError", message);
-    return fmi3Error;
-}
-
-const char *fmi3GetVersion(void) { return fmi3Version; }
-
-fmi3Status fmi3SetDebugLogging(fmi3Instance instance, fmi3Boolean loggingOn, size_t nCategories,
-                               const fmi3String categories[])
-{
-    (void)instance; (void)loggingOn; (void)nCategories; (void)categories;
-    return fmi3OK;
-}
+@COMMON@
 
 fmi3Instance fmi3InstantiateCoSimulation(fmi3String instanceName, fmi3String instantiationToken,
     fmi3String resourcePath, fmi3Boolean visible, fmi3Boolean loggingOn,
@@ -395,8 +389,6 @@ fmi3Instance fmi3InstantiateCoSimulation(fmi3String instanceName, fmi3String ins
     return m;
 }
 
-void fmi3FreeInstance(fmi3Instance instance) { free(instance); }
-
 fmi3Status fmi3EnterInitializationMode(fmi3Instance instance, fmi3Boolean toleranceDefined,
     fmi3Float64 tolerance, fmi3Float64 startTime, fmi3Boolean stopTimeDefined,
     fmi3Float64 stopTime)
@@ -411,44 +403,6 @@ fmi3Status fmi3EnterInitializationMode(fmi3Instance instance, fmi3Boolean tolera
 fmi3Status fmi3ExitInitializationMode(fmi3Instance instance)
 {
     model_update((Instance *)instance);
-    return fmi3OK;
-}
-
-fmi3Status fmi3EnterStepMode(fmi3Instance instance) { (void)instance; return fmi3OK; }
-fmi3Status fmi3Terminate(fmi3Instance instance) { (void)instance; return fmi3OK; }
-
-fmi3Status fmi3Reset(fmi3Instance instance)
-{
-    model_reset((Instance *)instance);
-    return fmi3OK;
-}
-
-fmi3Status fmi3GetFloat64(fmi3Instance instance, const fmi3ValueReference valueReferences[],
-    size_t nValueReferences, fmi3Float64 values[], size_t nValues)
-{
-    Instance *m = (Instance *)instance;
-    size_t i;
-    if (nValues != nValueReferences) return fail(m, "nValues != nValueReferences");
-    model_update(m);
-    for (i = 0; i < nValueReferences; i++) {
-        if (valueReferences[i] >= N_VARS) return fail(m, "unknown value reference");
-        values[i] = m->v[valueReferences[i]];
-    }
-    return fmi3OK;
-}
-
-fmi3Status fmi3SetFloat64(fmi3Instance instance, const fmi3ValueReference valueReferences[],
-    size_t nValueReferences, const fmi3Float64 values[], size_t nValues)
-{
-    Instance *m = (Instance *)instance;
-    size_t i;
-    if (nValues != nValueReferences) return fail(m, "nValues != nValueReferences");
-    for (i = 0; i < nValueReferences; i++) {
-        fmi3ValueReference vr = valueReferences[i];
-        if (vr >= N_VARS || KIND[vr] == 0) return fail(m, "value reference not settable");
-        if ((int)vr == PERIOD_VR && !(values[i] > 0)) return fail(m, "sample_period must be > 0");
-        m->v[vr] = values[i];
-    }
     return fmi3OK;
 }
 
@@ -480,24 +434,7 @@ typedef struct {
 
 @MODEL@
 @ADVANCE@
-
-static fmi2Status fail(Instance *m, const char *message)
-{
-    if (m && m->functions && m->functions->logger)
-        m->functions->logger(m->functions->componentEnvironment, m->name, fmi2Error,
-                             "logStatusError", "%s", message);
-    return fmi2Error;
-}
-
-const char *fmi2GetTypesPlatform(void) { return fmi2TypesPlatform; }
-const char *fmi2GetVersion(void) { return fmi2Version; }
-
-fmi2Status fmi2SetDebugLogging(fmi2Component c, fmi2Boolean loggingOn, size_t nCategories,
-                               const fmi2String categories[])
-{
-    (void)c; (void)loggingOn; (void)nCategories; (void)categories;
-    return fmi2OK;
-}
+@COMMON@
 
 fmi2Component fmi2Instantiate(fmi2String instanceName, fmi2Type fmuType, fmi2String fmuGUID,
     fmi2String fmuResourceLocation, const fmi2CallbackFunctions *functions, fmi2Boolean visible,
@@ -519,8 +456,6 @@ fmi2Component fmi2Instantiate(fmi2String instanceName, fmi2Type fmuType, fmi2Str
     return m;
 }
 
-void fmi2FreeInstance(fmi2Component c) { free(c); }
-
 fmi2Status fmi2SetupExperiment(fmi2Component c, fmi2Boolean toleranceDefined, fmi2Real tolerance,
     fmi2Real startTime, fmi2Boolean stopTimeDefined, fmi2Real stopTime)
 {
@@ -531,45 +466,9 @@ fmi2Status fmi2SetupExperiment(fmi2Component c, fmi2Boolean toleranceDefined, fm
     return fmi2OK;
 }
 
-fmi2Status fmi2EnterInitializationMode(fmi2Component c) { (void)c; return fmi2OK; }
-
 fmi2Status fmi2ExitInitializationMode(fmi2Component c)
 {
     model_update((Instance *)c);
-    return fmi2OK;
-}
-
-fmi2Status fmi2Terminate(fmi2Component c) { (void)c; return fmi2OK; }
-
-fmi2Status fmi2Reset(fmi2Component c)
-{
-    model_reset((Instance *)c);
-    return fmi2OK;
-}
-
-fmi2Status fmi2GetReal(fmi2Component c, const fmi2ValueReference vr[], size_t nvr,
-                       fmi2Real value[])
-{
-    Instance *m = (Instance *)c;
-    size_t i;
-    model_update(m);
-    for (i = 0; i < nvr; i++) {
-        if (vr[i] >= N_VARS) return fail(m, "unknown value reference");
-        value[i] = m->v[vr[i]];
-    }
-    return fmi2OK;
-}
-
-fmi2Status fmi2SetReal(fmi2Component c, const fmi2ValueReference vr[], size_t nvr,
-                       const fmi2Real value[])
-{
-    Instance *m = (Instance *)c;
-    size_t i;
-    for (i = 0; i < nvr; i++) {
-        if (vr[i] >= N_VARS || KIND[vr[i]] == 0) return fail(m, "value reference not settable");
-        if ((int)vr[i] == PERIOD_VR && !(value[i] > 0)) return fail(m, "sample_period must be > 0");
-        m->v[vr[i]] = value[i];
-    }
     return fmi2OK;
 }
 
@@ -583,11 +482,4 @@ fmi2Status fmi2DoStep(fmi2Component c, fmi2Real currentCommunicationPoint,
     return fmi2OK;
 }
 
-fmi2Status fmi2GetBooleanStatus(fmi2Component c, const fmi2StatusKind s, fmi2Boolean *value)
-{
-    (void)c;
-    if (s != fmi2Terminated) return fmi2Discard;
-    *value = fmi2False;
-    return fmi2OK;
-}
 """

@@ -123,3 +123,127 @@ fmi3Status fmi3GetOutputDerivatives(fmi3Instance instance, const fmi3ValueRefere
 fmi3Status fmi3DoStep(fmi3Instance instance, fmi3Float64 currentCommunicationPoint, fmi3Float64 communicationStepSize, fmi3Boolean noSetFMUStatePriorToCurrentPoint, fmi3Boolean* eventHandlingNeeded, fmi3Boolean* terminateSimulation, fmi3Boolean* earlyReturn, fmi3Float64* lastSuccessfulTime)
 fmi3Status fmi3ActivateModelPartition(fmi3Instance instance, fmi3ValueReference clockReference, fmi3Float64 activationTime)
 """
+
+# What every fuzzyservo FMU's wrapper does alike (a controller's, codegen/_fmi.py, and a
+# plant's, codegen/_plant_wrapper.py), after it defines ``Instance`` (every variable by
+# value reference in ``v``, the logger) and three functions of it: ``model_update``
+# (the values computed from the others), ``model_reset`` (the start values) and
+# ``refuse`` (why a value may not be set now, or NULL).
+COMMON3 = r"""
+static fmi3Status fail(Instance *m, const char *message)
+{
+    if (m && m->log) m->log(m->env, fmi3Error, "logStatusError", message);
+    return fmi3Error;
+}
+
+const char *fmi3GetVersion(void) { return fmi3Version; }
+
+fmi3Status fmi3SetDebugLogging(fmi3Instance instance, fmi3Boolean loggingOn, size_t nCategories,
+                               const fmi3String categories[])
+{
+    (void)instance; (void)loggingOn; (void)nCategories; (void)categories;
+    return fmi3OK;
+}
+
+void fmi3FreeInstance(fmi3Instance instance) { free(instance); }
+fmi3Status fmi3EnterStepMode(fmi3Instance instance) { (void)instance; return fmi3OK; }
+fmi3Status fmi3Terminate(fmi3Instance instance) { (void)instance; return fmi3OK; }
+
+fmi3Status fmi3Reset(fmi3Instance instance)
+{
+    model_reset((Instance *)instance);
+    return fmi3OK;
+}
+
+fmi3Status fmi3GetFloat64(fmi3Instance instance, const fmi3ValueReference valueReferences[],
+    size_t nValueReferences, fmi3Float64 values[], size_t nValues)
+{
+    Instance *m = (Instance *)instance;
+    size_t i;
+    if (nValues != nValueReferences) return fail(m, "nValues != nValueReferences");
+    model_update(m);
+    for (i = 0; i < nValueReferences; i++) {
+        if (valueReferences[i] >= N_VARS) return fail(m, "unknown value reference");
+        values[i] = m->v[valueReferences[i]];
+    }
+    return fmi3OK;
+}
+
+fmi3Status fmi3SetFloat64(fmi3Instance instance, const fmi3ValueReference valueReferences[],
+    size_t nValueReferences, const fmi3Float64 values[], size_t nValues)
+{
+    Instance *m = (Instance *)instance;
+    size_t i;
+    if (nValues != nValueReferences) return fail(m, "nValues != nValueReferences");
+    for (i = 0; i < nValueReferences; i++) {
+        const char *why = refuse(m, valueReferences[i], values[i]);
+        if (why) return fail(m, why);
+        m->v[valueReferences[i]] = values[i];
+    }
+    return fmi3OK;
+}
+"""
+
+COMMON2 = r"""
+static fmi2Status fail(Instance *m, const char *message)
+{
+    if (m && m->functions && m->functions->logger)
+        m->functions->logger(m->functions->componentEnvironment, m->name, fmi2Error,
+                             "logStatusError", "%s", message);
+    return fmi2Error;
+}
+
+const char *fmi2GetTypesPlatform(void) { return fmi2TypesPlatform; }
+const char *fmi2GetVersion(void) { return fmi2Version; }
+
+fmi2Status fmi2SetDebugLogging(fmi2Component c, fmi2Boolean loggingOn, size_t nCategories,
+                               const fmi2String categories[])
+{
+    (void)c; (void)loggingOn; (void)nCategories; (void)categories;
+    return fmi2OK;
+}
+
+void fmi2FreeInstance(fmi2Component c) { free(c); }
+fmi2Status fmi2EnterInitializationMode(fmi2Component c) { (void)c; return fmi2OK; }
+fmi2Status fmi2Terminate(fmi2Component c) { (void)c; return fmi2OK; }
+
+fmi2Status fmi2Reset(fmi2Component c)
+{
+    model_reset((Instance *)c);
+    return fmi2OK;
+}
+
+fmi2Status fmi2GetReal(fmi2Component c, const fmi2ValueReference vr[], size_t nvr,
+                       fmi2Real value[])
+{
+    Instance *m = (Instance *)c;
+    size_t i;
+    model_update(m);
+    for (i = 0; i < nvr; i++) {
+        if (vr[i] >= N_VARS) return fail(m, "unknown value reference");
+        value[i] = m->v[vr[i]];
+    }
+    return fmi2OK;
+}
+
+fmi2Status fmi2SetReal(fmi2Component c, const fmi2ValueReference vr[], size_t nvr,
+                       const fmi2Real value[])
+{
+    Instance *m = (Instance *)c;
+    size_t i;
+    for (i = 0; i < nvr; i++) {
+        const char *why = refuse(m, vr[i], value[i]);
+        if (why) return fail(m, why);
+        m->v[vr[i]] = value[i];
+    }
+    return fmi2OK;
+}
+
+fmi2Status fmi2GetBooleanStatus(fmi2Component c, const fmi2StatusKind s, fmi2Boolean *value)
+{
+    (void)c;
+    if (s != fmi2Terminated) return fmi2Discard;
+    *value = fmi2False;
+    return fmi2OK;
+}
+"""

@@ -61,23 +61,32 @@ def fmu_build(
     """The FMU of ``target``: its texts, and its binary compiled for this platform (none,
     with the reason, when no C compiler is found or the build fails)."""
     model = fmu_model(target, sample_time_s)
-    headers = fmi_headers(fmi)
+    fmi_headers(fmi)  # FMPy's headers first: a clear error without the fmi extra
     sources = fmu_sources(model, fmi)
     files = {"modelDescription.xml": model_description(model, fmi)}
     files |= {f"sources/{name}": text for name, text in sources.items()}
     files["documentation/index.html"] = _documentation(model.description, fmi)
+    return build_binary(fmi, files, sources, model.identifier)
+
+
+def build_binary(
+    fmi: int, files: dict[str, str], sources: dict[str, str], identifier: str
+) -> FmuBuild:
+    """The FMU of ``files`` with its binary compiled from ``sources`` (its ``sources/``
+    folder) for this platform, named after ``identifier``; none, with the reason, when no
+    C compiler is found or the build fails."""
     cc = c_compiler()
     if cc is None:
         return FmuBuild(fmi, files, None, "no C compiler found (cc, gcc, clang or $CC)")
     ext = _EXTENSIONS.get(sys.platform, ".so")
-    name = f"binaries/{_platform(fmi)}/{model.identifier}{ext}"
+    name = f"binaries/{_platform(fmi)}/{identifier}{ext}"
     with tempfile.TemporaryDirectory() as tmp:
         for file, text in sources.items():
             (Path(tmp) / file).write_text(text, encoding="utf-8")
         lib = Path(tmp) / f"lib{ext}"
         c_files = [str(Path(tmp) / f) for f in sources if f.endswith(".c")]
         run = subprocess.run(
-            [cc, "-std=c99", "-O2", "-shared", "-fPIC", f"-I{headers}", "-o", str(lib),
+            [cc, "-std=c99", "-O2", "-shared", "-fPIC", f"-I{fmi_headers(fmi)}", "-o", str(lib),
              *c_files, "-lm"], capture_output=True, text=True,
         )  # fmt: skip
         if run.returncode != 0:

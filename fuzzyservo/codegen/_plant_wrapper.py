@@ -23,18 +23,13 @@ All state is in the instance; the generated code allocates nothing after instant
 from __future__ import annotations
 
 import hashlib
-import subprocess
-import sys
-import tempfile
 from dataclasses import dataclass
-from pathlib import Path
 
 import numpy as np
 
-from fuzzyservo.codegen._check import c_compiler
 from fuzzyservo.codegen._fmi import _attrs, _number, _stubs
-from fuzzyservo.codegen._fmi_api import FMI2, FMI3
-from fuzzyservo.codegen._fmu import _EXTENSIONS, FmuBuild, _platform, fmi_headers
+from fuzzyservo.codegen._fmi_api import COMMON2, COMMON3, FMI2, FMI3
+from fuzzyservo.codegen._fmu import FmuBuild, build_binary, fmi_headers
 from fuzzyservo.simulation._loop import _A_U, _C_U, _E_U, _GAMMA, _M_U, _STAGES
 from fuzzyservo.units import parse_unit
 
@@ -312,6 +307,7 @@ def plant_wrapper(model: PlantFmuModel, fmi: int = 3) -> str:
     }  # fmt: skip
     logger = _LOGGER3 if fmi == 3 else _LOGGER2
     body = _CORE.replace("LOGGER_FIELDS", logger) + (_FMI3 if fmi == 3 else _FMI2)
+    body = body.replace("@COMMON@", COMMON3 if fmi == 3 else COMMON2)
     for key, value in replace.items():
         body = body.replace(key, value)
     return body + _stubs(FMI3 if fmi == 3 else FMI2, body)
@@ -322,30 +318,14 @@ def plant_fmu_build(model: PlantFmuModel, *, fmi: int = 3) -> FmuBuild:
     with the reason, when no C compiler is found or the build fails)."""
     if fmi not in (2, 3):
         raise ValueError(f"fmi must be 2 or 3, got {fmi}")
-    headers = fmi_headers(fmi)
+    fmi_headers(fmi)  # FMPy's headers first: a clear error without the fmi extra
     sources = plant_fmu_sources(model, fmi)
     files = {"modelDescription.xml": plant_model_description(model, fmi)}
     files |= {f"sources/{name}": text for name, text in sources.items()}
     files["documentation/index.html"] = _DOCUMENTATION.format(
         description=model.description, fmi=fmi
     )
-    cc = c_compiler()
-    if cc is None:
-        return FmuBuild(fmi, files, None, "no C compiler found (cc, gcc, clang or $CC)")
-    ext = _EXTENSIONS.get(sys.platform, ".so")
-    name = f"binaries/{_platform(fmi)}/{model.identifier}{ext}"
-    with tempfile.TemporaryDirectory() as tmp:
-        for file, text in sources.items():
-            (Path(tmp) / file).write_text(text, encoding="utf-8")
-        lib = Path(tmp) / f"lib{ext}"
-        c_files = [str(Path(tmp) / f) for f in sources if f.endswith(".c")]
-        run = subprocess.run(
-            [cc, "-std=c99", "-O2", "-shared", "-fPIC", f"-I{headers}", "-o", str(lib),
-             *c_files, "-lm"], capture_output=True, text=True,
-        )  # fmt: skip
-        if run.returncode != 0:
-            return FmuBuild(fmi, files, None, f"{cc} failed: {run.stderr.strip().splitlines()[:3]}")
-        return FmuBuild(fmi, files, (name, lib.read_bytes()), None)
+    return build_binary(fmi, files, sources, model.identifier)
 
 
 _DOCUMENTATION = """<!DOCTYPE html>
@@ -405,7 +385,7 @@ typedef struct {
     LOGGER_FIELDS
 } Instance;
 
-static void refresh(Instance *m)
+static void model_update(Instance *m)
 {
     plant_rhs(&m->v[X0], m->v[U_VR], m->v[F_VR], &m->v[P0], &m->v[DX0]);
     plant_signals(&m->v[X0], m->v[U_VR], m->v[F_VR], &m->v[P0], &m->v[Y0]);
@@ -537,19 +517,20 @@ static int integrate(Instance *m, double duration)
     return 1;
 }
 
-static void reset(Instance *m)
+static void model_reset(Instance *m)
 {
     memcpy(m->v, START, sizeof START);
     m->h = 0.0;
     m->initialised = 0;
-    refresh(m);
+    model_update(m);
 }
 
-static int settable(Instance *m, size_t vr)
+static const char *refuse(Instance *m, size_t vr, double value)
 {
-    if (vr >= N_VARS) return 0;
-    if (KIND[vr] == 1 || (int)vr == TOL_VR) return 1;
-    return KIND[vr] >= 2 && !m->initialised;
+    if (vr >= N_VARS) return "unknown value reference";
+    if ((int)vr == TOL_VR) return value > 0 ? NULL : "tolerance must be > 0";
+    if (KIND[vr] == 1 || (KIND[vr] >= 2 && !m->initialised)) return NULL;
+    return "value reference not settable now";
 }
 """
 
@@ -557,11 +538,7 @@ _LOGGER3 = "fmi3InstanceEnvironment env; fmi3LogMessageCallback log;"
 _LOGGER2 = "const fmi2CallbackFunctions *functions; char name[64];"
 
 _FMI3 = r"""
-static fmi3Status fail(Instance *m, const char *message)
-{
-    if (m && m->log) m->log(m->env, fmi3Error, "logStatusError", message);
-    return fmi3Error;
-}
+@COMMON@
 
 static Instance *make(fmi3String token, fmi3InstanceEnvironment env, fmi3LogMessageCallback log)
 {
@@ -574,17 +551,8 @@ static Instance *make(fmi3String token, fmi3InstanceEnvironment env, fmi3LogMess
     if (!m) return NULL;
     m->env = env;
     m->log = log;
-    reset(m);
+    model_reset(m);
     return m;
-}
-
-const char *fmi3GetVersion(void) { return fmi3Version; }
-
-fmi3Status fmi3SetDebugLogging(fmi3Instance instance, fmi3Boolean loggingOn, size_t nCategories,
-                               const fmi3String categories[])
-{
-    (void)instance; (void)loggingOn; (void)nCategories; (void)categories;
-    return fmi3OK;
 }
 
 fmi3Instance fmi3InstantiateModelExchange(fmi3String instanceName, fmi3String instantiationToken,
@@ -613,8 +581,6 @@ fmi3Instance fmi3InstantiateCoSimulation(fmi3String instanceName, fmi3String ins
     return make(instantiationToken, instanceEnvironment, logMessage);
 }
 
-void fmi3FreeInstance(fmi3Instance instance) { free(instance); }
-
 fmi3Status fmi3EnterInitializationMode(fmi3Instance instance, fmi3Boolean toleranceDefined,
     fmi3Float64 tolerance, fmi3Float64 startTime, fmi3Boolean stopTimeDefined,
     fmi3Float64 stopTime)
@@ -630,49 +596,12 @@ fmi3Status fmi3ExitInitializationMode(fmi3Instance instance)
 {
     Instance *m = (Instance *)instance;
     m->initialised = 1;
-    refresh(m);
+    model_update(m);
     return fmi3OK;
 }
 
 fmi3Status fmi3EnterEventMode(fmi3Instance instance) { (void)instance; return fmi3OK; }
 fmi3Status fmi3EnterContinuousTimeMode(fmi3Instance instance) { (void)instance; return fmi3OK; }
-fmi3Status fmi3EnterStepMode(fmi3Instance instance) { (void)instance; return fmi3OK; }
-fmi3Status fmi3Terminate(fmi3Instance instance) { (void)instance; return fmi3OK; }
-
-fmi3Status fmi3Reset(fmi3Instance instance)
-{
-    reset((Instance *)instance);
-    return fmi3OK;
-}
-
-fmi3Status fmi3GetFloat64(fmi3Instance instance, const fmi3ValueReference valueReferences[],
-    size_t nValueReferences, fmi3Float64 values[], size_t nValues)
-{
-    Instance *m = (Instance *)instance;
-    size_t i;
-    if (nValues != nValueReferences) return fail(m, "nValues != nValueReferences");
-    refresh(m);
-    for (i = 0; i < nValueReferences; i++) {
-        if (valueReferences[i] >= N_VARS) return fail(m, "unknown value reference");
-        values[i] = m->v[valueReferences[i]];
-    }
-    return fmi3OK;
-}
-
-fmi3Status fmi3SetFloat64(fmi3Instance instance, const fmi3ValueReference valueReferences[],
-    size_t nValueReferences, const fmi3Float64 values[], size_t nValues)
-{
-    Instance *m = (Instance *)instance;
-    size_t i;
-    if (nValues != nValueReferences) return fail(m, "nValues != nValueReferences");
-    for (i = 0; i < nValueReferences; i++) {
-        if (!settable(m, valueReferences[i])) return fail(m, "value reference not settable now");
-        if ((int)valueReferences[i] == TOL_VR && !(values[i] > 0))
-            return fail(m, "tolerance must be > 0");
-        m->v[valueReferences[i]] = values[i];
-    }
-    return fmi3OK;
-}
 
 fmi3Status fmi3GetNumberOfContinuousStates(fmi3Instance instance, size_t *n)
 {
@@ -778,29 +707,13 @@ fmi3Status fmi3DoStep(fmi3Instance instance, fmi3Float64 currentCommunicationPoi
         return fail(m, "the plant's integration failed (diverged or too many steps)");
     m->v[0] = currentCommunicationPoint + communicationStepSize;
     *lastSuccessfulTime = m->v[0];
-    refresh(m);
+    model_update(m);
     return fmi3OK;
 }
 """
 
 _FMI2 = r"""
-static fmi2Status fail(Instance *m, const char *message)
-{
-    if (m && m->functions && m->functions->logger)
-        m->functions->logger(m->functions->componentEnvironment, m->name, fmi2Error,
-                             "logStatusError", "%s", message);
-    return fmi2Error;
-}
-
-const char *fmi2GetTypesPlatform(void) { return fmi2TypesPlatform; }
-const char *fmi2GetVersion(void) { return fmi2Version; }
-
-fmi2Status fmi2SetDebugLogging(fmi2Component c, fmi2Boolean loggingOn, size_t nCategories,
-                               const fmi2String categories[])
-{
-    (void)c; (void)loggingOn; (void)nCategories; (void)categories;
-    return fmi2OK;
-}
+@COMMON@
 
 fmi2Component fmi2Instantiate(fmi2String instanceName, fmi2Type fmuType, fmi2String fmuGUID,
     fmi2String fmuResourceLocation, const fmi2CallbackFunctions *functions, fmi2Boolean visible,
@@ -818,11 +731,9 @@ fmi2Component fmi2Instantiate(fmi2String instanceName, fmi2Type fmuType, fmi2Str
     if (!m) return NULL;
     m->functions = functions;
     if (instanceName) strncpy(m->name, instanceName, sizeof m->name - 1);
-    reset(m);
+    model_reset(m);
     return m;
 }
-
-void fmi2FreeInstance(fmi2Component c) { free(c); }
 
 fmi2Status fmi2SetupExperiment(fmi2Component c, fmi2Boolean toleranceDefined, fmi2Real tolerance,
     fmi2Real startTime, fmi2Boolean stopTimeDefined, fmi2Real stopTime)
@@ -834,51 +745,16 @@ fmi2Status fmi2SetupExperiment(fmi2Component c, fmi2Boolean toleranceDefined, fm
     return fmi2OK;
 }
 
-fmi2Status fmi2EnterInitializationMode(fmi2Component c) { (void)c; return fmi2OK; }
-
 fmi2Status fmi2ExitInitializationMode(fmi2Component c)
 {
     Instance *m = (Instance *)c;
     m->initialised = 1;
-    refresh(m);
+    model_update(m);
     return fmi2OK;
 }
 
 fmi2Status fmi2EnterEventMode(fmi2Component c) { (void)c; return fmi2OK; }
 fmi2Status fmi2EnterContinuousTimeMode(fmi2Component c) { (void)c; return fmi2OK; }
-fmi2Status fmi2Terminate(fmi2Component c) { (void)c; return fmi2OK; }
-
-fmi2Status fmi2Reset(fmi2Component c)
-{
-    reset((Instance *)c);
-    return fmi2OK;
-}
-
-fmi2Status fmi2GetReal(fmi2Component c, const fmi2ValueReference vr[], size_t nvr,
-                       fmi2Real value[])
-{
-    Instance *m = (Instance *)c;
-    size_t i;
-    refresh(m);
-    for (i = 0; i < nvr; i++) {
-        if (vr[i] >= N_VARS) return fail(m, "unknown value reference");
-        value[i] = m->v[vr[i]];
-    }
-    return fmi2OK;
-}
-
-fmi2Status fmi2SetReal(fmi2Component c, const fmi2ValueReference vr[], size_t nvr,
-                       const fmi2Real value[])
-{
-    Instance *m = (Instance *)c;
-    size_t i;
-    for (i = 0; i < nvr; i++) {
-        if (!settable(m, vr[i])) return fail(m, "value reference not settable now");
-        if ((int)vr[i] == TOL_VR && !(value[i] > 0)) return fail(m, "tolerance must be > 0");
-        m->v[vr[i]] = value[i];
-    }
-    return fmi2OK;
-}
 
 fmi2Status fmi2NewDiscreteStates(fmi2Component c, fmi2EventInfo *info)
 {
@@ -954,15 +830,8 @@ fmi2Status fmi2DoStep(fmi2Component c, fmi2Real currentCommunicationPoint,
     if (communicationStepSize > 0 && !integrate(m, communicationStepSize))
         return fail(m, "the plant's integration failed (diverged or too many steps)");
     m->v[0] = currentCommunicationPoint + communicationStepSize;
-    refresh(m);
+    model_update(m);
     return fmi2OK;
 }
 
-fmi2Status fmi2GetBooleanStatus(fmi2Component c, const fmi2StatusKind s, fmi2Boolean *value)
-{
-    (void)c;
-    if (s != fmi2Terminated) return fmi2Discard;
-    *value = fmi2False;
-    return fmi2OK;
-}
 """

@@ -27,7 +27,7 @@ from fuzzyservo.components.effects import INPUT_EFFECTS, LIBRARY
 from fuzzyservo.plants import PlantModel
 from fuzzyservo.plants.fmu import ERROR_SCALE_ANNOTATION
 from fuzzyservo.rig import Rig
-from fuzzyservo.simulation.closed_loop import DEFAULT_TOL
+from fuzzyservo.simulation import DEFAULT_TOL
 
 
 def plant_fmu_model(rig: Rig, *, tolerance: float | None = None) -> PlantFmuModel:

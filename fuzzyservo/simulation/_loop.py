@@ -113,6 +113,23 @@ def _transformed() -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
 # stage states x + Σ_j a_ij·u_j; stage right-hand sides f + Σ_j c_ij·u_j / h; the order-3
 # solution x + Σ_i m_i·u_i; its difference from the embedded order-2 solution
 _A_U, _C_U, _M_U, _E_U = _transformed()
+
+
+class Tableau(NamedTuple):
+    """The method the loop integrates with, in transformed variables (:func:`_transformed`):
+    what another implementation of it (an exported plant FMU's co-simulation solver)
+    needs to take the same steps."""
+
+    stages: int
+    gamma: float
+    a: np.ndarray
+    c: np.ndarray
+    m: np.ndarray
+    e: np.ndarray
+
+
+#: ROS34PW2 as the loop runs it
+ROS34PW2 = Tableau(_STAGES, _GAMMA, _A_U, _C_U, _M_U, _E_U)
 _MAX_STEPS_PER_INTERVAL = 200_000
 
 

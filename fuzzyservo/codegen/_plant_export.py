@@ -4,7 +4,7 @@
 (named ``<instance>.<state>``, starting where the rig's default scenario starts), its
 input and load, its signals as outputs, the parameters the plant reads (the rig's
 values as start values) — and the C that :mod:`._plant_c` translates from the
-components' equations. :mod:`._plant_fmi` writes the model description and the FMI
+components' equations. :mod:`._plant_wrapper` writes the model description and the FMI
 wrapper (model exchange and co-simulation) around it.
 
 The loop's own stages (delay, valve bias, dead band and lag, the sensor, the converter)

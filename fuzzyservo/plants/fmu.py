@@ -249,7 +249,7 @@ def _fmu_plant(
 _INTEGRATED = ("valve_lag",)
 
 
-# the annotation in which a plant FMU exported by fuzzyservo (codegen/_plant_fmi.py)
+# the annotation in which a plant FMU exported by fuzzyservo (codegen/_plant_export.py)
 # carries each state's error scale: the local error per unit of tolerance the loop's
 # solver allows, so that the FMU runs with the steps its native composition takes
 ERROR_SCALE_ANNOTATION = "org.fuzzyservo.error_scale"

@@ -55,6 +55,15 @@ def ideal_sensor(rig):
     return dataclasses.replace(rig, feedback=fb)
 
 
+def run_cli(cwd: Path, *args: str) -> str:
+    """``python -m fuzzyservo ARGS`` run in ``cwd``: its standard output; the test fails with
+    its standard error when it does not exit 0."""
+    done = subprocess.run([sys.executable, "-m", "fuzzyservo", *args], capture_output=True,
+                          text=True, cwd=cwd)  # fmt: skip
+    assert done.returncode == 0, done.stderr
+    return done.stdout
+
+
 def free_port() -> int:
     with socket.socket() as s:
         s.bind(("127.0.0.1", 0))

@@ -10,14 +10,13 @@ from __future__ import annotations
 
 import json
 import pickle
-import subprocess
-import sys
 from pathlib import Path
 
 import numpy as np
 import pytest
 import yaml
 from reference_fmus import build
+from support import run_cli
 
 import fuzzyservo as fs
 from fuzzyservo.errors import ConfigError
@@ -186,10 +185,7 @@ def test_commands_run_on_an_fmu_plant(fmus, tmp_path):
     study_path.write_text(yaml.safe_dump(study, sort_keys=False), encoding="utf-8")
 
     def cli(*args: str) -> str:
-        done = subprocess.run([sys.executable, "-m", "fuzzyservo", *args], capture_output=True,
-                              text=True, cwd=tmp_path)  # fmt: skip
-        assert done.returncode == 0, done.stderr
-        return done.stdout
+        return run_cli(tmp_path, *args)
 
     assert "p_k10" in cli("compare", str(rig), "p_k10", "--out", "cmp")
     assert "gain margin" in cli("margins", str(rig), "p_k10").lower()

@@ -12,6 +12,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from support import run_cli
 
 from fuzzyservo import load_rig
 from fuzzyservo.codegen import TranslationError, c_compiler, plant_c_sources
@@ -190,7 +191,6 @@ def test_every_command_runs_on_the_exported_plant(exported, tmp_path):
     parameters by their rig-file keys), tune and calibrate (a parameter of the FMU fitted
     with an interval) like the native rig."""
     import json
-    import sys
 
     import yaml
 
@@ -217,10 +217,7 @@ def test_every_command_runs_on_the_exported_plant(exported, tmp_path):
     study_path.write_text(yaml.safe_dump(study, sort_keys=False), encoding="utf-8")
 
     def cli(*args: str) -> str:
-        done = subprocess.run([sys.executable, "-m", "fuzzyservo", *args], capture_output=True,
-                              text=True, cwd=tmp_path)  # fmt: skip
-        assert done.returncode == 0, done.stderr
-        return done.stdout
+        return run_cli(tmp_path, *args)
 
     assert "p_k10" in cli("compare", str(rig_file), "p_k10", "--scenario", "steps", "--out", "c")
     assert "gain margin" in cli("margins", str(rig_file), "p_k10", "--scenario", "steps").lower()

@@ -255,7 +255,7 @@ def run_fmu_plant_case(root: Path | None = None, *, runs: int = 7) -> BenchResul
     and run back as the rig's plant for model exchange, against the native composition:
     P K=10 on `pulses`, 20 s, medians of ``runs`` runs each after a compiling run. The
     error columns: the largest position difference (relative to the stroke travelled) and
-    of the IAE."""
+    the difference in integration steps."""
     import tempfile
 
     from fuzzyservo.io.controllers import load_controller

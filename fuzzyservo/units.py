@@ -46,12 +46,12 @@ class Unit:
     def __pow__(self, n: Fraction) -> Unit:
         return Unit(self.factor ** float(n), tuple(a * n for a in self.dims))
 
+    def exponents(self) -> dict[str, Fraction]:
+        """Each SI base unit (m, kg, s, A, rad) this unit holds, with its exponent."""
+        return {name: p for name, p in zip(_BASES, self.dims, strict=True) if p != 0}
+
     def dimension_text(self) -> str:
-        parts = []
-        for name, p in zip(_BASES, self.dims, strict=True):
-            if p == 0:
-                continue
-            parts.append(name if p == 1 else f"{name}^{p}")
+        parts = [name if p == 1 else f"{name}^{p}" for name, p in self.exponents().items()]
         return "*".join(parts) or "1"
 
 

@@ -214,19 +214,6 @@ def export_file(
     name exports the rig's plant (:func:`export_plant`, ``fmu`` only)."""
     from fuzzyservo.io.rigs import load_rig, rig_file
 
-    rig = rig_file(source)
-    if rig is not None:
-        if any([fis, fcl, c_dir, st, lut is not None]) or not fmu:
-            raise ConfigError(
-                f"{rig}: a rig exports its plant as an FMU; give --fmu FILE.fmu (and --fmi), "
-                "and no --fis, --fcl, --c, --st or --lut"
-            )
-        if Path(fmu).suffix.lower() != ".fmu" or Path(fmu).is_dir():
-            raise ConfigError(f"--fmu {fmu}: an FMU file ends in .fmu; e.g. {Path(fmu).stem}.fmu")
-        if fmi not in (2, 3):
-            raise ConfigError(f"must be 2 or 3, got {fmi}", argument="fmi")
-        return export_plant(load_rig(rig), fmu, fmi=fmi)
-    source = find_file(str(source), "studies/controllers", "controller")
     if not any([fis, fcl, c_dir, st, fmu]):
         raise ConfigError(
             "give at least one of --fis FILE, --fcl FILE, --c DIR, --st FILE, --fmu FILE"
@@ -244,7 +231,15 @@ def export_file(
         raise ConfigError(f"--c {c_dir}: is a file, not a folder; name a folder")
     if fmu is not None and Path(fmu).suffix.lower() != ".fmu":
         raise ConfigError(f"--fmu {fmu}: an FMU file ends in .fmu; e.g. {Path(fmu).stem}.fmu")
-    target = load_exportable(source)
+    rig = rig_file(source)
+    if rig is not None:
+        if any([fis, fcl, c_dir, st]) or not fmu:
+            raise ConfigError(
+                f"{rig}: a rig exports its plant as an FMU; give --fmu FILE.fmu (and --fmi), "
+                "and no --fis, --fcl, --c, --st or --lut"
+            )
+        return export_plant(load_rig(rig), fmu, fmi=fmi)
+    target = load_exportable(find_file(str(source), "studies/controllers", "controller"))
     try:
         return export(target, fis=fis, fcl=fcl, c_dir=c_dir, st=st, fmu=fmu, fmi=fmi, lut=lut,
                       real=real, sample_time_s=sample_time_s)  # fmt: skip
@@ -338,12 +333,10 @@ def export_plant(rig: Rig, fmu: str | Path, *, fmi: int = 3) -> ExportResult:
         raise ConfigError(str(exc), file=rig.path or rig.name) from None
     path = write_fmu_build(build, fmu)
     paths = [path]
-    n_states = sum(1 for line in build.files["modelDescription.xml"].splitlines()
-                   if "derivative=" in line)  # fmt: skip
+    plant = rig.plant.for_params(rig.params_for(rig.scenario()))  # the form plant_fmu wrote
     lines = [f"{rig.name}: plant FMU (FMI {fmi}.0 model exchange and co-simulation, "
-             f"{n_states} states, sources and {build.binary[0]}) written to {path}"]  # type: ignore[index]  # fmt: skip
+             f"{len(plant.states)} states, sources and {build.binary[0]}) written to {path}"]  # type: ignore[index]  # fmt: skip
     if rig.path:  # a rig that runs the FMU as its plant, with this rig's loop and scenarios
-        plant = rig.plant.for_params(rig.params_for(rig.scenario()))
         paths.append(write_fmu_rig(
             rig.path, path.with_suffix(".yaml"), fmu=path, input=plant.input[0],
             load=plant.load[0], signals=fmu_signals(plant),

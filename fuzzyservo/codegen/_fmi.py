@@ -23,6 +23,7 @@ from __future__ import annotations
 import hashlib
 import math
 import re
+from collections.abc import Mapping
 from dataclasses import dataclass
 from xml.sax.saxutils import quoteattr
 
@@ -174,7 +175,7 @@ def model_description(model: FmuModel, fmi: int = 3) -> str:
         lines += [f'    <InitialUnknown valueReference="{vr}"/>' for vr in model.refs("output")]
         lines += ["  </ModelStructure>", "</fmiModelDescription>"]
         return "\n".join(lines) + "\n"
-    files = "".join(f'<File name="{f}"/>' for f in _c_file_names(model))
+    files = "".join(f'<File name="{f}"/>' for f in c_file_names(model.c_files))
     lines = [
         '<?xml version="1.0" encoding="UTF-8"?>',
         f'<fmiModelDescription fmiVersion="2.0"{head}{_attrs(guid=model.token)}>',
@@ -207,8 +208,26 @@ def model_description(model: FmuModel, fmi: int = 3) -> str:
     return "\n".join(lines) + "\n"
 
 
-def _c_file_names(model: FmuModel) -> list[str]:
-    return [f for f in model.c_files if f.endswith(".c")] + ["fmu.c"]
+def c_file_names(c_files: Mapping[str, str]) -> list[str]:
+    """The C files an FMU's ``sources/`` folder compiles: the generated ones and ``fmu.c``."""
+    return [f for f in c_files if f.endswith(".c")] + ["fmu.c"]
+
+
+def sources_folder(
+    c_files: Mapping[str, str], wrapper_text: str, identifier: str, fmi: int
+) -> dict[str, str]:
+    """An FMU's ``sources/`` folder: the generated C, the FMI wrapper ``fmu.c`` and (FMI
+    3.0) ``buildDescription.xml`` naming them."""
+    files = {**c_files, "fmu.c": wrapper_text}
+    if fmi == 3:
+        sources = "".join(f'<SourceFile name="{f}"/>' for f in c_file_names(c_files))
+        files["buildDescription.xml"] = (
+            '<?xml version="1.0" encoding="UTF-8"?>\n<fmiBuildDescription fmiVersion="3.0">\n'
+            f'  <BuildConfiguration modelIdentifier="{identifier}">\n'
+            f'    <SourceFileSet language="C99">{sources}</SourceFileSet>\n'
+            '    <Library name="m"/>\n  </BuildConfiguration>\n</fmiBuildDescription>\n'
+        )
+    return files
 
 
 # --------------------------------------------------------------------------- C wrapper
@@ -217,17 +236,7 @@ def fmu_sources(model: FmuModel, fmi: int = 3) -> dict[str, str]:
     ``fmu.c`` and (FMI 3.0) ``buildDescription.xml``."""
     if fmi not in FMI_VERSIONS:
         raise ValueError(f"fmi must be one of {list(FMI_VERSIONS)}, got {fmi}")
-    files = dict(model.c_files)
-    files["fmu.c"] = wrapper(model, fmi)
-    if fmi == 3:
-        sources = "".join(f'<SourceFile name="{f}"/>' for f in _c_file_names(model))
-        files["buildDescription.xml"] = (
-            '<?xml version="1.0" encoding="UTF-8"?>\n<fmiBuildDescription fmiVersion="3.0">\n'
-            f'  <BuildConfiguration modelIdentifier="{model.identifier}">\n'
-            f'    <SourceFileSet language="C99">{sources}</SourceFileSet>\n'
-            '    <Library name="m"/>\n  </BuildConfiguration>\n</fmiBuildDescription>\n'
-        )
-    return files
+    return sources_folder(model.c_files, wrapper(model, fmi), model.identifier, fmi)
 
 
 def _model_code(model: FmuModel) -> str:

@@ -16,7 +16,7 @@ from __future__ import annotations
 
 import dataclasses
 import re
-from xml.sax.saxutils import quoteattr
+from typing import Any
 
 import numpy as np
 
@@ -25,7 +25,6 @@ from fuzzyservo.codegen._plant_c import plant_c_sources
 from fuzzyservo.codegen._plant_wrapper import PlantFmuModel, PlantVariable, plant_fmu_build
 from fuzzyservo.components.effects import INPUT_EFFECTS, LIBRARY
 from fuzzyservo.plants import PlantModel
-from fuzzyservo.plants.fmu import ERROR_SCALE_ANNOTATION
 from fuzzyservo.rig import Rig
 from fuzzyservo.simulation import DEFAULT_TOL
 
@@ -69,6 +68,8 @@ def plant_fmu_model(rig: Rig, *, tolerance: float | None = None) -> PlantFmuMode
         c_files=files,
         # the loop's own accuracy: its local error DEFAULT_TOL·scale, as a share of nominal
         tolerance=tolerance or float(DEFAULT_TOL * np.min(scale / typical)),
+        # so that the FMU run back as a rig's plant takes the steps its composition takes
+        error_scales=tuple(float(v) for v in scale),
     )
 
 
@@ -81,15 +82,15 @@ def fmu_signals(plant: PlantModel) -> dict[str, str]:
     return out
 
 
-def _parameters(plant: object, params: object) -> tuple[PlantVariable, ...]:
+def _parameters(plant: PlantModel, params: Any) -> tuple[PlantVariable, ...]:
     """Every entry of the packed parameter vector, in its order: a field's file key
     (``cylinder.stroke``, ``coulomb_friction.force``) or a vector's elements ``key[i]``.
     Effect parameters the plant does not read (the loop's stages, effects of other
     components) are marked so; the wrapper keeps them constant."""
-    read = {name for name in plant.effects if name not in INPUT_EFFECTS}  # type: ignore[attr-defined]
+    read = {name for name in plant.effects if name not in INPUT_EFFECTS}
     effect_of = {p.field: name for name, e in LIBRARY.items() for p in e.params}
     out = []
-    fields = dataclasses.fields(params)  # type: ignore[arg-type]
+    fields = dataclasses.fields(params)
     for f in fields:
         meta = f.metadata
         if "key" not in meta:
@@ -97,7 +98,7 @@ def _parameters(plant: object, params: object) -> tuple[PlantVariable, ...]:
         unit = meta["unit"]
         effect = effect_of.get(f.name)
         if meta.get("effect"):
-            unit = plant.effect_unit(unit)  # type: ignore[attr-defined]
+            unit = plant.effect_unit(unit)
         doc = meta.get("doc") or meta["key"]
         used = effect is None or effect in read
         out.append(
@@ -129,32 +130,5 @@ def _identifier(name: str) -> str:
 
 def plant_fmu(rig: Rig, *, fmi: int = 3, tolerance: float | None = None) -> FmuBuild:
     """The FMU of ``rig``'s plant (:func:`plant_fmu_model`), built for this platform:
-    model exchange and co-simulation, FMI ``fmi`` 3 or 2. Its model description carries
-    each state's error scale (:data:`~fuzzyservo.plants.fmu.ERROR_SCALE_ANNOTATION`), so
-    the FMU run back as a rig's plant takes the steps its composition takes."""
-    model = plant_fmu_model(rig, tolerance=tolerance)
-    build = plant_fmu_build(model, fmi=fmi)
-    params = rig.params_for(rig.scenario())
-    scale = rig.plant.for_params(params).state_scale(params)
-    files = dict(build.files)
-    files["modelDescription.xml"] = _annotated(
-        files["modelDescription.xml"], fmi, [s.name for s in model.states], scale
-    )
-    return dataclasses.replace(build, files=files)
-
-
-def _annotated(xml: str, fmi: int, names: list[str], scale: np.ndarray) -> str:
-    """``xml`` with the states' error scales as a fuzzyservo annotation: FMI 3.0's
-    ``<Annotations>`` closes the model description, FMI 2.0's ``<VendorAnnotations>``
-    comes before the variables."""
-    states = "".join(
-        f'\n      <State name={quoteattr(n)} errorScale="{float(s)!r}"/>'
-        for n, s in zip(names, scale, strict=True)
-    )
-    if fmi == 3:
-        block = (f'  <Annotations>\n    <Annotation type="{ERROR_SCALE_ANNOTATION}">'
-                 f"\n      <States>{states}\n      </States>\n    </Annotation>\n  </Annotations>\n")  # fmt: skip
-        return xml.replace("</fmiModelDescription>", block + "</fmiModelDescription>")
-    block = (f'  <VendorAnnotations>\n    <Tool name="{ERROR_SCALE_ANNOTATION}">'
-             f"\n      <States>{states}\n      </States>\n    </Tool>\n  </VendorAnnotations>\n")  # fmt: skip
-    return xml.replace("  <ModelVariables>", block + "  <ModelVariables>", 1)
+    model exchange and co-simulation, FMI ``fmi`` 3 or 2."""
+    return plant_fmu_build(plant_fmu_model(rig, tolerance=tolerance), fmi=fmi)

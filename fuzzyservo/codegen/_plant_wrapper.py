@@ -27,14 +27,13 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from fuzzyservo.codegen._fmi import _attrs, _number, _stubs
+from fuzzyservo.codegen._fmi import _attrs, _number, _stubs, c_file_names, sources_folder
 from fuzzyservo.codegen._fmi_api import COMMON2, COMMON3, FMI2, FMI3
 from fuzzyservo.codegen._fmu import FmuBuild, build_binary, fmi_headers
 from fuzzyservo.codegen._plant_wrapper_c import CORE, FMI2_PLANT, FMI3_PLANT, LOGGER2, LOGGER3
+from fuzzyservo.plants.fmu import ERROR_SCALE_ANNOTATION
 from fuzzyservo.simulation import ROS34PW2
 from fuzzyservo.units import parse_unit
-
-_BASES = ("m", "kg", "s", "A", "rad")  # fuzzyservo.units' dimension order
 
 
 @dataclass(frozen=True)
@@ -64,6 +63,9 @@ class PlantFmuModel:
     parameters: tuple[PlantVariable, ...]
     c_files: dict[str, str]
     tolerance: float = 1e-6
+    # each state's local error per unit of tolerance in the loop that made the model,
+    # written as a fuzzyservo annotation (plants/fmu.py reads it back); () for none
+    error_scales: tuple[float, ...] = ()
 
     @property
     def token(self) -> str:
@@ -123,7 +125,7 @@ def _unit_xml(units: set[str]) -> list[str]:
     lines = ["  <UnitDefinitions>"]
     for name in sorted(units):
         unit = parse_unit(name)
-        dims = {b: d for b, d in zip(_BASES, unit.dims, strict=True) if d != 0}
+        dims = unit.exponents()
         if any(d.denominator != 1 for d in dims.values()):  # FMI base units are integers
             lines.append(f"    <Unit{_attrs(name=name)}/>")
             continue
@@ -174,7 +176,6 @@ def plant_model_description(model: PlantFmuModel, fmi: int = 3) -> str:
     if fmi not in (2, 3):
         raise ValueError(f"fmi must be 2 or 3, got {fmi}")
     rows = _rows(model)
-    lay = _layout(model)
     names = [str(r["name"]) for r in rows]
     if len(set(names)) != len(names):
         twice = sorted({n for n in names if names.count(n) > 1})
@@ -214,9 +215,10 @@ def plant_model_description(model: PlantFmuModel, fmi: int = 3) -> str:
         lines += [f'    <Output valueReference="{vr}"/>' for vr in outputs]
         lines += [f'    <ContinuousStateDerivative valueReference="{vr}"/>' for vr in derivatives]
         lines += [f'    <InitialUnknown valueReference="{vr}"/>' for vr in outputs + derivatives]
-        lines += ["  </ModelStructure>", "</fmiModelDescription>"]
+        lines += ["  </ModelStructure>", *_annotation(model, "Annotations", "Annotation", "type"),
+                  "</fmiModelDescription>"]  # fmt: skip
         return "\n".join(lines) + "\n"
-    files = "".join(f'<File name="{f}"/>' for f in _c_file_names(model))
+    files = "".join(f'<File name="{f}"/>' for f in c_file_names(model.c_files))
     lines = [
         '<?xml version="1.0" encoding="UTF-8"?>',
         f'<fmiModelDescription fmiVersion="2.0"{head}{_attrs(guid=model.token)} '
@@ -227,6 +229,7 @@ def plant_model_description(model: PlantFmuModel, fmi: int = 3) -> str:
         f"<SourceFiles>{files}</SourceFiles></CoSimulation>",
         *_unit_xml(units),
         experiment,
+        *_annotation(model, "VendorAnnotations", "Tool", "name"),
         "  <ModelVariables>",
     ]
     index = {}  # value reference -> 1-based index among the ScalarVariables
@@ -252,33 +255,32 @@ def plant_model_description(model: PlantFmuModel, fmi: int = 3) -> str:
               f"    <Derivatives>{ders}</Derivatives>",
               f"    <InitialUnknowns>{initial_unknowns}</InitialUnknowns>",
               "  </ModelStructure>", "</fmiModelDescription>"]  # fmt: skip
-    del lay
     return "\n".join(lines) + "\n"
+
+
+def _annotation(model: PlantFmuModel, outer: str, inner: str, key: str) -> list[str]:
+    """The states' error scales as a fuzzyservo annotation (:data:`ERROR_SCALE_ANNOTATION`):
+    FMI 3.0's ``<Annotations><Annotation type=...>`` closes the model description, FMI 2.0's
+    ``<VendorAnnotations><Tool name=...>`` comes before the variables."""
+    if not model.error_scales:
+        return []
+    states = [
+        f"        <State{_attrs(name=s.name, errorScale=repr(float(e)))}/>"
+        for s, e in zip(model.states, model.error_scales, strict=True)
+    ]
+    return [f"  <{outer}>", f"    <{inner}{_attrs(**{key: ERROR_SCALE_ANNOTATION})}>",
+            "      <States>", *states, "      </States>", f"    </{inner}>", f"  </{outer}>"]  # fmt: skip
 
 
 def _num(x: object) -> str | None:
     return None if x is None else _number(float(x))  # type: ignore[arg-type]
 
 
-def _c_file_names(model: PlantFmuModel) -> list[str]:
-    return [f for f in model.c_files if f.endswith(".c")] + ["fmu.c"]
-
-
 # --------------------------------------------------------------------------- sources
 def plant_fmu_sources(model: PlantFmuModel, fmi: int = 3) -> dict[str, str]:
     """The files of the FMU's ``sources/`` folder: the model's C, the FMI wrapper
     ``fmu.c`` and (FMI 3.0) ``buildDescription.xml``."""
-    files = dict(model.c_files)
-    files["fmu.c"] = plant_wrapper(model, fmi)
-    if fmi == 3:
-        sources = "".join(f'<SourceFile name="{f}"/>' for f in _c_file_names(model))
-        files["buildDescription.xml"] = (
-            '<?xml version="1.0" encoding="UTF-8"?>\n<fmiBuildDescription fmiVersion="3.0">\n'
-            f'  <BuildConfiguration modelIdentifier="{model.identifier}">\n'
-            f'    <SourceFileSet language="C99">{sources}</SourceFileSet>\n'
-            '    <Library name="m"/>\n  </BuildConfiguration>\n</fmiBuildDescription>\n'
-        )
-    return files
+    return sources_folder(model.c_files, plant_wrapper(model, fmi), model.identifier, fmi)
 
 
 def _array(values: object) -> str:

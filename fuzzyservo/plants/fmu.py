@@ -409,6 +409,20 @@ def _fmu_params(recipe: tuple[Any, ...], values: dict[str, Any]) -> Any:
     return _fmu_plant(*recipe).params_cls(**values)
 
 
+def _read_layout(reads: list[tuple[str, _Variable, int]]) -> tuple[list[int], int, list[int]]:
+    """How the values ``reads`` names are read at once: the value references (sorted, each
+    once), how many numbers they hold (arrays whole), and where each read's value is."""
+    read_vrs = sorted({var.vr for _, var, _ in reads})
+    sizes = {var.vr: var.size for _, var, _ in reads}
+    where = {}  # (vr, index) -> position in the values read
+    offset = 0
+    for vr in read_vrs:
+        for i in range(sizes[vr]):
+            where[(vr, i)] = offset + i
+        offset += sizes[vr]
+    return read_vrs, offset, [where[(var.vr, index)] for _, var, index in reads]
+
+
 def _binding(
     nx: int,
     inputs: list[_Variable],
@@ -420,15 +434,7 @@ def _binding(
     """The plant slots of the closed loop for an FMU: calls through the handle block. It
     names no file, model or FMI version, so FMUs of the same layout (2.0 and 3.0 exports
     of one model) share one compiled loop."""
-    read_vrs = sorted({var.vr for _, var, _ in reads})
-    sizes = {var.vr: var.size for _, var, _ in reads}
-    where = {}  # (vr, index) -> position in the values read
-    offset = 0
-    for vr in read_vrs:
-        for i in range(sizes[vr]):
-            where[(vr, i)] = offset + i
-        offset += sizes[vr]
-    picks = [where[(var.vr, index)] for _, var, index in reads]
+    read_vrs, offset, picks = _read_layout(reads)
     tables = f"""
 _NX = {nx}
 _VR_IN = np.array({[v.vr for v in inputs]!r}, dtype=np.uint32)
@@ -547,12 +553,10 @@ class _Pool:
                 while not self.stepped and fmu.updateDiscreteStates()[0]:
                     pass
             if self.stepped:
-                sizes = {v.vr: v.size for _, v, _ in self.reads}
-                vrs_out = sorted(sizes)
+                vrs_out, n_out, picks = _read_layout(self.reads)
                 got = (fmu.getReal(vrs_out) if self.version == 2
-                       else fmu.getFloat64(vrs_out, nValues=sum(sizes.values())))  # fmt: skip
-                at = dict(zip(vrs_out, np.cumsum([0] + [sizes[v] for v in vrs_out]), strict=False))
-                return np.array([got[at[v.vr] + i] for _, v, i in self.reads], dtype=float)
+                       else fmu.getFloat64(vrs_out, nValues=n_out))  # fmt: skip
+                return np.array([got[k] for k in picks], dtype=float)
             fmu.enterContinuousTimeMode()
             x0 = np.zeros(self.nx)
             if self.nx:

@@ -26,6 +26,8 @@ from fuzzyservo.atomic import write_files, write_text
 from fuzzyservo.components.nn_fit import NetworkFit, fit_valve_network
 from fuzzyservo.controllers.fuzzy.controller import FuzzyController
 from fuzzyservo.controllers.fuzzy.evaluate import evaluate_inputs
+from fuzzyservo.controllers.fuzzy.fcl import fcl_names
+from fuzzyservo.controllers.fuzzy.fis import law_text
 from fuzzyservo.controllers.fuzzy.system import FuzzySystem
 from fuzzyservo.errors import ConfigError, DataError, excerpt
 from fuzzyservo.io.evaluation import (
@@ -34,8 +36,7 @@ from fuzzyservo.io.evaluation import (
     read_input_table,
     write_output_table,
 )
-from fuzzyservo.io.fcl import fcl_names, write_fcl
-from fuzzyservo.io.fis import law_text, write_fis
+from fuzzyservo.io.fuzzy_files import write_fcl, write_fis
 from fuzzyservo.io.paths import find_file
 from fuzzyservo.io.valve_data import read_valve_csv, write_valve_network
 from fuzzyservo.limits import lut_problem

@@ -19,7 +19,8 @@ from support import controller_named
 from fuzzyservo.codegen import identifier, lut_error, write_c
 from fuzzyservo.controllers.fuzzy.controller import FuzzyController
 from fuzzyservo.controllers.fuzzy.evaluate import evaluate_inputs
-from fuzzyservo.io.fis import controller_from_fis, parse_fis
+from fuzzyservo.controllers.fuzzy.fis import parse_fis
+from fuzzyservo.io.fuzzy_files import controller_from_fis
 
 DATA = Path(__file__).resolve().parent / "data"
 CC = shutil.which("cc") or shutil.which("gcc")

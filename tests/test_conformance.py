@@ -23,7 +23,7 @@ import pytest
 
 from fuzzyservo.controllers.fuzzy.evaluate import evaluate_inputs
 from fuzzyservo.errors import ConfigError, FileWarning
-from fuzzyservo.io.fis import read_fis
+from fuzzyservo.io.fuzzy_files import read_fis
 
 FOLDER = Path(__file__).resolve().parents[2] / "shared" / "conformance" / "fuzzylite" / "examples"
 TOLERANCE = 1e-3

@@ -20,10 +20,10 @@ from fuzzyservo.analysis.compare import compare
 from fuzzyservo.cli import main
 from fuzzyservo.codegen import c_compiler, identifier
 from fuzzyservo.controllers.fuzzy.evaluate import evaluate_inputs
+from fuzzyservo.controllers.fuzzy.fis import parse_fis
 from fuzzyservo.controllers.fuzzy.system import FuzzySystem
 from fuzzyservo.io.controllers import load_controller
-from fuzzyservo.io.fcl import read_fcl
-from fuzzyservo.io.fis import parse_fis, read_fis
+from fuzzyservo.io.fuzzy_files import read_fcl, read_fis
 from fuzzyservo.workflows import export
 
 

@@ -11,10 +11,11 @@ from support import DATA
 
 from fuzzyservo.cli import main
 from fuzzyservo.controllers.fuzzy.controller import FuzzyController
+from fuzzyservo.controllers.fuzzy.fis import fis_text, parse_fis
 from fuzzyservo.controllers.fuzzy.skfuzzy_adapter import SkfuzzyReference
 from fuzzyservo.errors import ConfigError
 from fuzzyservo.io.controllers import load_controller
-from fuzzyservo.io.fis import controller_from_fis, fis_text, parse_fis, read_fis, write_fis
+from fuzzyservo.io.fuzzy_files import controller_from_fis, read_fis, write_fis
 from fuzzyservo.io.rigs import load_rig
 from fuzzyservo.simulation import simulate
 
@@ -372,6 +373,6 @@ def test_mf_lines_are_read_in_order_as_matlab_does(tmp_path):
 
 
 def read_fis_text_quietly(text: str):
-    from fuzzyservo.io.fis import parse_fis
+    from fuzzyservo.controllers.fuzzy.fis import parse_fis
 
     return parse_fis(text, "base.fis")

@@ -12,12 +12,13 @@ from support import DATA, SHARED
 
 from fuzzyservo.cli import main
 from fuzzyservo.controllers.fuzzy.evaluate import evaluate_inputs
+from fuzzyservo.controllers.fuzzy.fcl import fcl_text, parse_fcl
+from fuzzyservo.controllers.fuzzy.fis import fis_text, parse_fis
 from fuzzyservo.controllers.fuzzy.shapes import mf_array
 from fuzzyservo.controllers.fuzzy.system import FuzzySystem, Rule, Term, Variable
 from fuzzyservo.errors import ConfigError
 from fuzzyservo.io.controllers import load_controller
-from fuzzyservo.io.fcl import fcl_text, parse_fcl
-from fuzzyservo.io.fis import fis_text, parse_fis, read_fis
+from fuzzyservo.io.fuzzy_files import read_fis
 
 TIPPER = Path(__file__).resolve().parent / "data" / "tipper.fis"
 CONFORMANCE = SHARED / "conformance" / "fuzzylite" / "examples"

@@ -337,7 +337,7 @@ class Session:
 
     def save_fis(self, name: str) -> Path:
         """Write the inference system as a MATLAB .fis file inside the output folder."""
-        from fuzzyservo.io.fis import write_fis
+        from fuzzyservo.io.fuzzy_files import write_fis
 
         path = self.folders.controller_path(name, write=True)
         if path.suffix.lower() != ".fis":

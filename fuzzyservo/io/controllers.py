@@ -49,8 +49,7 @@ def load_controller(path: str | Path) -> Controller:
     file = str(path)
     suffix = Path(file).suffix.lower()
     if suffix in (".fis", ".fcl"):
-        from fuzzyservo.io.fcl import controller_from_fcl
-        from fuzzyservo.io.fis import controller_from_fis
+        from fuzzyservo.io.fuzzy_files import controller_from_fcl, controller_from_fis
         from fuzzyservo.io.paths import name_problem
 
         controller = (controller_from_fis if suffix == ".fis" else controller_from_fcl)(path)
@@ -180,8 +179,8 @@ def _gain(
 def read_controller_data(path: str | Path) -> dict:
     """The mapping of a controller file; a ``.fis`` becomes explicit terms and rule lines."""
     if Path(path).suffix.lower() == ".fis":
-        from fuzzyservo.io.fis import controller_from_fis
         from fuzzyservo.io.fuzzy import fuzzy_controller_data
+        from fuzzyservo.io.fuzzy_files import controller_from_fis
 
         return fuzzy_controller_data(controller_from_fis(path))
     return read_yaml(path)
@@ -191,7 +190,7 @@ def controller_data_from_text(text: str, filename: str) -> dict:
     """The mapping of a controller file's text (an upload): ``.yaml``/``.yml`` or ``.fis``."""
     suffix = Path(filename).suffix.lower()
     if suffix == ".fis":
-        from fuzzyservo.io.fis import parse_fis_controller
+        from fuzzyservo.controllers.fuzzy.fis import parse_fis_controller
         from fuzzyservo.io.fuzzy import fuzzy_controller_data
 
         controller = parse_fis_controller(text, filename)

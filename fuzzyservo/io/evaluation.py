@@ -47,11 +47,11 @@ def load_system(path: Path) -> FuzzySystem:
     number of inputs and outputs (a controller file gives its one- or two-input system)."""
     suffix = path.suffix.lower()
     if suffix == ".fis":
-        from fuzzyservo.io.fis import read_fis
+        from fuzzyservo.io.fuzzy_files import read_fis
 
         return read_fis(path)
     if suffix == ".fcl":
-        from fuzzyservo.io.fcl import read_fcl
+        from fuzzyservo.io.fuzzy_files import read_fcl
 
         return read_fcl(path)
     return load_fuzzy_controller(path, other=", a .fis or a .fcl").system
@@ -116,8 +116,8 @@ def load_exportable(path: str | Path) -> FuzzyController | FuzzySystem:
     """What ``path`` holds for export: a controller (a fuzzy controller YAML file, or a
     ``.fis``/FCL file with a control-law comment) or an inference system (any other
     ``.fis``/FCL file)."""
-    from fuzzyservo.io.fcl import read_fcl_law
-    from fuzzyservo.io.fis import controller_from_law, read_fis_law
+    from fuzzyservo.controllers.fuzzy.fis import controller_from_law
+    from fuzzyservo.io.fuzzy_files import read_fcl_law, read_fis_law
 
     p = Path(path)
     suffix = p.suffix.lower()

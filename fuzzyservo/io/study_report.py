@@ -72,7 +72,7 @@ def write_study_files(report: StudyReport, out_dir: Path, controller: Path) -> d
     paths: dict[str, Path] = {"controller": controller}
     fuzzy = isinstance(best, FuzzyController)
     if fuzzy:
-        from fuzzyservo.io.fis import write_fis
+        from fuzzyservo.io.fuzzy_files import write_fis
 
         paths["fis"] = write_fis(best.system, out_dir / FIS_FILE)
     paths.update(_figures(outcome, out_dir, best, fuzzy))

@@ -1,4 +1,5 @@
-"""IEC 61131-7 Fuzzy Control Language (FCL) files ⇄ :class:`FuzzySystem`.
+"""IEC 61131-7 Fuzzy Control Language (FCL) text ⇄ :class:`FuzzySystem` (pure, as
+:mod:`.fis`; the files are read and written by :mod:`fuzzyservo.io.fuzzy_files`).
 
 ::
 
@@ -49,8 +50,9 @@ import re
 from pathlib import Path
 from typing import NoReturn
 
-from fuzzyservo.atomic import write_text
 from fuzzyservo.controllers.fuzzy.controller import FuzzyController
+from fuzzyservo.controllers.fuzzy.fis import LAW_KEYS, controller_from_law
+from fuzzyservo.controllers.fuzzy.fis import number_text as _num
 from fuzzyservo.controllers.fuzzy.shapes import SUGENO_SHAPES
 from fuzzyservo.controllers.fuzzy.system import (
     MATLAB_SAMPLE_POINTS,
@@ -65,13 +67,9 @@ from fuzzyservo.controllers.fuzzy.system import (
     term_index,
 )
 from fuzzyservo.errors import ConfigError, excerpt
-from fuzzyservo.io.fis import LAW_KEYS, controller_from_law
-from fuzzyservo.io.fis import number_text as _num
 from fuzzyservo.limits import MAX_POINTS, MAX_SAMPLE_POINTS, points_problem
 
-__all__ = [
-    "controller_from_fcl", "fcl_names", "fcl_text", "parse_fcl", "read_fcl", "read_fcl_law", "write_fcl",
-]  # fmt: skip
+__all__ = ["fcl_names", "fcl_text", "parse_fcl", "parse_fcl_controller", "parse_fcl_law"]
 
 _AND = {"MIN": "min", "PROD": "prod"}
 _OR = {"MAX": "max", "ASUM": "probor", "PROBOR": "probor"}
@@ -378,30 +376,18 @@ def _clause(file: str, line: int, text: str, variables: list[Variable]) -> tuple
     return k, term_code(t, negated=bool(m[2]))
 
 
-def read_fcl(path: str | Path, points: int = 201) -> FuzzySystem:
-    """Read an FCL file; :class:`ConfigError` naming the file, line and fix when it is bad."""
-    return parse_fcl(_read_text(path), str(path), points)
-
-
-def _read_text(path: str | Path) -> str:
-    p = Path(path)
-    if not p.is_file():
-        raise ConfigError("file not found; check the path", file=str(path))
-    return p.read_text(encoding="utf-8", errors="replace")
-
-
-def read_fcl_law(path: str | Path) -> tuple[FuzzySystem, dict[str, str]]:
-    """The system of an FCL file and the control law its ``(* fuzzyservo: … *)`` comment
+def parse_fcl_law(text: str, file: str = "<fcl text>") -> tuple[FuzzySystem, dict[str, str]]:
+    """The system of FCL text and the control law its ``(* fuzzyservo: … *)`` comment
     gives (empty when it gives none)."""
-    text = _read_text(path)
     law = {k: v for k, v in _strip_comments(text)[1].items() if k in LAW_KEYS}
-    return parse_fcl(text, str(path)), law
+    return parse_fcl(text, file), law
 
 
-def controller_from_fcl(path: str | Path) -> FuzzyController:
-    """A controller from an FCL file: the control law of its ``(* fuzzyservo: … *)``
-    comment, else the defaults of :func:`~fuzzyservo.io.fis.controller_from_fis`."""
-    return controller_from_law(*read_fcl_law(path), Path(path), "line 1")
+def parse_fcl_controller(text: str, file: str) -> FuzzyController:
+    """A controller from FCL text (a file named ``file``): the control law of its
+    ``(* fuzzyservo: … *)`` comment, else the defaults of
+    :func:`~fuzzyservo.controllers.fuzzy.fis.parse_fis_controller`."""
+    return controller_from_law(*parse_fcl_law(text, file), Path(file), "line 1")
 
 
 # --------------------------------------------------------------------------- writing
@@ -426,7 +412,7 @@ def _term_text(t: Term) -> str:
 
 def fcl_text(system: FuzzySystem, law: str = "") -> str:
     """``system`` as an FCL function block (module docstring), with the control law
-    ``law`` (:func:`~fuzzyservo.io.fis.law_text`) in a comment when given."""
+    ``law`` (:func:`~fuzzyservo.controllers.fuzzy.fis.law_text`) in a comment when given."""
     variables = [*system.inputs, *system.outputs]
     for v in variables:
         _name(v.name, "variable name")
@@ -503,11 +489,6 @@ def fcl_text(system: FuzzySystem, law: str = "") -> str:
         lines.append(f"    RULE {n} : IF {conn.join(clauses)} THEN {', '.join(heads)}{weight};")
     lines += ["END_RULEBLOCK", "", "END_FUNCTION_BLOCK"]
     return "\n".join(lines) + "\n"
-
-
-def write_fcl(system: FuzzySystem, path: str | Path, law: str = "") -> Path:
-    """Write ``system`` (and the control law ``law``) as FCL (UTF-8); returns the path."""
-    return write_text(path, fcl_text(system, law))
 
 
 def fcl_names(system: FuzzySystem) -> tuple[FuzzySystem, list[str]]:

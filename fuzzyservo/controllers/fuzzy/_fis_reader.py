@@ -1,9 +1,9 @@
-"""The ``.fis`` text read line by line (the format: :mod:`fuzzyservo.io.fis`).
+"""The ``.fis`` text read line by line (the format: :mod:`fuzzyservo.controllers.fuzzy.fis`).
 
 Sections and their ``Key=value`` entries, rule lines, the ``% fuzzyservo:`` settings
 lines, and the values: quoted text, whole numbers, numbers and arithmetic expressions
 of ``pi``, number vectors, method names. Every problem is located by file, section and
-line. Used by :mod:`fuzzyservo.io.fis` and :mod:`fuzzyservo.io._fis_system`.
+line. Used by :mod:`fuzzyservo.controllers.fuzzy.fis` and :mod:`fuzzyservo.controllers.fuzzy._fis_system`.
 """
 
 from __future__ import annotations

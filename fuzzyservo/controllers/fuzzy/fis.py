@@ -1,4 +1,4 @@
-"""MATLAB ``.fis`` files (Fuzzy Logic Toolbox text format) ⇄ :class:`FuzzySystem`.
+"""MATLAB ``.fis`` text (Fuzzy Logic Toolbox format) ⇄ :class:`FuzzySystem`.
 
 The format is the one ``readfis``/``writefis`` use (Fuzzy Logic Toolbox User's Guide,
 "The FIS Structure — Saving FIS Files on Disk"; unchanged in R2018b+ files apart from
@@ -50,14 +50,17 @@ differ), so a round trip is lossless. Files without it get the defaults.
 
 The text is read line by line in ``_fis_reader`` (sections, keys, values, each problem
 located) and its sections become variables, terms and rules in ``_fis_system``; this
-module reads and writes the files, and the control law a controller's file carries.
+module parses and writes the text, and the control law a controller's file carries.
+Pure text ⇄ objects, as fuzzylite's importers and exporters are: the files are read and
+written by :mod:`fuzzyservo.io.fuzzy_files`.
 """
 
 from __future__ import annotations
 
 from pathlib import Path
 
-from fuzzyservo.atomic import write_text
+from fuzzyservo.controllers.fuzzy._fis_reader import _METHODS, _TAG, LAW_KEYS, _Reader
+from fuzzyservo.controllers.fuzzy._fis_system import _count, _numbered, _rule, _variable, _with_fix
 from fuzzyservo.controllers.fuzzy.controller import FuzzyController
 from fuzzyservo.controllers.fuzzy.system import (
     MATLAB_SAMPLE_POINTS,
@@ -67,13 +70,11 @@ from fuzzyservo.controllers.fuzzy.system import (
     to_matlab,
 )
 from fuzzyservo.errors import ConfigError, excerpt
-from fuzzyservo.io._fis_reader import _METHODS, _TAG, LAW_KEYS, _Reader
-from fuzzyservo.io._fis_system import _count, _numbered, _rule, _variable, _with_fix
 from fuzzyservo.limits import MAX_SAMPLE_POINTS
 
 __all__ = [
-    "controller_from_fis", "controller_from_law", "fis_text", "law_text", "parse_fis",
-    "parse_fis_controller", "read_fis", "read_fis_law", "write_fis",
+    "LAW_KEYS", "controller_from_law", "fis_text", "law_text", "number_text", "parse_fis",
+    "parse_fis_controller", "parse_fis_law",
 ]  # fmt: skip
 
 #: the ``Version`` written by :func:`fis_text` (MATLAB R2018b and later)
@@ -87,11 +88,14 @@ def parse_fis(text: str, file: str = "<fis text>", points: int = 201) -> FuzzySy
     Universes get ``points`` evenly spaced samples unless the file's ``% fuzzyservo:``
     line says otherwise.
     """
-    return _parse(text, file, points)[0]
+    return parse_fis_law(text, file, points)[0]
 
 
-def _parse(text: str, file: str, points: int) -> tuple[FuzzySystem, dict[str, str]]:
-    """The system and the control law's settings (:data:`LAW_KEYS`) the file gives."""
+def parse_fis_law(
+    text: str, file: str = "<fis text>", points: int = 201
+) -> tuple[FuzzySystem, dict[str, str]]:
+    """The system of ``.fis`` text and the control law (:data:`LAW_KEYS`, as text) its
+    ``% fuzzyservo:`` line gives (empty when it gives none)."""
     reader = _Reader(file)
     sections = reader.sections(text)
     if "System" not in sections:
@@ -190,51 +194,13 @@ def _parse(text: str, file: str, points: int) -> tuple[FuzzySystem, dict[str, st
         reader.fail(_with_fix(exc, "fix the file"), "[System]", system.number)
 
 
-def read_fis(path: str | Path, points: int = 201) -> FuzzySystem:
-    """Read a MATLAB ``.fis`` file (UTF-8, else latin-1) into a :class:`FuzzySystem`.
-
-    Raises :class:`ConfigError` naming the file, the section and line, and the fix.
-    """
-    return _parse(_read_text(path), str(path), points)[0]
-
-
-def read_fis_law(path: str | Path) -> tuple[FuzzySystem, dict[str, str]]:
-    """The system of a ``.fis`` file and the control law (:data:`LAW_KEYS`, as text) its
-    ``% fuzzyservo:`` line gives (empty when it gives none)."""
-    return _parse(_read_text(path), str(path), 201)
-
-
-def _read_text(path: str | Path) -> str:
-    p = Path(path)
-    if not p.is_file():
-        raise ConfigError(
-            f"file not found (looked in {p.resolve().parent}); check the path", file=str(path)
-        )
-    try:
-        data = p.read_bytes()
-    except OSError as exc:
-        raise ConfigError(
-            f"cannot read the file ({exc.strerror or exc}); check its permissions", file=str(path)
-        ) from None
-    try:
-        text = data.decode("utf-8-sig")
-    except UnicodeDecodeError:
-        text = data.decode("latin-1")  # older MATLAB wrote the platform encoding (often cp1252)
-    return text
-
-
-def controller_from_fis(path: str | Path) -> FuzzyController:
-    """A controller from a ``.fis`` file: the control law its ``% fuzzyservo:`` line gives
-    (:func:`law_text`, what ``fuzzyservo export`` writes), else one input → form ``p``,
-    two → ``pd``, all gains 1 and no output limits (the simulator applies the rig
-    actuator's command range). Named after the file stem.
-    """
-    return parse_fis_controller(_read_text(path), str(path))
-
-
 def parse_fis_controller(text: str, file: str) -> FuzzyController:
-    """:func:`controller_from_fis` of ``.fis`` text (an upload named ``file``)."""
-    system, law = _parse(text, file, 201)
+    """A controller from ``.fis`` text (a file or an upload named ``file``): the control
+    law its ``% fuzzyservo:`` line gives (:func:`law_text`, what ``fuzzyservo export``
+    writes), else one input → form ``p``, two → ``pd``, all gains 1 and no output limits
+    (the simulator applies the rig actuator's command range). Named after the file stem.
+    """
+    system, law = parse_fis_law(text, file)
     return controller_from_law(system, law, Path(file), "[Rules]")
 
 
@@ -347,9 +313,3 @@ def fis_text(system: FuzzySystem, law: str = "") -> str:
         conn = 1 if rule.connective == "and" else 2
         lines.append(f"{ante}, {cons} ({number_text(rule.weight)}) : {conn}")
     return "\n".join(lines) + "\n"
-
-
-def write_fis(system: FuzzySystem, path: str | Path, law: str = "") -> Path:
-    """Write ``system`` (and the control law ``law``, :func:`fis_text`) as a MATLAB
-    ``.fis`` file (UTF-8); returns the path."""
-    return write_text(path, fis_text(system, law))

@@ -1,7 +1,7 @@
 """The sections of a ``.fis`` file made into the parts of a
 :class:`~fuzzyservo.controllers.fuzzy.system.FuzzySystem`: variables and their
 membership functions (MATLAB's shapes, Sugeno output terms), rules from their MF
-numbers, and the section counts checked. Used by :mod:`fuzzyservo.io.fis`.
+numbers, and the section counts checked. Used by :mod:`fuzzyservo.controllers.fuzzy.fis`.
 """
 
 from __future__ import annotations
@@ -9,10 +9,10 @@ from __future__ import annotations
 import math
 import re
 
+from fuzzyservo.controllers.fuzzy._fis_reader import _MF_KEY, _NUMBERED, _Line, _Reader, _Section
 from fuzzyservo.controllers.fuzzy.shapes import SUGENO_SHAPES
 from fuzzyservo.controllers.fuzzy.system import SHAPES, Rule, Term, Variable, from_matlab
 from fuzzyservo.errors import excerpt
-from fuzzyservo.io._fis_reader import _MF_KEY, _NUMBERED, _Line, _Reader, _Section
 
 _SHAPE_LIST = ", ".join(SHAPES)
 #: shapes fuzzylite writes into .fis files that MATLAB has no function for

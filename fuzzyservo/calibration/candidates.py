@@ -52,6 +52,15 @@ JACOBIAN_STEP = 0.01  # absolute finite-difference step on the unit box
 SCREEN_SAMPLES = 10_000
 SCREEN_RATIO = 3
 LOCAL_STARTS = 2  # local searches from the best starts of a candidate's fit
+# With a full grid over GRID_STARTS_FROM or more parameters (Stribeck's law), local
+# searches start from the GRID_STARTS best grid points as well: sticking friction's cost
+# has valleys a grid spacing apart, and on two rig-like Stribeck records whose fits
+# missed, the true one lay behind the grid's fourth and second best points
+# (docs/calibration-intervals.md). Two parameters (Coulomb friction with a pre-sliding
+# distance) keep LOCAL_STARTS: no miss of theirs was traced to it, and each local search
+# costs replays that `calibrate` pays for every round
+GRID_STARTS = 6
+GRID_STARTS_FROM = 4
 
 
 @dataclass(frozen=True)
@@ -364,13 +373,16 @@ def _minimise(
     residual's projection on the effect's own sensitivity gives); ``z_from``: a
     previous fit to refine. A local search (bounded Brent for a single parameter,
     trust-region least squares for several) runs from the best of them, and with
-    ``scan`` from the runner-up too (LOCAL_STARTS)."""
+    ``scan`` from the runner-up too (LOCAL_STARTS); after a full grid over
+    GRID_STARTS_FROM or more parameters, from the GRID_STARTS best starts, the grid's
+    best points among them."""
     n = z_start.size
     if n == 0:
         return z_start.copy()
     grid = SCAN_FINE if n == 1 else SCAN
     step = (grid[1] - grid[0]) / 2**REFINE_LEVELS
     starts = [z_start.copy()]
+    n_local = LOCAL_STARTS
     if z_from is not None:
         starts.append(np.clip(z_from, 0.0, 1.0))
     # a single unknown alone (the nominal fit) is scanned over its whole bounds as an
@@ -380,17 +392,22 @@ def _minimise(
         z[:n_effect] = START
         if n_effect <= 1:
             z[0], step = _scan(lambda v: objective.train_cost([v, *z[1:]]), grid)
+            starts.append(z)
         else:
             # a full grid over the effect's parameters: friction with stiction trades its
             # parameters against each other and a coordinate search stalls
-            best = min(itertools.product(SCAN, repeat=n_effect),
-                       key=lambda point: objective.train_cost([*point, *z[n_effect:]]))  # fmt: skip
-            z[:n_effect] = best
-        starts.append(z)
+            points = [np.array([*point, *z[n_effect:]])
+                      for point in itertools.product(SCAN, repeat=n_effect)]  # fmt: skip
+            points.sort(key=objective.train_cost)
+            if n_effect >= GRID_STARTS_FROM:
+                starts += points[:GRID_STARTS]
+                n_local = GRID_STARTS
+            else:
+                starts.append(points[0])
     if scan and n_effect:
         starts.append(_gauss_newton(objective, z_start))
     ranked = sorted(_distinct(starts), key=objective.train_cost)
-    local = [_local(objective, z, step, budget) for z in ranked[: LOCAL_STARTS if scan else 1]]
+    local = [_local(objective, z, step, budget) for z in ranked[: n_local if scan else 1]]
     return min([*local, *ranked], key=objective.train_cost)
 
 

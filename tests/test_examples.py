@@ -92,6 +92,12 @@ def test_calibration_names_the_effect_hidden_in_the_example_run(tmp_path: Path) 
          "--json", str(summary)]
     )  # fmt: skip
     assert code == 0
-    added = json.loads(summary.read_text(encoding="utf-8"))["effects_added"]
+    result = json.loads(summary.read_text(encoding="utf-8"))
+    added = result["effects_added"]
     assert [e["name"] for e in added] == ["coulomb_friction"]
     assert added[0]["params"]["force"] == pytest.approx(300.0, rel=0.1)  # declared: 300 N
+    # friction fitted through the quantised loop on a record that has its current: the
+    # user is told the interval may not hold, and how to fit it where it does
+    (loop,) = [w for w in result["warnings"] if "through the controller" in w]
+    assert loop.startswith("coulomb_friction was fitted through the controller")
+    assert "has the valve current i: leave out --controller" in loop

@@ -222,9 +222,11 @@ def calibration_summary(
         for f, e in outcome.uncertainty.items()
     }
     records = getattr(replay, "records", (replay,))
-    data["warnings"] = warnings(outcome) + [
-        w for r in records for w in data_warnings(r.data, r.channels)
-    ]
+    data["warnings"] = (
+        warnings(outcome)
+        + loop_warnings(outcome, records)
+        + [w for r in records for w in data_warnings(r.data, r.channels)]
+    )
     if still := replay.still_channels():  # not all of them: calibration/run.py refuses that
         data["warnings"].append(
             f"{replay.sources()}: the held-out part ({replay.held_out_words()}) does not move "
@@ -369,6 +371,34 @@ def warnings(outcome: SearchOutcome) -> list[str]:
                 "look for another effect"
             )
     return out
+
+
+def loop_warnings(outcome: SearchOutcome, records: Iterable[Replay]) -> list[str]:
+    """Friction added on a replay through the controller of a record that has its valve
+    input: a quantised loop makes friction stick and slip, and a fraction of a percent
+    more or less of it changes where, so the fit's cost there is a needle and its
+    intervals need not hold the true values; replayed from the recorded input the cost
+    is smooth (docs/calibration-intervals.md, "Friction under a quantised loop")."""
+    inputs = {
+        r.data.source: next(s for s in ("i", "u") if s in r.data.signals)
+        for r in records
+        if r.drive == "ref" and ("i" in r.data.signals or "u" in r.data.signals)
+    }
+    if not inputs:
+        return []
+    which = "; ".join(
+        f"{source} has the valve {'current i' if s == 'i' else 'command u'}"
+        for source, s in inputs.items()
+    )
+    return [
+        f"{c.name} was fitted through the controller: in a quantised loop friction sticks "
+        "and slips, and where it does moves with a fraction of a percent of its size, so "
+        "the fit's cost is a needle and its 95 % intervals need not hold the true values; "
+        f"{which}: leave out --controller to fit it from that input, where the cost is "
+        "smooth (docs/calibration-intervals.md)"
+        for c in outcome.added
+        if LIBRARY[c.name].stick_slip
+    ]
 
 
 def data_warnings(data: Measured, channels: Iterable[str]) -> list[str]:

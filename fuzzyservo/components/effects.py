@@ -130,7 +130,10 @@ class Effect:
     ``lookalike``: what else a record explained by it may hold, which the data cannot
     tell from it (calibration's verdict says so when it adds the effect);
     ``special_cases``: the effects it contains (calibration prefers an established
-    special case to it when the data cannot tell them apart)."""
+    special case to it when the data cannot tell them apart); ``stick_slip``: friction,
+    which a quantised closed loop makes stick and slip where a fraction of a percent of
+    it moves a converter edge, so that replayed through the controller its cost is a
+    needle (calibration warns when a record it adds it to has its valve input)."""
 
     name: str
     stage: str
@@ -140,6 +143,7 @@ class Effect:
     screened: bool = True
     lookalike: str = ""
     special_cases: tuple[str, ...] = ()  # effects this one becomes with a parameter at 0
+    stick_slip: bool = False
 
     @property
     def fitted(self) -> tuple[EffectParam, ...]:
@@ -200,6 +204,7 @@ LIBRARY: dict[str, Effect] = {
             "with a pre-sliding distance d > 0 the LuGre law (bristles of stiffness Fc/d, "
             "critically damped on the moving mass), which sticks",
             "docs/modelling.md Friction (smooth form); seed 002 §5 names dry friction as neglected",
+            stick_slip=True,
         ),
         Effect(
             "stribeck_friction",
@@ -224,6 +229,7 @@ LIBRARY: dict[str, Effect] = {
             "docs/modelling.md Friction and typical ranges (Fs/Fc 1.1-1.5, vs 1-10 mm/s); "
             "Canudas de Wit, Olsson, Åström and Lischinsky 1995 (LuGre)",
             special_cases=("coulomb_friction",),  # Fst = 0
+            stick_slip=True,
         ),
         Effect(
             "line_resistance",

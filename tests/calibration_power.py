@@ -25,8 +25,9 @@ Run from the repository root (about 10 s per record and core; use nice):
 
     PYTHONPATH=. python tests/calibration_power.py [draws=20] [--cache DIR] [--jobs 2]
 
-``--refit valve_lag`` refits only that candidate in every cached record (after a change
-to that effect alone), then decides.
+``--only coulomb_friction`` fits only that effect's power and size cases (a change that
+can touch only records with that effect). ``--refit valve_lag`` refits only that
+candidate in every cached record (after a change to that effect alone), then decides.
 """
 
 from __future__ import annotations
@@ -233,6 +234,11 @@ def main() -> None:
     parser.add_argument("--decide-only", action="store_true")
     parser.add_argument("--verbose", action="store_true")
     parser.add_argument(
+        "--only",
+        default="",
+        help="comma-separated effects: fit only their power and size cases (the rest as cached)",
+    )
+    parser.add_argument(
         "--refit",
         default="",
         help="comma-separated candidates to refit "
@@ -245,7 +251,8 @@ def main() -> None:
         with ProcessPoolExecutor(args.jobs) as pool:
             list(pool.map(_refit, [(path, names) for path in sorted(args.cache.glob("*.pkl"))]))
     elif not args.decide_only:
-        work = [(*c, args.cache) for c in cases(args.draws)]
+        only = frozenset(args.only.split(",")) if args.only else None
+        work = [(*c, args.cache) for c in cases(args.draws) if only is None or c[1] in only]
         with ProcessPoolExecutor(args.jobs) as pool:
             list(pool.map(_fit_round, work))
     results = decide_all(args.cache, args.draws)

@@ -23,8 +23,6 @@ from fuzzyservo.calibration.joint import record_field
 from fuzzyservo.calibration.replay import Replay
 from fuzzyservo.calibration.uncertainty import (
     Estimate,
-    at_bound,
-    correlated,
     effective_samples,
     estimates,
     gauss_newton_step,
@@ -62,15 +60,14 @@ def fitted_intervals(
     z = np.array([space.unit(j, v) for j, v in enumerate(values)])
     jac = jacobian(objective.residuals, z)
     channels = len(replay.channels)
-    follows = correlated(jac)
+    informed = np.flatnonzero(np.all(np.isfinite(jac), axis=0))
 
     def cost(j: int, v: float) -> np.ndarray:  # each training sample's, parameter j at v
         trial = z.copy()
         trial[j] = v
         r = objective.residuals(trial)
-        # the values it trades with follow it down the valley; all others where it sits
-        # on a bound (a one-sided Jacobian there tells little of correlation)
-        others = np.flatnonzero(np.arange(z.size) != j) if at_bound(z[j]) else follows[j]
+        # every other value follows it down the valley, as a profile likelihood's do
+        others = informed[informed != j]
         if others.size:
             moved = trial.copy()
             moved[others] = gauss_newton_step(jac[:, others], r, z[others])

@@ -35,15 +35,14 @@ Every fitted value gets two intervals, and the one reported spans both (and the 
   may lie wherever the envelope has not risen by more than its roughness (about a
   smooth cost's cubic the scatter is next to nothing, and so is what this adds). The grid leaves out the fit itself,
   whose cost is the least a search found (low by selection where the cost is rough).
-  At each grid point the other parameters stay where they were fitted, except those
-  correlated with it (|ρ| ≥ ``CORRELATED`` in ``(JᵀJ)⁻¹``, :func:`correlated`): they
-  take one Gauss-Newton step from there (:func:`gauss_newton_step`), kept where it
-  lowers the cost. That follows a curved valley, as a profile likelihood does, where
-  holding them cuts across it (a second-order spool's two time constants trade along
-  one). Where the parameter sits on a bound of the box (an optional part off: a
-  spool's second time constant at 0) every other one takes that step: a one-sided
-  Jacobian there says little about correlation (the time constants share the lag, so
-  the first must shorten as the second grows from 0). Its spacing
+  At each grid point every other parameter takes one Gauss-Newton step from where it
+  was fitted (:func:`gauss_newton_step`), kept where it lowers the cost. That follows a
+  curved valley, as a profile likelihood does, where holding them cuts across it (a
+  second-order spool's two time constants trade along one; with a spool's second time
+  constant at 0 the first must shorten as the second grows). Following only the values
+  strongly correlated with it (|ρ| ≥ 0.5 in ``(JᵀJ)⁻¹``) held a weakly correlated one,
+  and on rig-like sticking Stribeck records the stiction's and pre-sliding distance's
+  intervals then cut across the valley (docs/calibration-intervals.md). Its spacing
   starts at half the sandwich's half-width, never under the search's Jacobian step, and
   doubles (``DOUBLINGS`` times at most) until the bottom lies inside the grid, or at a
   bound of the box, the scatter places it within ``SETTLED`` of the grid's half-span,
@@ -86,7 +85,6 @@ DEGREE = 3  # of the polynomial fitted to a profile (its envelope)
 SETTLED = 0.5  # the envelope's bottom is placed when its 95 % half-width is under
 # this share of the grid's half-span
 DOUBLINGS = 3  # at most this many times the profile's spacing doubles
-CORRELATED = 0.5  # |correlation| at which a parameter follows another's profile
 SEED = 40  # of the bootstrap's resampling (the intervals are reproducible)
 
 
@@ -299,29 +297,6 @@ def _lowest(coef: np.ndarray, lo: float, hi: float) -> np.ndarray:
     ends = np.where(value(np.full_like(a, lo)) <= value(np.full_like(a, hi)), lo, hi)
     local = np.where(inside, local, ends)
     return np.where(inside & (value(local) < value(ends)), local, ends)
-
-
-def correlated(jacobian: np.ndarray) -> list[np.ndarray]:
-    """For each parameter, the others whose estimate is correlated with its own by at
-    least ``CORRELATED`` (from ``(JᵀJ)⁻¹``; uninformed columns aside): those its profile
-    moves along (module docstring)."""
-    n = jacobian.shape[1]
-    informed = np.all(np.isfinite(jacobian), axis=0) & (np.sum(jacobian**2, axis=0) > 0)
-    out = [np.zeros(0, dtype=int) for _ in range(n)]
-    idx = np.flatnonzero(informed)
-    if idx.size < 2:
-        return out
-    cov = np.linalg.pinv(jacobian[:, idx].T @ jacobian[:, idx])
-    sd = np.sqrt(np.maximum(np.diag(cov), 1e-300))
-    corr = np.abs(cov / np.outer(sd, sd))
-    for a, j in enumerate(idx):
-        out[j] = idx[(corr[a] >= CORRELATED) & (idx != j)]
-    return out
-
-
-def at_bound(z: float) -> bool:
-    """A unit-box coordinate within ``AT_BOUND`` of a bound."""
-    return z <= AT_BOUND or z >= 1.0 - AT_BOUND
 
 
 def gauss_newton_step(columns: np.ndarray, residuals: np.ndarray, start: np.ndarray) -> np.ndarray:

@@ -379,16 +379,13 @@ def loop_warnings(outcome: SearchOutcome, records: Iterable[Replay]) -> list[str
     more or less of it changes where, so the fit's cost there is a needle and its
     intervals need not hold the true values; replayed from the recorded input the cost
     is smooth (docs/calibration-intervals.md, "Friction under a quantised loop")."""
-    inputs = {
-        r.data.source: next(s for s in ("i", "u") if s in r.data.signals)
-        for r in records
-        if r.drive == "ref" and ("i" in r.data.signals or "u" in r.data.signals)
-    }
+    through = {r.data.source: input_signal(r)[0] for r in records if r.drive == "ref"}
+    inputs = {source: name for source, name in through.items() if name != "ref"}
     if not inputs:
         return []
     which = "; ".join(
-        f"{source} has the valve {'current i' if s == 'i' else 'command u'}"
-        for source, s in inputs.items()
+        f"{source} has the valve {'current i' if name == 'i' else 'command u'}"
+        for source, name in inputs.items()
     )
     return [
         f"{c.name} was fitted through the controller: in a quantised loop friction sticks "

@@ -190,7 +190,7 @@ def run_calibrate_case(root: Path | None = None, *, workers: int = 2) -> BenchRe
     (P K=10, `pulses`) with Coulomb friction of 300 N undeclared, 5 µm and 0.05 bar of
     noise, each round's candidates fitted on ``workers`` processes (the command's
     default is one per core; the result is the same on any number); the issue's budget
-    is 120 s on this 2-core machine."""
+    is 12 s on the 2-core machine with nothing else running."""
     from fuzzyservo.calibration.replay import make_replay
     from fuzzyservo.calibration.search import search_effects
     from fuzzyservo.calibration.synthetic import synthetic_run

@@ -236,7 +236,8 @@ def main() -> None:
     parser.add_argument(
         "--only",
         default="",
-        help="comma-separated effects: fit only their power and size cases (the rest as cached)",
+        help="comma-separated effects: fit only their power and size cases (the rest as "
+        "cached); 'none' fits the mismatch-only nulls",
     )
     parser.add_argument(
         "--refit",
@@ -252,7 +253,13 @@ def main() -> None:
             list(pool.map(_refit, [(path, names) for path in sorted(args.cache.glob("*.pkl"))]))
     elif not args.decide_only:
         only = frozenset(args.only.split(",")) if args.only else None
-        work = [(*c, args.cache) for c in cases(args.draws) if only is None or c[1] in only]
+        # five records a task: the cases' records share out over the jobs
+        work = [
+            (kind, effect, mismatch, seeds[k : k + 5], args.cache)
+            for kind, effect, mismatch, seeds in cases(args.draws)
+            if only is None or (effect or "none") in only
+            for k in range(0, len(seeds), 5)
+        ]
         with ProcessPoolExecutor(args.jobs) as pool:
             list(pool.map(_fit_round, work))
     results = decide_all(args.cache, args.draws)

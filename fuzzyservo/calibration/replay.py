@@ -41,7 +41,7 @@ from fuzzyservo.errors import DataError
 from fuzzyservo.measured import Measured
 from fuzzyservo.rig import Rig, Scenario
 from fuzzyservo.signals import Sampled
-from fuzzyservo.simulation import simulate
+from fuzzyservo.simulation import DEFAULT_TOL, simulate
 from fuzzyservo.simulation.result import SimResult
 
 VALIDATION_FRACTION = 0.3
@@ -159,14 +159,19 @@ class Replay(Scored):
         return self.data.signals[channel]
 
     def simulate(
-        self, rig: Rig, controller: Controller | None = None, duration_s: float | None = None
+        self,
+        rig: Rig,
+        controller: Controller | None = None,
+        duration_s: float | None = None,
+        *,
+        tol: float = DEFAULT_TOL,
     ) -> SimResult:
         """The replayed run on ``rig``: the data's input, sample time and initial state;
-        through ``controller`` (e.g. with fitted gains) instead of the replay's own."""
+        through ``controller`` (e.g. with fitted gains) instead of the replay's own;
+        integrated at ``tol`` (:func:`~fuzzyservo.simulation.closed_loop.simulate`)."""
         replay_rig = dataclasses.replace(rig, sample_time_s=self.sample_time_s, initial={})
-        return simulate(
-            replay_rig, controller or self.controller, self.scenario, duration_s=duration_s
-        )
+        return simulate(replay_rig, controller or self.controller, self.scenario,
+                        duration_s=duration_s, tol=tol)  # fmt: skip
 
     @cached_property
     def training_s(self) -> float:
@@ -176,12 +181,17 @@ class Replay(Scored):
         return min(end, self.scenario.duration_s)
 
     def run(
-        self, rig: Rig, controller: Controller | None = None, *, training: bool = False
+        self,
+        rig: Rig,
+        controller: Controller | None = None,
+        *,
+        training: bool = False,
+        tol: float = DEFAULT_TOL,
     ) -> tuple[dict[str, np.ndarray], str]:
         """Model channels on the data grid (NaN where the run failed) and the run's status.
         ``training``: run only as far as the training part (fits look at nothing else);
         the held-out samples are then NaN."""
-        result = self.simulate(rig, controller, self.training_s if training else None)
+        result = self.simulate(rig, controller, self.training_s if training else None, tol=tol)
         t = self.t[: self.split] if training else self.t
         out = {}
         for channel, signal in self.channels.items():

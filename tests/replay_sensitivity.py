@@ -48,20 +48,29 @@ def training_cost(replay: Replay, rig: Rig, *, tol: float = DEFAULT_TOL) -> floa
     return replay.cost(model, slice(0, replay.split))
 
 
-def sensitivity(rig: Rig, name: str, k: int, *, open_loop: bool) -> list[float]:
+def sensitivity(
+    rig: Rig,
+    name: str,
+    k: int,
+    *,
+    open_loop: bool,
+    changes: tuple[float, ...] = CHANGES,
+    tight: bool = True,
+) -> list[float]:
     """Draw ``k``'s training cost at the truth, then its relative change with each of
-    CHANGES and with a tolerance ten times tighter."""
+    ``changes`` and (``tight``) with a tolerance ten times tighter."""
     truth, data = record(rig, name, k, in_loop=open_loop)
     effect = name.partition(":")[0]
     replay = make_replay(rig, data, None if open_loop else controller_named("p_k10"))
     at_truth = training_cost(replay, rig.with_effect(effect, **truth))
     first = LIBRARY[effect].fitted[0].key
     moved = []
-    for change in CHANGES:
+    for change in changes:
         nudged = {**truth, first: truth[first] * (1.0 + change)}
         moved.append(training_cost(replay, rig.with_effect(effect, **nudged)))
-    tight = training_cost(replay, rig.with_effect(effect, **truth), tol=DEFAULT_TOL / 10)
-    return [at_truth, *(abs(c / at_truth - 1.0) for c in (*moved, tight))]
+    if tight:
+        moved.append(training_cost(replay, rig.with_effect(effect, **truth), tol=DEFAULT_TOL / 10))
+    return [at_truth, *(abs(c / at_truth - 1.0) for c in moved)]
 
 
 def percent(share: float) -> str:

@@ -375,10 +375,11 @@ def warnings(outcome: SearchOutcome) -> list[str]:
 
 def loop_warnings(outcome: SearchOutcome, records: Iterable[Replay]) -> list[str]:
     """Friction added on a replay through the controller of a record that has its valve
-    input: a quantised loop makes friction stick and slip, and a fraction of a percent
-    more or less of it changes where, so the fit's cost there is a needle and its
-    intervals need not hold the true values; replayed from the recorded input the cost
-    is smooth (docs/calibration-intervals.md, "Friction under a quantised loop")."""
+    input: in a quantised loop friction sticks and slips where single converter codes
+    put it, so the replay is chaotic in friction's values (a millionth more moves the
+    cost several-fold; tests/replay_sensitivity.py) and its intervals need not hold the
+    true values; replayed from the recorded input the cost is smooth
+    (docs/calibration-intervals.md, "Where the replay is chaotic")."""
     through = {r.data.source: input_signal(r)[0] for r in records if r.drive == "ref"}
     inputs = {source: name for source, name in through.items() if name != "ref"}
     if not inputs:
@@ -389,8 +390,8 @@ def loop_warnings(outcome: SearchOutcome, records: Iterable[Replay]) -> list[str
     )
     return [
         f"{c.name} was fitted through the controller: in a quantised loop friction sticks "
-        "and slips, and where it does moves with a fraction of a percent of its size, so "
-        "the fit's cost is a needle and its 95 % intervals need not hold the true values; "
+        "and slips where single converter codes put it, so the replay is chaotic in it "
+        "and its 95 % intervals need not hold the true values; "
         f"{which}: leave out --controller to fit it from that input, where the cost is "
         "smooth (docs/calibration-intervals.md)"
         for c in outcome.added

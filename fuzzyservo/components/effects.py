@@ -131,9 +131,9 @@ class Effect:
     tell from it (calibration's verdict says so when it adds the effect);
     ``special_cases``: the effects it contains (calibration prefers an established
     special case to it when the data cannot tell them apart); ``stick_slip``: friction,
-    which a quantised closed loop makes stick and slip where a fraction of a percent of
-    it moves a converter edge, so that replayed through the controller its cost is a
-    needle (calibration warns when a record it adds it to has its valve input)."""
+    which a quantised closed loop makes stick and slip where single converter codes put
+    it, so that replayed through the controller its cost is chaotic in it (calibration
+    warns when a record it adds it to has its valve input)."""
 
     name: str
     stage: str

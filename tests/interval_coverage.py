@@ -98,7 +98,9 @@ def effects() -> tuple[str, ...]:
     return tuple(name for name, e in LIBRARY.items() if e.screened)
 
 
-def record(rig: Rig, effect: str, k: int, *, in_loop: bool = False) -> tuple[dict, Measured]:
+def record(
+    rig: Rig, effect: str, k: int, *, in_loop: bool = False
+) -> tuple[dict[str, float], Measured]:
     """Draw ``k``'s true parameters of ``effect`` (a variant: ``effect:variant``; key ->
     SI) and its record, a run under P K=10 on ``pulses``."""
     effect, variant = effect.partition(":")[::2]

@@ -190,7 +190,7 @@ class Replay(Scored):
     ) -> tuple[dict[str, np.ndarray], str]:
         """Model channels on the data grid (NaN where the run failed) and the run's status.
         ``training``: run only as far as the training part (fits look at nothing else);
-        the held-out samples are then NaN."""
+        the held-out samples are then NaN. ``tol``: the integration tolerance."""
         result = self.simulate(rig, controller, self.training_s if training else None, tol=tol)
         t = self.t[: self.split] if training else self.t
         out = {}

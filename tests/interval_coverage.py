@@ -42,11 +42,10 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from support import controller_named, rig_named
 
 from fuzzyservo.calibration import candidates, intervals
-from fuzzyservo.calibration.replay import make_replay
+from fuzzyservo.calibration.replay import Replay, make_replay
 from fuzzyservo.calibration.synthetic import synthetic_run
 from fuzzyservo.calibration.uncertainty import Estimate
 from fuzzyservo.components.effects import LIBRARY
-from fuzzyservo.measured import Measured
 from fuzzyservo.rig import Rig
 
 NOISE = {"y": 5e-6, "p_a": 0.05e5, "p_b": 0.05e5}  # as examples/make_examples.py
@@ -98,11 +97,12 @@ def effects() -> tuple[str, ...]:
     return tuple(name for name, e in LIBRARY.items() if e.screened)
 
 
-def record(
-    rig: Rig, effect: str, k: int, *, in_loop: bool = False
-) -> tuple[dict[str, float], Measured]:
+def replayed(
+    rig: Rig, effect: str, k: int, *, in_loop: bool = False, open_loop: bool = False
+) -> tuple[dict[str, float], Replay]:
     """Draw ``k``'s true parameters of ``effect`` (a variant: ``effect:variant``; key ->
-    SI) and its record, a run under P K=10 on ``pulses``."""
+    SI) and the replay of its record, a run under P K=10 on ``pulses``: through the
+    controller, or (``open_loop``) from the recorded valve current."""
     effect, variant = effect.partition(":")[::2]
     # a variant's draws take the second half of its effect's seeds (≤ 50 draws each)
     seed = SEED + 100 * list(LIBRARY).index(effect) + (50 if variant else 0) + k
@@ -115,7 +115,7 @@ def record(
     controller = controller_named("p_k10")
     data = synthetic_run(rig, controller, "pulses", {effect: truth}, NOISE, seed=seed,
                          in_loop=in_loop)  # fmt: skip
-    return truth, data
+    return truth, make_replay(rig, data, None if open_loop else controller)
 
 
 def draw(
@@ -130,9 +130,8 @@ def draw(
     """Draw ``k`` of ``effect``: its true parameters (key -> SI) and the fitted
     parameters' estimates (key -> Estimate). ``from_truth``: the fit refines from the
     true values (no global search), which measures the intervals apart from the search."""
-    truth, data = record(rig, effect, k, in_loop=in_loop)
+    truth, replay = replayed(rig, effect, k, in_loop=in_loop, open_loop=open_loop)
     effect = effect.partition(":")[0]
-    replay = make_replay(rig, data, None if open_loop else controller_named("p_k10"))
     start = None
     if from_truth:  # a candidate at the truth (nothing to fit) to start from
         _, start = candidates.fit(replay, rig.with_effect(effect, **truth), None)

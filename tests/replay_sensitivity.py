@@ -25,10 +25,10 @@ from pathlib import Path
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 import numpy as np
-from interval_coverage import record
-from support import controller_named, rig_named
+from interval_coverage import replayed
+from support import rig_named
 
-from fuzzyservo.calibration.replay import Replay, make_replay
+from fuzzyservo.calibration.replay import Replay
 from fuzzyservo.components.effects import LIBRARY
 from fuzzyservo.rig import Rig
 from fuzzyservo.simulation import DEFAULT_TOL
@@ -59,9 +59,8 @@ def sensitivity(
 ) -> list[float]:
     """Draw ``k``'s training cost at the truth, then its relative change with each of
     ``changes`` and (``tight``) with a tolerance ten times tighter."""
-    truth, data = record(rig, name, k, in_loop=open_loop)
+    truth, replay = replayed(rig, name, k, in_loop=open_loop, open_loop=open_loop)
     effect = name.partition(":")[0]
-    replay = make_replay(rig, data, None if open_loop else controller_named("p_k10"))
     at_truth = training_cost(replay, rig.with_effect(effect, **truth))
     first = LIBRARY[effect].fitted[0].key
     moved = []

@@ -1,127 +1,198 @@
-"""numba's ``njit``, with an on-disk cache that is invalidated by any kernel source change.
+"""numba's ``njit``, with an on-disk cache keyed by each kernel's own source and what it
+imports, and the modules generated at run time (a plant's kernels).
 
-numba's own cache checks only the timestamp of the file that defines a function, so
-a cached closed loop would go on calling the old version of a plant's ``rhs`` after
-the plant changed. Here the cache folder is named after a hash of every compiled
-source file and the numba version; a change anywhere gives a fresh folder. Every
-module with compiled kernels imports ``njit`` from here. ``NUMBA_CACHE_DIR`` set by
-the user wins.
+numba's own cache checks only the file that defines a function, so a cached closed loop
+would go on calling the old version of a function from another file after that file
+changed. Here a compiled function's cache is stamped with a hash of its own file and of
+every file of this package (or generated module) it imports, directly or through others,
+and the numba version (:class:`KernelCacheLocator`): editing one component's file
+recompiles the kernels whose modules import it, and no others. Entries live in one folder,
+``~/.cache/fuzzyservo/numba`` (``XDG_CACHE_HOME`` moves it; ``NUMBA_CACHE_DIR`` set by the
+user wins). numba writes every entry to a temporary file and renames it, so processes
+that share the folder never read half a file; an entry that cannot be read (corrupt,
+truncated) is compiled again and rewritten (:func:`_guard_corrupt_entries`).
 
-:func:`bind_plant` compiles the closed loop once per plant: it generates a module from
-the template ``simulation/_plant_loop.py``, whose statements that bind the plant slots
-it declares (``PLANT_SLOTS``) give way to the plant's binding, writes it into the
-cache folder, named by a hash of its text, and imports it, so numba caches it like any
-other module.
+:func:`load_generated` imports a module generated from source text (a plant's kernels,
+the C entry points the loop calls them by), written into the cache folder under a name
+that is the hash of its text, so numba caches it like any other module.
 """
 
 from __future__ import annotations
 
 import ast
+import functools
 import hashlib
 import importlib.util
-import json
 import os
 import sys
 import tempfile
 import threading
 import time
-from collections.abc import Callable
-from functools import cache
+from collections.abc import Callable, Iterator
+from contextlib import AbstractContextManager, contextmanager, nullcontext
 from pathlib import Path
 from types import ModuleType
+from typing import Any
 
 import numba
 from numba import njit
+from numba.core import caching
 from numba.core import event as numba_event
 
 _PACKAGE = Path(__file__).resolve().parent
-_KERNEL_DIRS = ("components", "controllers", "plants", "simulation")
+#: generated modules' names start with this (:func:`load_generated`)
+GENERATED_PREFIX = "fuzzyservo_gen_"
 
 
-def _fingerprint() -> str:
-    digest = hashlib.sha256(numba.__version__.encode())
-    for folder in _KERNEL_DIRS:
-        for path in sorted((_PACKAGE / folder).rglob("*.py")):
-            digest.update(path.relative_to(_PACKAGE).as_posix().encode())
-            digest.update(path.read_bytes())
-    return digest.hexdigest()[:16]
-
-
-def _cache_dir() -> Path:
+def _cache_root() -> Path:
     base = os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache"
-    return Path(base) / "fuzzyservo" / "numba" / _fingerprint()
+    return Path(base) / "fuzzyservo" / "numba"
 
 
 if not os.environ.get("NUMBA_CACHE_DIR"):
     try:
-        folder = _cache_dir()
+        folder = _cache_root()
         folder.mkdir(parents=True, exist_ok=True)
         numba.config.CACHE_DIR = str(folder)
     except OSError:  # read-only home: numba falls back to __pycache__ or no cache
         pass
 
 
-def cache_is_cold() -> bool:
-    """True when no compiled closed loop is cached yet: the next run compiles first (minutes
-    on a small machine), so the command line can say so instead of staying silent.
-    (Loading a rig compiles and caches a few small kernels; they do not count.)"""
-    folder = numba.config.CACHE_DIR
-    return not folder or not any(Path(folder).rglob("*.closed_loop-*.nbi"))
-
-
-#: the long kernels, with seconds each took to compile on one 2-core machine (the closed loop of
-#: dinca_cylinder, numba 0.68): an estimate for code that plans work, never printed as a promise
-#: (another machine may take several times as long); this machine's own times replace it
-TYPICAL_COMPILE_S = {"plant_signals": 4.0, "closed_loop": 45.0, "signal_table": 3.0}
-_TIMES_FILE = "compile_seconds.json"
-
-
-def _times_path() -> Path | None:
-    """Where this machine's compile times are kept: beside the fingerprinted folders (they
-    outlive a source change), or in the user's ``NUMBA_CACHE_DIR``."""
-    folder = numba.config.CACHE_DIR
-    if not folder:
+def _module_file(name: str) -> Path | None:
+    """The file of a module of this package or a generated one, by its dotted name."""
+    if name.startswith(GENERATED_PREFIX) and "." not in name:
+        try:
+            path = _generated_dir() / f"{name}.py"
+        except OSError:
+            return None
+        return path if path.is_file() else None
+    if name != "fuzzyservo" and not name.startswith("fuzzyservo."):
         return None
-    folder = Path(folder)
-    return (
-        folder / _TIMES_FILE if os.environ.get("NUMBA_CACHE_DIR") else folder.parent / _TIMES_FILE
+    base = _PACKAGE.parent.joinpath(*name.split("."))
+    for path in (base.with_suffix(".py"), base / "__init__.py"):
+        if path.is_file():
+            return path
+    return None
+
+
+def _imports(path: Path) -> set[Path]:
+    """The files of this package's (or generated) modules that ``path`` imports."""
+    try:
+        tree = ast.parse(path.read_bytes())
+    except (OSError, SyntaxError, ValueError):
+        return set()
+    found: set[Path] = set()
+    for node in ast.walk(tree):
+        names: list[str] = []
+        if isinstance(node, ast.Import):
+            names = [a.name for a in node.names]
+        elif isinstance(node, ast.ImportFrom) and node.module and not node.level:
+            # ``from a.b import c``: c may be a module of a.b, else a name in it
+            names = [f"{node.module}.{a.name}" for a in node.names] + [node.module]
+        for name in names:
+            file = _module_file(name)
+            if file is not None:
+                found.add(file)
+    return found
+
+
+@functools.cache
+def _closure_stamp(path: str, mtime_ns: int, size: int) -> str:
+    """A hash of ``path``'s text, of every package or generated file it imports directly
+    or through others, and of the numba version: a kernel's cache stamp."""
+    seen: set[Path] = set()
+    todo = [Path(path)]
+    while todo:
+        file = todo.pop()
+        if file in seen:
+            continue
+        seen.add(file)
+        todo += sorted(_imports(file) - seen)
+    digest = hashlib.sha256(numba.__version__.encode())
+    for file in sorted(seen):
+        digest.update(str(file).encode())
+        digest.update(file.read_bytes())
+    return digest.hexdigest()
+
+
+def kernel_stamp(path: str | Path) -> str:
+    """The cache stamp of the kernels defined in ``path`` (:func:`_closure_stamp`)."""
+    st = os.stat(path)
+    return _closure_stamp(str(Path(path).resolve()), st.st_mtime_ns, st.st_size)
+
+
+class KernelCacheLocator(caching.UserProvidedCacheLocator):
+    """numba's cache locator for this package's kernels and generated modules: the
+    cache folder numba is given, and a stamp that is :func:`kernel_stamp` (the file and what
+    it imports), not the file alone. Any other function is left to numba's own locators."""
+
+    def get_source_stamp(self) -> str:
+        return kernel_stamp(self._py_file)
+
+    @classmethod
+    def from_function(cls, py_func, py_file):
+        path = Path(py_file).resolve()
+        ours = _PACKAGE in path.parents or path.name.startswith(GENERATED_PREFIX)
+        return super().from_function(py_func, py_file) if ours else None
+
+
+def _install_locator() -> None:
+    """Put :class:`KernelCacheLocator` before numba's own locators (numba's
+    ``CACHE_LOCATOR_CLASSES`` setting), unless the user chose them
+    (``NUMBA_CACHE_LOCATOR_CLASSES``)."""
+    if numba.config.CACHE_LOCATOR_CLASSES:
+        return
+    defaults = [cls.__name__ for cls in caching.CacheImpl._locator_classes]
+    numba.config.CACHE_LOCATOR_CLASSES = ",".join(
+        [f"{__name__}.{KernelCacheLocator.__name__}", *defaults]
     )
 
 
-def measured_compile_seconds() -> dict[str, float]:
-    """Seconds each long kernel took to compile the last time this machine compiled it (the
-    kernels of :data:`TYPICAL_COMPILE_S` only; empty before the first compile)."""
-    path = _times_path()
-    try:
-        known = json.loads(path.read_text(encoding="utf-8"))
-        return {k: float(known[k]) for k in TYPICAL_COMPILE_S if k in known}
-    except (OSError, ValueError, TypeError, AttributeError):
-        return {}
-
-
-def compile_estimates() -> dict[str, float]:
-    """Seconds each long kernel takes to compile: this machine's last times, else
-    :data:`TYPICAL_COMPILE_S`."""
-    return {**TYPICAL_COMPILE_S, **measured_compile_seconds()}
-
-
-def _record_compile_time(name: str, seconds: float) -> None:
-    path = _times_path()
-    if path is None or name not in TYPICAL_COMPILE_S:
+def _guard_corrupt_entries() -> None:
+    """An index or data file numba cannot unpickle (a truncated write by a killed process,
+    a disk fault) reads as a cache miss: the kernel is compiled again and the entry
+    rewritten, never trusted, never an error."""
+    cls = caching.IndexDataCacheFile
+    if getattr(cls, "_fuzzyservo_guarded", False):
         return
-    try:
-        known = {**measured_compile_seconds(), name: round(seconds, 1)}
-        tmp = path.with_suffix(f".{os.getpid()}.tmp")
-        tmp.write_text(json.dumps(known), encoding="utf-8")
-        os.replace(tmp, path)
-    except OSError:  # a read-only cache: the estimate stays the typical one
-        pass
+    load_index, load_data = cls._load_index, cls._load_data
+
+    def _load_index(self):
+        try:
+            return load_index(self)
+        except Exception:
+            return {}
+
+    def _load_data(self, name):
+        try:
+            return load_data(self, name)
+        except OSError:
+            raise
+        except Exception as error:  # any unreadable entry: load() reads an OSError as a miss
+            raise OSError(f"unreadable cache entry {name}") from error
+
+    cls._load_index, cls._load_data = _load_index, _load_data
+    cls._fuzzyservo_guarded = True
+
+
+_install_locator()
+_guard_corrupt_entries()
+
+
+#: what the long compiles are, as the compile lines name them (any other kernel by its name)
+STEPS = {
+    "closed_loop": "the closed loop (once per install)",
+    "closed_loop_batch": "the batched closed loop (once per install)",
+    "signal_table": "the signal table (once per install)",
+    "integrate_interval": "the plant integrator (once per install)",
+}
 
 
 class _CompileWatch(numba_event.Listener):
-    """Calls ``on_start(name)`` and ``on_end(name, seconds)`` around each top-level numba
-    compilation in this process (a kernel compiled because another calls it is part of
-    that one's time). numba sends these events only on a cache miss."""
+    """Calls ``on_start(what)`` and ``on_end(what, seconds)`` around each top-level compile
+    in this process: a step (:func:`compile_step`) in which numba compiled anything, or a
+    compile numba makes outside any step. A compile inside another is part of that one's
+    time. numba sends these events only on a cache miss."""
 
     def __init__(self, on_start: Callable[[str], None], on_end: Callable[[str, float], None]):
         self.on_start_, self.on_end_ = on_start, on_end
@@ -131,25 +202,89 @@ class _CompileWatch(numba_event.Listener):
         stack = self.local.__dict__.setdefault("stack", [])
         stack.append(time.perf_counter())
         if len(stack) == 1:
-            self.on_start_(event.data["dispatcher"].py_func.__name__)
+            name = _name(event.data["dispatcher"])
+            self.on_start_(STEPS.get(name, f"kernel {name}"))
 
     def on_end(self, event) -> None:
         t0 = self.local.stack.pop()
         if not self.local.stack:
-            name = event.data["dispatcher"].py_func.__name__
-            seconds = time.perf_counter() - t0
-            _record_compile_time(name, seconds)
-            self.on_end_(name, seconds)
+            name = _name(event.data["dispatcher"])
+            self.on_end_(STEPS.get(name, f"kernel {name}"), time.perf_counter() - t0)
+
+
+def _name(dispatcher: object) -> str:
+    py = getattr(dispatcher, "py_func", None) or getattr(dispatcher, "_pyfunc", None)
+    return getattr(py, "__name__", str(dispatcher))
+
+
+_WATCHES: list[_CompileWatch] = []
 
 
 def watch_compiles(
     on_start: Callable[[str], None], on_end: Callable[[str, float], None]
 ) -> Callable[[], None]:
-    """Report every kernel this process compiles from now on (see :class:`_CompileWatch`);
-    the compile times are kept for :func:`compile_estimates`. Returns a function that stops it."""
+    """Report every compile this process makes from now on, one call each at its start and
+    end, named by what it compiles (:class:`_CompileWatch`). Returns a function that stops it."""
     watch = _CompileWatch(on_start, on_end)
     numba_event.register("numba:compile", watch)
-    return lambda: numba_event.unregister("numba:compile", watch)
+    _WATCHES.append(watch)
+
+    def stop() -> None:
+        numba_event.unregister("numba:compile", watch)
+        _WATCHES.remove(watch)
+
+    return stop
+
+
+class compile_step:
+    """``with compile_step("the plant's kernels of X"): ...``: every compile inside the block
+    is reported as this one step (:func:`watch_compiles`), its start at the first compile,
+    its end when the block ends; nothing when nothing compiled. :meth:`compiled` marks the
+    step compiled where numba sends no event (a ``cfunc`` compiled, its callees cached)."""
+
+    def __init__(self, what: str) -> None:
+        self.what = what
+        self._events: _StepEvents | None = None
+
+    def __enter__(self) -> compile_step:
+        self._t0 = time.perf_counter()
+        self._started = False
+        if _WATCHES:
+            self._events = _StepEvents(self)
+            numba_event.register("numba:compile", self._events)
+            for watch in _WATCHES:  # compiles inside the step are not top-level
+                watch.local.__dict__.setdefault("stack", []).append(self._t0)
+        return self
+
+    def compiled(self) -> None:
+        if self._events is not None and not self._started:
+            self._started = True
+            for watch in _WATCHES:
+                watch.on_start_(self.what)
+
+    def __exit__(self, *exc: object) -> None:
+        if self._events is None:
+            return
+        numba_event.unregister("numba:compile", self._events)
+        for watch in _WATCHES:
+            watch.local.stack.pop()
+        if self._started:
+            seconds = time.perf_counter() - self._t0
+            for watch in _WATCHES:
+                watch.on_end_(self.what, seconds)
+
+
+class _StepEvents(numba_event.Listener):
+    def __init__(self, step: compile_step) -> None:
+        self.step = step
+        self.thread = threading.get_ident()
+
+    def on_start(self, event) -> None:
+        if threading.get_ident() == self.thread:
+            self.step.compiled()
+
+    def on_end(self, event) -> None:
+        pass
 
 
 def _generated_dir() -> Path:
@@ -165,105 +300,78 @@ def _generated_dir() -> Path:
     raise OSError("no writable folder for generated kernels; set NUMBA_CACHE_DIR")
 
 
-_TEMPLATE = _PACKAGE / "simulation" / "_plant_loop.py"
+@contextmanager
+def exclusive(key: str) -> Iterator[None]:
+    """Hold the inter-process lock ``key`` (a file beside the cache) for the block: of
+    processes that would compile the same kernel at once (a study's workers, the test
+    suite's), one compiles and the others wait, then read its cache entry. Without file
+    locks (not POSIX) or a writable folder, the block runs unlocked."""
+    try:
+        import fcntl
+
+        folder = _generated_dir().parent / "locks"
+        folder.mkdir(exist_ok=True)
+        handle = open(folder / f"{key}.lock", "a")
+    except (ImportError, OSError):
+        yield
+        return
+    with handle:
+        fcntl.flock(handle, fcntl.LOCK_EX)
+        try:
+            yield
+        finally:
+            fcntl.flock(handle, fcntl.LOCK_UN)
 
 
-def _loop_source(binding: str) -> str:
-    """The source of the closed-loop module bound to one plant: the template
-    ``simulation/_plant_loop.py`` statement by statement, its own docstring replaced by
-    one naming it, and the statements that bind its plant slots (the names its
-    ``PLANT_SLOTS`` declares) replaced by ``binding``, Python source that defines or
-    imports each of those names. The template is read as a syntax tree, not imported
-    (it sits above this module), and every other statement is copied unchanged.
-    """
-    text = _TEMPLATE.read_text(encoding="utf-8")
-    lines = text.splitlines()
-    tree = ast.parse(text)
-    slots = _declared(tree, "PLANT_SLOTS")
-    bound = _bound_names(ast.parse(binding).body)
-    missing = slots - bound
-    if missing:
-        raise ValueError(f"a plant binding must define {sorted(missing)}; it does not")
-    # a default the binding defines gives way to it too
-    slots |= _declared(tree, "PLANT_DEFAULTS") & bound
-    out = [
-        f'"""The closed loop of {_TEMPLATE.name}, bound to one plant (generated by '
-        f'{__name__}.bind_plant)."""'
-    ]
-    body = tree.body
-    done = 0  # template lines copied or replaced so far
-    if body and isinstance(body[0], ast.Expr) and isinstance(body[0].value, ast.Constant):
-        done = body[0].end_lineno  # the template's docstring
-        body = body[1:]
-    placed = False
-    for node in body:
-        first = min([node.lineno] + [d.lineno for d in getattr(node, "decorator_list", [])])
-        if _bound_names([node]) & slots:
-            if not placed:
-                out += ["", "# the plant's binding", binding.strip("\n"), ""]
-                placed = True
-        else:
-            out += lines[done : first - 1] + lines[first - 1 : node.end_lineno]
-        done = node.end_lineno
-    return "\n".join(out) + "\n"
+def first_call(dispatcher: Any) -> AbstractContextManager[None]:
+    """:func:`exclusive` around a compiled function's first call in this process (it may
+    compile or read the cache), nothing around any later call."""
+    if dispatcher.signatures:
+        return nullcontext()
+    return exclusive(f"{Path(dispatcher.py_func.__code__.co_filename).stem}.{dispatcher.__name__}")
 
 
-def _declared(tree: ast.Module, name: str) -> set[str]:
-    """The names the template lists in ``<name> = (...)`` (``PLANT_SLOTS``: what a
-    binding must define; ``PLANT_DEFAULTS``: what it may define instead of the template)."""
-    for node in tree.body:
-        if isinstance(node, ast.Assign) and any(
-            isinstance(t, ast.Name) and t.id == name for t in node.targets
-        ):
-            return set(ast.literal_eval(node.value))
-    raise ValueError(f"{_TEMPLATE} declares no {name}")
-
-
-def _bound_names(statements: list[ast.stmt]) -> set[str]:
-    """The module-level names a list of statements binds (imports, defs, assignments)."""
-    names: set[str] = set()
-    for node in statements:
-        if isinstance(node, ast.Import | ast.ImportFrom):
-            names |= {(a.asname or a.name).partition(".")[0] for a in node.names}
-        elif isinstance(node, ast.FunctionDef | ast.ClassDef):
-            names.add(node.name)
-        elif isinstance(node, ast.Assign):
-            names |= {t.id for t in node.targets if isinstance(t, ast.Name)}
-    return names
-
-
-@cache
-def bind_plant(binding: str) -> ModuleType:
-    """The closed-loop module compiled for one plant.
-
-    ``binding`` is Python source that defines (or imports) ``plant_rhs``,
-    ``plant_signals`` and ``plant_in_end_stop`` (``PLANT_SLOTS`` of
-    ``simulation/_plant_loop.py``); :func:`_loop_source` generates the module from the
-    template and it. The same binding gives the same file, so numba's cache of the compiled loop
-    survives between processes.
-    """
-    source = _loop_source(binding)
-    digest = hashlib.sha256((_fingerprint() + source).encode()).hexdigest()[:16]
-    name = f"fuzzyservo_loop_{digest}"
+def load_generated(source: str) -> ModuleType:
+    """The module whose text is ``source``, imported from the cache folder's ``generated/``
+    under a name that is a hash of the text (the same text, the same module, in this
+    process and every other, so numba's cache of its kernels survives). Written
+    atomically: parallel workers never read half a file."""
+    digest = hashlib.sha256(source.encode()).hexdigest()[:20]
+    name = f"{GENERATED_PREFIX}{digest}"
     if name in sys.modules:
         return sys.modules[name]
-    path = _generated_dir() / f"{name}.py"
-    if not path.exists() or path.read_text(encoding="utf-8") != source:
-        tmp = path.with_suffix(f".{os.getpid()}.tmp")
-        tmp.write_text(source, encoding="utf-8")
-        os.replace(tmp, path)  # atomic: parallel workers never read half a file
-    spec = importlib.util.spec_from_file_location(name, path)
-    module = importlib.util.module_from_spec(spec)
-    sys.modules[name] = module
-    spec.loader.exec_module(module)
-    return module
+    with _LOAD_LOCK:
+        if name in sys.modules:
+            return sys.modules[name]
+        path = _generated_dir() / f"{name}.py"
+        if not path.exists() or path.read_text(encoding="utf-8") != source:
+            tmp = path.with_suffix(f".{os.getpid()}.{threading.get_ident()}.tmp")
+            tmp.write_text(source, encoding="utf-8")
+            os.replace(tmp, path)
+        spec = importlib.util.spec_from_file_location(name, path)
+        module = importlib.util.module_from_spec(spec)
+        sys.modules[name] = module
+        try:
+            with exclusive(name):  # its kernels compile on import: once, not once per process
+                spec.loader.exec_module(module)
+        except BaseException:
+            del sys.modules[name]
+            raise
+        return module
+
+
+_LOAD_LOCK = threading.RLock()
 
 
 __all__ = [
-    "bind_plant",
-    "cache_is_cold",
-    "compile_estimates",
-    "measured_compile_seconds",
+    "GENERATED_PREFIX",
+    "STEPS",
+    "KernelCacheLocator",
+    "compile_step",
+    "exclusive",
+    "first_call",
+    "kernel_stamp",
+    "load_generated",
     "njit",
     "watch_compiles",
 ]

@@ -10,7 +10,12 @@ here asserts a time.
 from __future__ import annotations
 
 import math
+import os
+import shutil
 import statistics
+import subprocess
+import sys
+import tempfile
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
@@ -183,6 +188,79 @@ ROBUST_STUDY = "study_dinca_robust"
 CALIBRATE = "calibrate_dinca"
 MARGINS = "margins"
 FMU_PLANT = "dinca_fmu_me_p10"
+COMPILE = "compile"
+
+
+def _timed_command(args: list[str], cache: Path, cwd: Path) -> tuple[float, list[str]]:
+    """Wall seconds of ``fuzzyservo <args>`` in a new process with numba's cache in
+    ``cache``, and its compile lines (``compiled <what> in <s> s``). Raises
+    RuntimeError with the command's last output line when it fails."""
+    env = {**os.environ, "NUMBA_CACHE_DIR": str(cache)}
+    t0 = time.perf_counter()
+    done = subprocess.run(
+        [sys.executable, "-m", "fuzzyservo", *args], cwd=cwd, env=env, capture_output=True,
+        text=True, check=False,
+    )  # fmt: skip
+    wall = time.perf_counter() - t0
+    if done.returncode != 0:
+        last = (done.stderr.strip() or done.stdout.strip() or "no output").splitlines()[-1]
+        raise RuntimeError(f"bench compile: fuzzyservo {' '.join(args)} failed: {last}")
+    return wall, [
+        ln.strip() for ln in done.stderr.splitlines() if ln.strip().startswith("compiled ")
+    ]
+
+
+def _compile_seconds(lines: list[str]) -> float:
+    return sum(float(ln.rsplit(" in ", 1)[1].split()[0]) for ln in lines)
+
+
+def run_compile_case(root: Path | None = None, *, calibrate: bool = True) -> BenchResult:
+    """What compiling costs a user, each command in a new process, with numba's cache
+    emptied first (a fresh install): the first ``simulate dinca_cylinder p_k10`` (wall,
+    everything included) against the same command warm; a rig never run before (seed 002's
+    with a second damper component: a new composition) first and warm; and with
+    ``calibrate``, a whole-library calibration of the friction example on that rig, first
+    (empty cache) and warm. The same machine, one run."""
+    root = root or data_root()
+    rig = root / "rigs" / "dinca_cylinder.yaml"
+    controller = root / "studies" / "controllers" / "p_k10.yaml"
+    extra: dict[str, float] = {}
+    with tempfile.TemporaryDirectory(prefix="fuzzyservo-bench-compile-") as folder:
+        tmp = Path(folder)
+        new_rig = tmp / "dinca_seal.yaml"  # a rig the package does not ship
+        seal = ("    seal:\n      type: damper\n      parameters:\n"
+                "        coefficient: {value: 20, unit: N*s/m, source: bench}\n")  # fmt: skip
+        text = rig.read_text(encoding="utf-8").replace("    guides:\n", seal + "    guides:\n", 1)
+        new_rig.write_text(text.replace("name: dinca_cylinder", "name: dinca_seal", 1), "utf-8")
+        cache = tmp / "cache"
+
+        def simulate(path: Path) -> tuple[float, list[str]]:
+            return _timed_command(["simulate", str(path), str(controller), "--out",
+                                   str(tmp / "out")], cache, tmp)  # fmt: skip
+
+        first, lines = simulate(rig)
+        warm, _ = simulate(rig)
+        new_first, new_lines = simulate(new_rig)
+        new_warm, _ = simulate(new_rig)
+        extra.update(
+            first_s=first, first_compile_s=_compile_seconds(lines), warm_s=warm,
+            new_rig_s=new_first, new_rig_warm_s=new_warm, new_rig_compile_s=_compile_seconds(new_lines),
+            new_rig_extra_s=new_first - new_warm,
+        )  # fmt: skip
+        if calibrate:
+            shutil.rmtree(cache)
+            record = root / "examples" / "run_dinca_friction.csv"
+            args = ["calibrate", str(new_rig), str(record), "--out", str(tmp / "cal")]
+            cold, cal_lines = _timed_command(args, cache, tmp)
+            hot, _ = _timed_command(args, cache, tmp)
+            extra.update(calibrate_cold_s=cold, calibrate_warm_s=hot,
+                         calibrate_extra_s=cold - hot, calibrate_compile_s=_compile_seconds(cal_lines))  # fmt: skip
+    return BenchResult.once(
+        COMPILE,
+        "compile cost, empty cache, new processes: first simulate, a new composition, calibrate",
+        extra["first_s"],
+        extra=extra,
+    )
 
 
 def run_calibrate_case(root: Path | None = None, *, workers: int = 2) -> BenchResult:
@@ -488,7 +566,11 @@ def _line(r: BenchResult, template: str | None) -> str:
     x = {**r.extra, "errors": errors}
     if "added" in x:
         x["added"] = ", ".join(x["added"]) or "none"
-    return f"{duration_text(x['wall_s']):>10} {'':>10} {'':>7}  " + template.format(**x)
+    row = template.format(**x)
+    if "calibrate_cold_s" in x:
+        row += (f"; calibrate on it, empty cache {x['calibrate_cold_s']:.1f} s, warm "
+                f"{x['calibrate_warm_s']:.1f} s: +{x['calibrate_extra_s']:.1f} s (goal ≤ 10 s)")  # fmt: skip
+    return f"{duration_text(x['wall_s']):>10} {'':>10} {'':>7}  " + row
 
 
 _STUDY_LINE = (
@@ -507,6 +589,11 @@ _CALIBRATE_LINE = (
     "wall_s {wall_s:.1f} (budget {budget_s:.0f} s) on {workers} workers; {replays} replays "
     "of 30 s, {replay_ms:.0f} ms of wall time each; added {added}; {errors}"
 )
+_COMPILE_LINE = (
+    "first simulate dinca_cylinder p_k10 {first_s:.1f} s wall (compiling {first_compile_s:.1f} s; "
+    "goal ≤ 20 s), warm {warm_s:.1f} s; a new composition {new_rig_s:.1f} s, warm "
+    "{new_rig_warm_s:.1f} s: +{new_rig_extra_s:.1f} s (goal ≤ 3 s)"
+)
 _FMU_LINE = (
     "median of the FMU plant; the native composition {native_ms:.0f} ms: {slowdown:.2f}× "
     "(goal ≤ 3×); {errors}"
@@ -524,6 +611,7 @@ REGISTRY: dict[str, tuple[Callable[[BenchOptions], BenchResult], str | None]] = 
     CALIBRATE: (lambda o: run_calibrate_case(workers=o.workers), _CALIBRATE_LINE),
     MARGINS: (lambda o: run_margins_case(), _MARGINS_LINE),
     FMU_PLANT: (lambda o: run_fmu_plant_case(runs=o.runs), _FMU_LINE),
+    COMPILE: (lambda o: run_compile_case(), _COMPILE_LINE),
     ROBUST_STUDY: (
         lambda o: run_robust_study_case(trials=o.study_trials, workers=o.workers),
         _ROBUST_STUDY_LINE,

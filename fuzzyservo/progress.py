@@ -4,7 +4,6 @@ otherwise (logs, CI). The library reports progress through callbacks; this draws
 from __future__ import annotations
 
 import sys
-import threading
 import time
 import warnings
 from collections.abc import Iterator
@@ -60,102 +59,41 @@ def progress_bar(total: int, desc: str) -> ProgressBar:
 
 
 def note_compiling() -> None:
-    """Before a run that may compile (the first after an install or a change of the compiled
-    kernels): say so, then one line per long kernel as it starts, a line every ``TICK_S``
-    while it compiles, and its time when done. A duration is promised only from this
-    machine's own last compile (scaled up when the first kernels go slower); before that
-    the lines say how long it has taken so far. Plain lines on stderr, on a terminal or not."""
-    from fuzzyservo._jit import (
-        TYPICAL_COMPILE_S,
-        cache_is_cold,
-        measured_compile_seconds,
-        watch_compiles,
-    )
+    """From here on, every compile this process makes is one line on stderr, when it ends:
+    what it compiled and how long that took (a first run, a new rig or a changed kernel;
+    cached afterwards). A line before the first says why. No time is promised: none is known
+    before it is taken. Plain lines, on a terminal or not."""
+    from fuzzyservo._jit import watch_compiles
 
     global _watching
-    if _watching or not cache_is_cold():
+    if _watching:
         return
     _watching = True
-    measured = measured_compile_seconds()
-    known = set(measured) == set(TYPICAL_COMPILE_S)
-    if known:
-        took = f"about {sum(measured.values()):.0f} s, as the last time on this machine"
-    else:
-        took = "a few minutes on a small machine"
-    print(
-        f"compiling the simulation kernels: {len(TYPICAL_COMPILE_S)} long ones, {took} "
-        "(first run only, after an install or a change; cached afterwards)",
-        file=sys.stderr,
-        flush=True,
-    )
-    watch = _KernelLines(measured if known else dict.fromkeys(TYPICAL_COMPILE_S, None))
-    watch_compiles(watch.start, watch.end)
+    lines = _CompileLines()
+    watch_compiles(lines.start, lines.end)
 
 
-TICK_S = 10.0
 _watching = False  # one watch per process, however many commands it runs
 
 
-class _KernelLines:
-    """The lines of :func:`note_compiling`: ``estimates`` names the long kernels with this
-    machine's last compile times (scaled up by slow kernels done so far), or None where
-    there is none, and then no duration is promised."""
+class _CompileLines:
+    """The lines of :func:`note_compiling`."""
 
-    def __init__(self, estimates: dict[str, float | None]):
-        self.estimates, self.scale = estimates, 1.0
-        self.took: dict[str, float] = {}
-        self._stop: threading.Event | None = None
+    def __init__(self) -> None:
+        self.first = True
 
-    def _say(self, text: str) -> None:
-        print(text, file=sys.stderr, flush=True)
+    def start(self, what: str) -> None:
+        if self.first:
+            self.first = False
+            print(
+                "compiling for this machine (the first run, or a new plant or kernel; "
+                "cached afterwards):",
+                file=sys.stderr,
+                flush=True,
+            )
 
-    def _expected(self, name: str) -> float | None:
-        value = self.estimates[name]
-        return None if value is None else value * self.scale
-
-    def start(self, name: str) -> None:
-        if name not in self.estimates:
-            return
-        expected = self._expected(name)
-        which = (
-            f"kernel {len(self.took) + 1}/{len(self.estimates)} {name}"
-            if name not in self.took
-            else f"{name} again (other argument types)"
-        )
-        if expected is None:
-            self._say(f"compiling {which}")
-        else:
-            later = [k for k in self.estimates if k not in self.took and k != name]
-            left = expected + sum(self._expected(k) or 0.0 for k in later)
-            self._say(f"compiling {which}: about {expected:.0f} s ({left:.0f} s left in all)")
-        self._stop = threading.Event()
-        t0 = time.perf_counter()
-
-        def tick(stop: threading.Event = self._stop) -> None:
-            while not stop.wait(TICK_S):
-                took = time.perf_counter() - t0
-                if expected is None:
-                    of = "so far"
-                elif took < expected:
-                    of = f"of about {expected:.0f} s"
-                else:
-                    of = "(a busy machine takes longer)"
-                self._say(f"  {name}: {took:.0f} s {of}")
-
-        threading.Thread(target=tick, daemon=True).start()
-
-    def end(self, name: str, seconds: float) -> None:
-        if name not in self.estimates:
-            return
-        if self._stop is not None:
-            self._stop.set()
-        self.took[name] = seconds
-        # only ever up: a short kernel's time is mostly fixed costs, so a fast first kernel
-        # says little about the long one, while a slow one means a slow (or busy) machine
-        expected = [self.estimates[k] for k in self.took]
-        if None not in expected:
-            self.scale = max(1.0, sum(self.took.values()) / sum(expected))
-        self._say(f"compiled {name} in {seconds:.0f} s")
+    def end(self, what: str, seconds: float) -> None:
+        print(f"  compiled {what} in {seconds:.1f} s", file=sys.stderr, flush=True)
 
 
 @contextmanager

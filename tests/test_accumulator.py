@@ -42,7 +42,7 @@ def _signals(rig, state: dict[str, float]) -> dict[str, float]:
     for name, value in state.items():
         x[plant.states.index(name)] = value
     out = np.empty(len(plant.signals))
-    plant.loop.plant_signals(x, plant.null_input(rig.params), 0.0, pack(rig.params), out)
+    plant.kernels.plant_signals(x, plant.null_input(rig.params), 0.0, pack(rig.params), out)
     return dict(zip(plant.signals, out, strict=True))
 
 

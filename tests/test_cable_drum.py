@@ -13,6 +13,7 @@ from reference_plants.kernels import port_flow
 
 from fuzzyservo.params import pack
 from fuzzyservo.plants.composed import CompositionError, compose
+from fuzzyservo.simulation import bind
 
 PARTS = (
     ("oil", "oil"),
@@ -46,7 +47,7 @@ def test_the_drum_holds_its_weight_at_rest_and_adds_its_inertia() -> None:
     # at (Δp·D − m·g·r)/(J + m·r²)
     x = x0.copy()
     x[plant.states.index("p_a")] -= 1e5
-    dx = plant.loop.rhs_with_inputs(x, 0.0, 0.0, pack(p), 0.0)
+    dx = bind(plant).rhs_with_inputs(x, 0.0, 0.0, pack(p), 0.0)
     expected = -1e5 * 1e-6 / (1e-3 + 5.0 * 0.05**2)
     assert dx[plant.states.index("w")] == pytest.approx(expected, rel=1e-9)
     assert np.isfinite(dx).all()
@@ -66,12 +67,12 @@ def test_a_drum_paying_out_forward_is_held_by_pressures_symmetric_about_null() -
     s = dict(zip(plant.states, x0, strict=True))
     assert 0.9 * (s["p_b"] - s["p_a"]) * 1e-6 == pytest.approx(5.0 * 9.80665 * 0.05, rel=1e-9)
     assert s["p_a"] + s["p_b"] == pytest.approx(100e5, rel=1e-12)
-    dx = plant.loop.rhs_with_inputs(x0, 0.0, 0.0, pack(p), 0.0)
+    dx = bind(plant).rhs_with_inputs(x0, 0.0, 0.0, pack(p), 0.0)
     assert dx[plant.states.index("w")] == pytest.approx(0.0, abs=1e-9)
     # the efficiency scales the hydraulic torque only: vent p_b by 1 bar
     x = x0.copy()
     x[plant.states.index("p_b")] -= 1e5
-    dx = plant.loop.rhs_with_inputs(x, 0.0, 0.0, pack(p), 0.0)
+    dx = bind(plant).rhs_with_inputs(x, 0.0, 0.0, pack(p), 0.0)
     assert dx[plant.states.index("w")] == pytest.approx(0.9 * 1e5 * 1e-6 / (1e-3 + 5.0 * 0.05**2))
     with pytest.raises(ValueError, match="winding: must be"):
         _params(plant, drum__winding=0.5)
@@ -89,7 +90,7 @@ def test_land_leakage_is_the_seed001_valve() -> None:
     states = plant.states
     for u, pa, pb in ((0.0, 30e5, 65e5), (0.004, 45e5, 52e5), (-0.007, 81e5, 12e5)):
         x[states.index("p_a")], x[states.index("p_b")] = pa, pb
-        plant.loop.plant_signals(x, u, 0.0, pack(p), out)
+        plant.kernels.plant_signals(x, u, 0.0, pack(p), out)
         sig = dict(zip(plant.signals, out, strict=True))
         opening = u / 0.01
         assert sig["q_a"] == pytest.approx(

@@ -28,7 +28,7 @@ from fuzzyservo.io.measured import write_measured
 from fuzzyservo.io.rigs import load_rig
 from fuzzyservo.params import pack
 from fuzzyservo.plants.composed import CompositionError, compose
-from fuzzyservo.simulation import simulate
+from fuzzyservo.simulation import bind, simulate
 
 
 @pytest.fixture(scope="module")
@@ -54,7 +54,7 @@ def test_a_composed_rig_pickles_as_its_composition(lift) -> None:
 def test_the_lift_starts_in_balance_holding_its_weight(lift) -> None:
     """(p_a − p_b)·A = (m_piston + m_payload)·g at rest, so nothing moves at t = 0."""
     x0 = lift.plant.initial_state(lift.params, **lift.initial)
-    dx = lift.plant.loop.rhs_with_inputs(x0, 0.0, 0.0, pack(lift.params), 0.0)
+    dx = bind(lift.plant).rhs_with_inputs(x0, 0.0, 0.0, pack(lift.params), 0.0)
     states = dict(zip(lift.plant.states, x0, strict=True))
     p = lift.params
     area = 0.25 * math.pi * (p.cylinder__piston_diameter**2 - p.cylinder__rod_diameter**2)
@@ -128,7 +128,7 @@ def test_every_registered_component_type_is_reachable() -> None:
         p = plant.params_cls(**{f.name: _size(f) for f in _required(plant.params_cls)})
         x0 = np.asarray(plant.initial_state(p), dtype=float)
         out = np.empty(len(plant.signals))
-        plant.loop.plant_signals(x0, 0.0, 0.0, pack(p), out)
+        plant.kernels.plant_signals(x0, 0.0, 0.0, pack(p), out)
         assert out.shape == (len(plant.signals),)
         reached.add(name)
     assert reached == set(types)

@@ -4,6 +4,7 @@ integrator has the order its tableau promises (ROS34PW2: 3; Rang & Angermann 200
 
 from __future__ import annotations
 
+import ctypes
 import dataclasses
 import itertools
 import os
@@ -15,11 +16,10 @@ import pytest
 from scipy.linalg import expm
 from support import controller_named, rig_named
 
-from fuzzyservo._jit import bind_plant
 from fuzzyservo.components.effects import EffectParams
 from fuzzyservo.params import pack
 from fuzzyservo.rig import Actuator
-from fuzzyservo.simulation import _loop, simulate
+from fuzzyservo.simulation import _loop, bind, simulate
 from fuzzyservo.simulation._loop import workspace
 from fuzzyservo.simulation.reference import simulate_reference
 
@@ -71,6 +71,9 @@ def test_saturation_flag_whatever_the_limits_sign() -> None:
 # x' = A·x, a lightly damped oscillator and a fast decaying mode (stiffness ratio 1e3)
 _A = np.array([[-0.5, 10.0, 0.0], [-10.0, -0.5, 0.0], [0.0, 1.0, -1000.0]])
 _LINEAR = """
+from fuzzyservo._jit import njit
+
+
 @njit(cache=True, inline="always")
 def plant_rhs(x, u, load, p, dx):
     dx[0] = -0.5 * x[0] + 10.0 * x[1]
@@ -80,7 +83,8 @@ def plant_rhs(x, u, load, p, dx):
 
 @njit(cache=True)
 def plant_signals(x, u, load, p, out):
-    out[:] = x
+    for i in range(x.size):
+        out[i] = x[i]
 
 
 @njit(cache=True)
@@ -96,7 +100,7 @@ class _NoParams(EffectParams):
 
 def _integrate(steps: int, t_end: float = 1.0) -> np.ndarray:
     """``steps`` steps of equal size: each interval is one accepted step (tol = 1e30)."""
-    loop = bind_plant(_LINEAR)
+    loop = bind(_LINEAR)
     p = pack(_NoParams())
     x = np.array([1.0, 0.0, 0.5])
     work, mats, piv = workspace(3)
@@ -110,22 +114,21 @@ def _integrate(steps: int, t_end: float = 1.0) -> np.ndarray:
     return x
 
 
-def test_a_bound_loop_is_the_template_with_the_plant_s_binding() -> None:
-    import inspect
+def test_every_plant_runs_the_one_compiled_loop_through_its_kernel_table() -> None:
+    """The loop is compiled once, for every plant: a plant is bound by its kernels'
+    addresses (simulation/binding.py), not by a loop compiled for it."""
+    from fuzzyservo.simulation import _plant_loop
+    from fuzzyservo.simulation._calls import ADVANCE, END_STOP, JACOBIAN, RHS, SIGNALS
 
-    from fuzzyservo.simulation import _plant_loop as template
-
-    loop = bind_plant(_LINEAR)
-    for slot in template.PLANT_SLOTS:
-        assert getattr(loop, slot) is not getattr(template, slot)
-    names = ("closed_loop", "closed_loop_batch", "integrate_interval", "signal_table")
-    for name in names:
-        bound, original = getattr(loop, name), getattr(template, name)
-        assert bound is not original
-        assert inspect.getsource(bound.py_func) == inspect.getsource(original.py_func)
-    assert bind_plant(_LINEAR) is loop
+    loop = bind(_LINEAR)
+    assert bind(_LINEAR) is loop
+    assert all(loop.fn[s] != 0 for s in (RHS, SIGNALS, END_STOP))
+    assert loop.fn[JACOBIAN] == 0 and loop.fn[ADVANCE] == 0  # the loop's defaults serve
+    composed = bind(rig_named("dinca_cylinder").plant)
+    assert composed.fn[JACOBIAN] != 0  # a composition's own Jacobian
+    assert len(_plant_loop.closed_loop.overloads) <= 1  # one compiled loop for both
     with pytest.raises(ValueError, match="plant_signals"):
-        bind_plant("def plant_rhs(): pass\ndef plant_in_end_stop(): pass")
+        bind("def plant_rhs(): pass\ndef plant_in_end_stop(): pass")
 
 
 def test_ros34pw2_is_third_order_on_a_linear_system() -> None:
@@ -150,7 +153,7 @@ def test_transformed_stages_take_the_step_of_the_tableau() -> None:
     x = x0.copy()
     work, mats, piv = workspace(3)
     ones = np.ones(3)
-    status, _, taken = bind_plant(_LINEAR).integrate_interval(
+    status, _, taken = bind(_LINEAR).integrate_interval(
         pack(_NoParams()), 0.0, x, 0.0, 0.0, h, h, 1e30, ones, ones, work, mats, piv
     )
     assert status == 0 and taken == 1
@@ -185,8 +188,14 @@ def test_controller_kinds_are_unique_and_each_reaches_its_kernel() -> None:
     from fuzzyservo.controllers.classical import PI, PIDF, OpenLoop, P
     from fuzzyservo.controllers.fmu import FmuController
     from fuzzyservo.controllers.fuzzy.controller import FuzzyController
-    from fuzzyservo.controllers.kernels import controller_step
     from fuzzyservo.controllers.kinds import KINDS
+    from fuzzyservo.simulation.binding import controller_entry
+
+    f64 = ctypes.POINTER(ctypes.c_double)
+    entry = ctypes.CFUNCTYPE(
+        ctypes.c_double, f64, ctypes.c_int64, f64, ctypes.c_int64, ctypes.c_double,
+        ctypes.c_double,
+    )  # fmt: skip
 
     classes = (OpenLoop, P, PI, FuzzyController, PIDF, FmuController)  # an FMU: stepped
     assert len(set(KINDS.values())) == len(KINDS)
@@ -195,7 +204,11 @@ def test_controller_kinds_are_unique_and_each_reaches_its_kernel() -> None:
         ctrl = controller_named(name)
         cp, cs = ctrl.init(0.01)
         u_python, _ = ctrl.step((cp, cs), 6.5, 6.2)
-        u_loop = controller_step(ctrl.kind, cp, cs.copy(), 6.5, 6.2)
+        # the step kernel through the address the loop calls it by
+        state = cs.copy()
+        step = entry(controller_entry(ctrl))
+        u_loop = step(cp.ctypes.data_as(f64), cp.size, state.ctypes.data_as(f64), state.size,
+                      6.5, 6.2)  # fmt: skip
         assert u_loop == u_python
 
 
@@ -211,18 +224,19 @@ def test_the_composed_jacobian_is_the_forward_difference_to_the_bit(name: str) -
     """The loop's Jacobian (plants/_jacobian.py: each column re-runs only the statements
     its state reaches) equals the whole-rhs forward differences exactly, away from rest
     (all states moved), with the spool of ``valve_lag`` (seed 002) among the columns."""
+    from fuzzyservo.simulation import _plant_loop
     from fuzzyservo.simulation.closed_loop import prepare
 
     rig = rig_named(name)
     prep = prepare(rig, controller_named("p_k10"), duration_s=0.1)
     assert "def plant_jacobian" in rig.plant.binding  # the composition's own, not the default
-    loop = rig.plant.loop
+    loop = bind(rig.plant)
     rng = np.random.default_rng(1)
     x = prep.x0 + 0.05 * prep.typical * rng.standard_normal(prep.x0.size)
     a = prep.null + 0.3 * rig.actuator.rated
     n = x.size
     f0, jac, ftmp = np.empty(n), np.empty((n, n)), np.empty(n)
-    loop.loop_jacobian(x, a, 0.0, prep.p, prep.null, f0, prep.typical, jac, ftmp)
+    _plant_loop.loop_jacobian(loop.fn, x, a, 0.0, prep.p, prep.null, f0, prep.typical, jac, ftmp)
     base = loop.rhs_with_inputs(x, a, 0.0, prep.p, prep.null)
     expected = np.empty((n, n))
     for j in range(n):

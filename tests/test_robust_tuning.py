@@ -284,23 +284,6 @@ def test_bad_calibrated_rig_names_the_file_and_key(tmp_path, edit, text):
     assert text in message and "calibrated" in message and "\n" not in message, message
 
 
-def test_cold_cache_means_no_compiled_closed_loop(tmp_path, monkeypatch):
-    """Loading a rig caches small kernels; the compile note and the parent's compile before
-    the workers start must still see the cache as cold until a closed loop is cached."""
-    import numba
-
-    from fuzzyservo._jit import cache_is_cold
-
-    monkeypatch.setattr(numba.config, "CACHE_DIR", str(tmp_path))
-    assert cache_is_cold()
-    (tmp_path / "components_x").mkdir()
-    (tmp_path / "components_x" / "geometry.circle_area-12.py311.nbi").write_bytes(b"")
-    assert cache_is_cold()
-    (tmp_path / "generated_x").mkdir()
-    (tmp_path / "generated_x" / "fuzzyservo_loop_ab.closed_loop-199.py311.nbi").write_bytes(b"")
-    assert not cache_is_cold()
-
-
 def test_report_compares_best_baseline_and_template_nominal_and_monte_carlo(tmp_path):
     """A robust study's report: the tuned controller beside P K=10 and the template (FLC2)
     on the nominal plant and on fresh samples, each with its gain check."""

@@ -62,7 +62,7 @@ from fuzzyservo.controllers.base import Controller
 from fuzzyservo.display import MetricUnits
 from fuzzyservo.results import Result
 from fuzzyservo.rig import Rig, Scenario
-from fuzzyservo.simulation import simulate
+from fuzzyservo.simulation import bind, simulate
 from fuzzyservo.simulation.result import SimResult
 
 _SHOWN = MetricUnits()  # margins do not depend on the output's unit
@@ -423,9 +423,9 @@ def margins(
         gain = gain_margin(rig, controller, sc, **options)
         delay = delay_margin(rig, controller, sc, **options)
     else:
-        # the loop the runs will use (the scenario's parameters pick the plant's form),
-        # imported here, not in both threads
-        rig.plant.for_params(rig.params_for(sc)).loop  # noqa: B018
+        # the plant's kernels the runs will use (the scenario's parameters pick the
+        # plant's form), compiled here, not in both threads
+        bind(rig.plant.for_params(rig.params_for(sc)))
         with ThreadPoolExecutor(max_workers=2) as pool:
             gain_run = pool.submit(gain_margin, rig, controller, sc, **options)
             delay_run = pool.submit(delay_margin, rig, controller, sc, **options)

@@ -1,7 +1,7 @@
-"""The controller kind codes the compiled loop dispatches on, defined once.
-
-Each controller class takes its ``kind`` from here and :mod:`.kernels` maps each code
-to its step kernel; a code used twice is refused when this module is imported.
+"""The controller kind codes, defined once: what a controller is, for the code that
+needs to tell them apart (the compiled loop calls each controller's own step kernel
+through its address, simulation/binding.py). A code used twice is refused when this
+module is imported.
 """
 
 from __future__ import annotations

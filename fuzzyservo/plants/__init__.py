@@ -26,8 +26,9 @@ class PlantModel:
     """
 
     type_name: str
-    # source that binds plant_rhs/plant_signals/plant_in_end_stop, and a composition's
-    # plant_jacobian (plants/_jacobian.py), for _jit.bind_plant
+    # source of the plant's kernels: it defines plant_rhs, plant_signals and
+    # plant_in_end_stop, a composition's plant_jacobian too (plants/_jacobian.py), a stepped
+    # plant's plant_advance (:attr:`kernels`; simulation/binding.py binds them to the loop)
     binding: str
     params_cls: type
     states: tuple[str, ...]
@@ -97,11 +98,15 @@ class PlantModel:
         return self.rebuild(self.components, not self.bristles)
 
     @property
-    def loop(self) -> ModuleType:
-        """The closed loop compiled for this plant (``simulation/_plant_loop.py``)."""
-        from fuzzyservo._jit import bind_plant
+    def kernels(self) -> ModuleType:
+        """The module of the plant's kernels (:attr:`binding`), each compiled when first
+        called: ``plant_rhs(x, u, f_ext, p, dx)``, ``plant_signals(x, u, f_ext, p, out)``,
+        ``plant_in_end_stop(x, p)``, and where the plant has them ``plant_jacobian`` and
+        ``plant_advance``. The closed loop calls them compiled as C functions
+        (:func:`fuzzyservo.simulation.binding.bind`)."""
+        from fuzzyservo._jit import load_generated
 
-        return bind_plant(self.binding)
+        return load_generated(self.binding)
 
     def scales(self, params: Any, rated_input: float, sample_time_s: float) -> Scales:
         """Sizes effect bounds scale with (components/effects.py); a plant without

@@ -4,8 +4,8 @@
 into a :class:`~fuzzyservo.plants.PlantModel`: a frozen parameter class whose fields
 are the instances' parameters (file key ``<instance>.<key>``), the state vector laid
 out by state group, and the source that joins the components' phase functions into one
-right-hand side, which the closed loop is compiled against
-(:func:`fuzzyservo._jit.bind_plant`). That source is only the sequence of calls: each
+right-hand side (:attr:`~fuzzyservo.plants.PlantModel.kernels`), which the closed loop
+calls (:func:`fuzzyservo.simulation.binding.bind`). That source is only the sequence of calls: each
 argument passed by its name, each return bound to the circuit's variable it names, every
 index generated from the declarations; no equation is written there.
 
@@ -561,7 +561,7 @@ def _initial_state(
 
     x0 = once({})
     out = np.empty(len(model.signals))
-    model.loop.plant_signals(x0, model.null_input(params), 0.0, pack(params), out)
+    model.kernels.plant_signals(x0, model.null_input(params), 0.0, pack(params), out)
     forces = {a: float(out[model.signals.index(_named(a, _LOAD_SIGNAL.name))]) for a in axes}
     if all(np.isfinite(f) and f == 0.0 for f in forces.values()):
         return x0

@@ -2,8 +2,9 @@
 sample logic (sensor noise and ADC, limits, saturation, input effects, transport and
 I/O delay) that the compiled loop and the scipy reference path both call.
 
-The compiled loop itself (``_plant_loop.py``) is compiled once per plant, with the
-plant's right-hand side bound in (:mod:`fuzzyservo._jit`); everything in here is plant-free.
+The compiled loop itself (``_plant_loop.py``) is compiled once per install; it calls the
+plant's and the controller's kernels through their addresses (``_calls.py``,
+``binding.py``); everything in here is plant-free.
 
 The plant is integrated between samples by an adaptive linearly implicit
 Rosenbrock-W method, ROS34PW2 (order 3, embedded order 2), with a finite-difference
@@ -41,7 +42,7 @@ import numpy as np
 from fuzzyservo._jit import njit
 from fuzzyservo.components.effects import LIBRARY, E, deadband
 from fuzzyservo.components.sensor import adc
-from fuzzyservo.controllers.kernels import controller_step
+from fuzzyservo.simulation._calls import call_step
 from fuzzyservo.units import parse_unit
 
 STATUS_OK = 0
@@ -272,7 +273,7 @@ LoopSettings = NamedTuple(
 
 @njit(cache=True)
 def sample(
-    ctrl_kind: int,
+    ctrl: int,
     cp: np.ndarray,
     cs: np.ndarray,
     r: float,
@@ -281,7 +282,7 @@ def sample(
     noise: float,
 ) -> tuple[float, float, float, bool]:
     """One controller sample: measure (with sensor ``noise`` added, then quantised),
-    control, limit. Returns ``(y, u, a, saturated)``, ``y`` the reading the controller saw.
+    control (the step kernel at address ``ctrl``, :func:`.binding.controller_entry`), limit. Returns ``(y, u, a, saturated)``, ``y`` the reading the controller saw.
 
     ``saturated`` is true when ``a`` sits at either limit (to 1e-9 of its magnitude,
     whatever the limit's sign). Updates the controller state ``cs`` in place.
@@ -289,7 +290,7 @@ def sample(
     y = adc(
         s.sensor_offset + s.sensor_gain * x[s.sensor_index] + noise, s.adc_lo, s.adc_hi, s.adc_step
     )
-    u = controller_step(ctrl_kind, cp, cs, r, y)
+    u = call_step(ctrl, cp, cs, r, y)
     a = s.act_gain * u
     if a > s.act_hi:
         a = s.act_hi

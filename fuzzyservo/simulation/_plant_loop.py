@@ -1,13 +1,6 @@
-"""The compiled closed loop, compiled once per plant: its functions are written against
-the plant's kernels by the names of :data:`PLANT_SLOTS`.
-
-:func:`fuzzyservo._jit.bind_plant` generates, for one plant, a module from this file:
-every statement as it is, but those that bind the plant slots (bound to None below)
-give way to the plant's binding (the source generated for a composition, or imports of
-a plant module's kernels); numba compiles and caches that module. A loop thus inlines
-exactly one plant, with no dispatch on a plant code, and a plant composed from
-components at run time is as fast as a hand-written one. As it stands this file is an
-ordinary module, so linters and readers see ordinary Python.
+"""The compiled closed loop, compiled once per install for every plant: it calls the
+plant's kernels through the addresses in its kernel table ``fn`` (:mod:`._calls`;
+:mod:`.binding` compiles a plant's kernels and makes the table).
 
 The plant is integrated between samples by an adaptive linearly implicit
 Rosenbrock-W method, ROS34PW2 (order 3, embedded order 2), with a finite-difference
@@ -28,6 +21,18 @@ from numba import prange
 
 from fuzzyservo._jit import njit
 from fuzzyservo.components.effects import E
+from fuzzyservo.simulation._calls import (
+    ADVANCE,
+    END_STOP,
+    JACOBIAN,
+    RHS,
+    SIGNALS,
+    call_advance,
+    call_end_stop,
+    call_jacobian,
+    call_rhs,
+    call_signals,
+)
 from fuzzyservo.simulation._loop import (
     _A_U,
     _C_U,
@@ -52,28 +57,10 @@ from fuzzyservo.simulation._loop import (
     workspace,
 )
 
-# isort: split
-# no default plant: each generated loop module binds its own (bind_plant)
-plant_in_end_stop = plant_rhs = plant_signals = None
-
-# The names the loop calls its plant by: what a plant's binding must define. Each takes
-# the state vector ``x`` (and ``plant_rhs`` its derivative ``dx``) with the plant's own
-# states first; ``x`` may carry more after them (the spool of ``valve_lag``).
-PLANT_SLOTS = ("plant_rhs", "plant_signals", "plant_in_end_stop")
-# What a binding may define, else the template's own serves (below).
-PLANT_DEFAULTS = ("plant_jacobian", "plant_advance")
-
-
-@njit(cache=True)
-def plant_advance(x: np.ndarray, u: float, load: float, p: np.ndarray, duration: float) -> int:
-    """A plant with its own solver (a co-simulation FMU) advances its states in ``x`` over
-    ``duration`` seconds with the input ``u`` and ``load`` held: 1 when done, 0 when it
-    failed. This default, -1, has the loop integrate the plant (:func:`integrate_interval`)."""
-    return -1
-
 
 @njit(cache=True)
 def plant_jacobian(
+    fn: np.ndarray,
     x: np.ndarray,
     u: float,
     load: float,
@@ -84,16 +71,20 @@ def plant_jacobian(
     ftmp: np.ndarray,
 ) -> None:
     """``f0 = f(x)`` and ``jac[i, j] = (f_i(x + δ_j·e_j) − f0_i)/δ_j`` of the plant's
-    right-hand side ``f``, one whole ``f`` per column, ``δ_j = √ε·max(|x_j|, typical_j)``.
-    A composition binds its own, which re-runs only the statements each state reaches and
-    gives the same numbers (plants/_jacobian.py)."""
+    right-hand side ``f``, ``δ_j = √ε·max(|x_j|, typical_j)``: the plant's own Jacobian
+    kernel where it has one (a composition's re-runs only the statements each state
+    reaches and gives the same numbers, plants/_jacobian.py), else one whole ``f`` per
+    column."""
+    if fn[JACOBIAN] != 0:
+        call_jacobian(fn[JACOBIAN], x, u, load, p, f0, typical, jac, ftmp)
+        return
     n = x.size
-    plant_rhs(x, u, load, p, f0)
+    call_rhs(fn[RHS], x, u, load, p, f0)
     for j in range(n):
         xj = x[j]
         dj = 1.4901161193847656e-08 * max(abs(xj), typical[j])
         x[j] = xj + dj
-        plant_rhs(x, u, load, p, ftmp)
+        call_rhs(fn[RHS], x, u, load, p, ftmp)
         x[j] = xj
         for i in range(n):
             jac[i, j] = (ftmp[i] - f0[i]) / dj
@@ -101,18 +92,19 @@ def plant_jacobian(
 
 @njit(cache=True, inline="always")
 def loop_rhs(
-    x: np.ndarray, a: float, load: float, p: np.ndarray, null: float, dx: np.ndarray
+    fn: np.ndarray, x: np.ndarray, a: float, load: float, p: np.ndarray, null: float, dx: np.ndarray
 ) -> None:
     """dx/dt of the plant behind the input effects (:func:`_loop.input_stage`), for held
     actuator value ``a``. The plant reads and writes the leading entries of ``x`` and
     ``dx``, its own states (the input stage's spool follows them), so it gets the whole
     arrays: a view of each, made on every call, costs as much as a tenth of a step."""
     u = input_stage(x, a, p, null, dx)
-    plant_rhs(x, u, load, p, dx)
+    call_rhs(fn[RHS], x, u, load, p, dx)
 
 
 @njit(cache=True, inline="always")
 def loop_jacobian(
+    fn: np.ndarray,
     x: np.ndarray,
     a: float,
     load: float,
@@ -133,7 +125,7 @@ def loop_jacobian(
     """
     n = plant_states(x, p)
     v = input_stage(x, a, p, null, f0)
-    plant_jacobian(x[:n], v, load, p, f0, typical, jac, ftmp)
+    plant_jacobian(fn, x[:n], v, load, p, f0, typical, jac, ftmp)
     for j in range(n):
         dj = 1.4901161193847656e-08 * max(abs(x[j]), typical[j])
         for i in range(n, x.size):
@@ -142,7 +134,7 @@ def loop_jacobian(
         xj = x[j]
         dj = 1.4901161193847656e-08 * max(abs(xj), typical[j])
         x[j] = xj + dj
-        loop_rhs(x, a, load, p, null, ftmp)
+        loop_rhs(fn, x, a, load, p, null, ftmp)
         x[j] = xj
         for i in range(x.size):
             jac[i, j] = (ftmp[i] - f0[i]) / dj
@@ -150,6 +142,7 @@ def loop_jacobian(
 
 @njit(cache=True)
 def integrate_interval(
+    fn: np.ndarray,
     p: np.ndarray,
     null: float,
     x: np.ndarray,
@@ -177,10 +170,12 @@ def integrate_interval(
     Solving ODEs II, §IV.7, eq. 7.25, autonomous form; constants in :mod:`_loop`):
     ``(I/(hγ) − J)·u_i = f(x + Σ_j a_ij·u_j) + Σ_j c_ij·u_j / h``, ``x1 = x + Σ m_i·u_i``.
 
-    A plant with its own solver is stepped instead (:func:`plant_advance`), one step.
+    A plant with its own solver (a co-simulation FMU: its table's ``ADVANCE`` slot) is
+    stepped instead, one step: 1 when done, 0 when it failed.
     """
-    stepped = plant_advance(x, input_stage(x, u, p, null, work[_STAGES]), load, p, duration)
-    if stepped >= 0:
+    if fn[ADVANCE] != 0:
+        v = input_stage(x, u, p, null, work[_STAGES])
+        stepped = call_advance(fn[ADVANCE], x, v, load, p, duration)
         return (STATUS_OK if stepped == 1 else STATUS_STEP_FAILURE), h, 1
     n = x.size
     u_st = work[:_STAGES]
@@ -196,7 +191,7 @@ def integrate_interval(
     h = min(h, duration)
     h_min = 1e-14 * duration
     # f0 = f(x) and J at x together: the Jacobian's first pass is f(x)
-    loop_jacobian(x, u, load, p, null, f0, typical, jac, ftmp)
+    loop_jacobian(fn, x, u, load, p, null, f0, typical, jac, ftmp)
     need_jac = False
     jac_fresh = True
     h_first = 0.0
@@ -205,7 +200,7 @@ def integrate_interval(
             return STATUS_STEP_FAILURE, h, steps
         h_step = min(h, duration - t)
         if need_jac:
-            loop_jacobian(x, u, load, p, null, f0, typical, jac, ftmp)
+            loop_jacobian(fn, x, u, load, p, null, f0, typical, jac, ftmp)
             need_jac = False
             jac_fresh = True
         h_inv = 1.0 / h_step
@@ -225,7 +220,7 @@ def integrate_interval(
                 for j in range(st):
                     acc += _A_U[st, j] * u_st[j, i]
                 xs[i] = acc
-            loop_rhs(xs, u, load, p, null, ftmp)
+            loop_rhs(fn, xs, u, load, p, null, ftmp)
             for i in range(n):
                 acc = 0.0
                 for j in range(st):
@@ -254,7 +249,7 @@ def integrate_interval(
             if t < duration * (1.0 - 1e-12):
                 # f at the next step's start (none after the last: the next interval
                 # starts from its own input)
-                loop_rhs(x, u, load, p, null, f0)
+                loop_rhs(fn, x, u, load, p, null, f0)
             jac_fresh = False
             fac = 5.0 if err == 0.0 else min(5.0, max(0.2, 0.8 * err ** (-1.0 / 3.0)))
             if h_step < h:
@@ -281,10 +276,11 @@ def integrate_interval(
 
 @njit(cache=True, nogil=True)
 def closed_loop(
+    fn: np.ndarray,
     p: np.ndarray,
     null: float,
     x0: np.ndarray,
-    ctrl_kind: int,
+    ctrl: int,
     cp: np.ndarray,
     cs: np.ndarray,
     ref: np.ndarray,
@@ -326,7 +322,7 @@ def closed_loop(
     for k in range(n):
         for i in range(x.size):
             states[k, i] = x[i]
-        y, u, a, sat = sample(ctrl_kind, cp, cs, ref[k], x, s, noise[k])
+        y, u, a, sat = sample(ctrl, cp, cs, ref[k], x, s, noise[k])
         measured[k] = y
         command[k] = u
         actuator[k] = a
@@ -342,13 +338,13 @@ def closed_loop(
         code = STATUS_OK
         if part > 0.0:
             code, h, steps = integrate_interval(
-                p, null, x, a_before, load[k], part * dt, h, s.tol, scale, typical,
+                fn, p, null, x, a_before, load[k], part * dt, h, s.tol, scale, typical,
                 work, mats, piv,
             )  # fmt: skip
             total += steps
         if code == STATUS_OK:
             code, h, steps = integrate_interval(
-                p, null, x, a_now, load[k], (1.0 - part) * dt, h, s.tol, scale,
+                fn, p, null, x, a_now, load[k], (1.0 - part) * dt, h, s.tol, scale,
                 typical, work, mats, piv,
             )  # fmt: skip
             total += steps
@@ -356,7 +352,7 @@ def closed_loop(
             status = code
             where = k
             break
-        if status == STATUS_OK and plant_in_end_stop(x[:n_plant], p):
+        if status == STATUS_OK and call_end_stop(fn[END_STOP], x[:n_plant], p) != 0:
             status = STATUS_END_STOP
             where = k + 1
     if status == STATUS_DIVERGED or status == STATUS_STEP_FAILURE:
@@ -372,10 +368,11 @@ def closed_loop(
 
 @njit(cache=True, parallel=True)
 def closed_loop_batch(
+    fn: np.ndarray,
     p: np.ndarray,
     null: np.ndarray,
     x0: np.ndarray,
-    ctrl_kind: int,
+    ctrl: int,
     cp: np.ndarray,
     cs: np.ndarray,
     ref: np.ndarray,
@@ -400,7 +397,7 @@ def closed_loop_batch(
     for b in prange(p.shape[0]):
         s = settings[np.int64(b)]  # prange counts unsigned; a typed list wants a signed index
         status, where, steps = closed_loop(
-            p[b], null[b], x0[b], ctrl_kind, cp, cs[b], ref, load, noise[b], s,
+            fn, p[b], null[b], x0[b], ctrl, cp, cs[b], ref, load, noise[b], s,
             scale[b], typical[b], states[b], measured[b], command[b], actuator[b],
             saturated[b],
         )  # fmt: skip
@@ -411,7 +408,12 @@ def closed_loop_batch(
 
 @njit(cache=True)
 def signal_table(
-    states: np.ndarray, inputs: np.ndarray, loads: np.ndarray, p: np.ndarray, out: np.ndarray
+    fn: np.ndarray,
+    states: np.ndarray,
+    inputs: np.ndarray,
+    loads: np.ndarray,
+    p: np.ndarray,
+    out: np.ndarray,
 ) -> None:
     """Signals of every recorded sample (rows of ``states``); rows with a NaN state stay NaN."""
     row = np.empty(out.shape[1])
@@ -421,21 +423,22 @@ def signal_table(
             if not math.isfinite(states[k, i]):
                 finite = False
         if finite:
-            plant_signals(states[k], inputs[k], loads[k], p, row)
-            out[k, :] = row
-        else:
-            out[k, :] = np.nan
+            call_signals(fn[SIGNALS], states[k], inputs[k], loads[k], p, row)
+        for j in range(out.shape[1]):  # by element: a slice assignment compiles 2 s more
+            out[k, j] = row[j] if finite else np.nan
 
 
 @njit(cache=True)
-def rhs_with_inputs(x: np.ndarray, a: float, load: float, p: np.ndarray, null: float) -> np.ndarray:
+def rhs_with_inputs(
+    fn: np.ndarray, x: np.ndarray, a: float, load: float, p: np.ndarray, null: float
+) -> np.ndarray:
     """:func:`loop_rhs` as a function (the reference path's right-hand side)."""
     dx = np.empty(x.size)
-    loop_rhs(x, a, load, p, null, dx)
+    loop_rhs(fn, x, a, load, p, null, dx)
     return dx
 
 
 @njit(cache=True)
-def in_end_stop(x: np.ndarray, p: np.ndarray) -> bool:
+def in_end_stop(fn: np.ndarray, x: np.ndarray, p: np.ndarray) -> bool:
     """True when the plant part of ``x`` sits beyond a mechanical end stop."""
-    return plant_in_end_stop(x[: plant_states(x, p)], p)
+    return call_end_stop(fn[END_STOP], x[: plant_states(x, p)], p) != 0

@@ -16,6 +16,7 @@ from fuzzyservo.controllers.classical import OpenLoop
 from fuzzyservo.plants import PlantModel
 from fuzzyservo.rig import Rig, Scenario
 from fuzzyservo.simulation import _loop
+from fuzzyservo.simulation.binding import bind, controller_entry
 from fuzzyservo.simulation.result import SimResult
 from fuzzyservo.simulation.validity import (
     STATUS_CAVITATION,
@@ -157,11 +158,11 @@ def simulate(
     actuator = np.empty(n)
     saturated = np.zeros(n, dtype=np.bool_)
     cp, cs = _initial_state(prep.controller, rig.sample_time_s)
-    status, where, steps = prep.plant.loop.closed_loop(
+    status, where, steps = bind(prep.plant).closed_loop(
         prep.p,
         prep.null,
         prep.x0,
-        prep.controller.kind,
+        controller_entry(prep.controller),
         cp,
         cs,
         prep.ref,
@@ -208,7 +209,7 @@ def simulate_batch(
     dt = first.rig.sample_time_s
     cp, cs = _initial_state(first.controller, dt)
     if len(preps) == 1 or not all(
-        p.plant.loop is first.plant.loop
+        bind(p.plant) is bind(first.plant)
         and p.rig.sample_time_s == dt
         and p.controller.kind == first.controller.kind
         and np.array_equal(_initial_state(p.controller, dt)[0], cp)
@@ -227,11 +228,11 @@ def simulate_batch(
     actuator = np.empty((b, n))
     saturated = np.zeros((b, n), dtype=np.bool_)
     out = np.zeros((b, 3), dtype=np.int64)
-    first.plant.loop.closed_loop_batch(
+    bind(first.plant).closed_loop_batch(
         np.stack([p.p for p in preps]),
         np.array([p.null for p in preps]),
         np.stack([p.x0 for p in preps]),
-        first.controller.kind,
+        controller_entry(first.controller),
         cp,
         np.tile(cs, (b, 1)),
         first.ref,
@@ -305,7 +306,7 @@ def assemble(
     n = prep.t.size
     values = np.empty((n, len(plant.signals)))
     states = np.ascontiguousarray(states[:, : prep.plant_states])
-    plant.loop.signal_table(states, actuator, prep.load, prep.p, values)
+    bind(plant).signal_table(states, actuator, prep.load, prep.p, values)
     signals = {name: values[:, j] for j, name in enumerate(plant.signals)}
     units = dict(plant.signal_units)
     for name, sensor in rig.sensors.items():
@@ -393,7 +394,7 @@ def simulate_stepped(
     delays. A native controller run this way gives the compiled loop's numbers."""
     prep = prepare(rig, controller, scenario, duration_s, noise=noise, noise_seed=noise_seed)
     c = prep.controller
-    loop, p, settings = prep.plant.loop, prep.p, loop_settings(rig, tol)
+    loop, p, settings = bind(prep.plant), prep.p, loop_settings(rig, tol)
     dt = rig.sample_time_s
     n, x = prep.t.size, prep.x0.copy()
     states = np.full((n, x.size), np.nan)
@@ -402,6 +403,7 @@ def simulate_stepped(
     work, mats, piv = _loop.workspace(x.size)
     # a pass-through (u = r) inside the controller's limits: the loop's own sample stage
     cp, cs = OpenLoop(gain=1.0, u_min=c.u_min, u_max=c.u_max).init(dt)
+    open_loop = controller_entry(OpenLoop)
     state = c.init(dt)
     h, status, where, total = dt * 1e-3, _loop.STATUS_OK, -1, 0
     lag = p[E.valve_lag_s] > 0.0
@@ -410,9 +412,9 @@ def simulate_stepped(
     try:
         for k in range(n):
             states[k] = x
-            y = _loop.sample(OpenLoop.kind, cp, cs, 0.0, x, settings, prep.noise[k])[0]
+            y = _loop.sample(open_loop, cp, cs, 0.0, x, settings, prep.noise[k])[0]
             u, state = c.step(state, prep.ref[k], y)
-            y, u, a, sat = _loop.sample(OpenLoop.kind, cp, cs, u, x, settings, prep.noise[k])
+            y, u, a, sat = _loop.sample(open_loop, cp, cs, u, x, settings, prep.noise[k])
             measured[k], command[k], actuator[k], saturated[k] = y, u, a, sat
             if not math.isfinite(a):
                 status, where = _loop.STATUS_DIVERGED, k

@@ -17,6 +17,7 @@ from fuzzyservo.controllers.base import Controller
 from fuzzyservo.errors import ConfigError
 from fuzzyservo.rig import Rig, Scenario
 from fuzzyservo.simulation._loop import delay_split, held_inputs, sample, spool_start
+from fuzzyservo.simulation.binding import bind, controller_entry
 from fuzzyservo.simulation.closed_loop import assemble, loop_settings, prepare
 from fuzzyservo.simulation.result import SimResult
 
@@ -45,7 +46,8 @@ def simulate_reference(
             "path to integrate; use the FMU's model-exchange interface"
         )
     prep = prepare(rig, controller, scenario, duration_s, noise=noise, noise_seed=noise_seed)
-    loop = prep.plant.loop
+    loop = bind(prep.plant)
+    ctrl = controller_entry(prep.controller)
     p = prep.p
     n = prep.t.size
     x = prep.x0.copy()
@@ -64,7 +66,7 @@ def simulate_reference(
     status, where, steps = "ok", -1, 0
     for k in range(n):
         states[k] = x
-        y, u, a, sat = sample(prep.controller.kind, cp, cs, prep.ref[k], x, settings, prep.noise[k])
+        y, u, a, sat = sample(ctrl, cp, cs, prep.ref[k], x, settings, prep.noise[k])
         measured[k], command[k], actuator[k], saturated[k] = y, u, a, sat
         if not np.isfinite(a):
             status, where = "diverged", k

@@ -293,11 +293,8 @@ def _run_processes(spec: Study, url: str, total: int, workers: int, bar, shared:
 
 
 def _warm_kernels(spec: Study) -> None:
-    """Compile the kernels here, once, before the workers start (else each compiles them)."""
-    from fuzzyservo._jit import cache_is_cold
-
-    if not cache_is_cold():
-        return
+    """Compile the kernels here, once, before the workers start (else each compiles them);
+    with a warm cache this only reads them, milliseconds."""
     from fuzzyservo.simulation import simulate
 
     rig = spec.rig

@@ -151,11 +151,18 @@ def _install_locator() -> None:
 def _guard_corrupt_entries() -> None:
     """An index or data file numba cannot unpickle (a truncated write by a killed process,
     a disk fault) reads as a cache miss: the kernel is compiled again and the entry
-    rewritten, never trusted, never an error."""
+    rewritten, never trusted, never an error. An entry that cannot be written (a full disk,
+    a file-size limit, a read-only folder) is left out: the kernel runs, compiled in memory."""
     cls = caching.IndexDataCacheFile
     if getattr(cls, "_fuzzyservo_guarded", False):
         return
-    load_index, load_data = cls._load_index, cls._load_data
+    load_index, load_data, save = cls._load_index, cls._load_data, cls.save
+
+    def _save(self, key, data):
+        try:
+            save(self, key, data)
+        except OSError:
+            pass
 
     def _load_index(self):
         try:
@@ -171,7 +178,7 @@ def _guard_corrupt_entries() -> None:
         except Exception as error:  # any unreadable entry: load() reads an OSError as a miss
             raise OSError(f"unreadable cache entry {name}") from error
 
-    cls._load_index, cls._load_data = _load_index, _load_data
+    cls._load_index, cls._load_data, cls.save = _load_index, _load_data, _save
     cls._fuzzyservo_guarded = True
 
 

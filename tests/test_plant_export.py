@@ -54,7 +54,7 @@ def _worst(rig, folder: Path, draws: int = 60) -> tuple[float, float]:
         u = rig.actuator.rated * rng.normal()
         f = 100.0 * rng.normal()
         for k, (fn, n) in enumerate(
-            ((plant.kernels.plant_rhs, x.size), (plant.loop.plant_signals, len(plant.signals)))
+            ((plant.kernels.plant_rhs, x.size), (plant.kernels.plant_signals, len(plant.signals)))
         ):
             ours, theirs = np.zeros(n), np.zeros(n)
             fn(x, u, f, p, ours)

@@ -28,6 +28,7 @@ from typing import Any
 
 import numpy as np
 
+from fuzzyservo._jit import compile_step
 from fuzzyservo.components.declare import (
     CIRCUIT,
     PHASES,
@@ -561,7 +562,8 @@ def _initial_state(
 
     x0 = once({})
     out = np.empty(len(model.signals))
-    model.kernels.plant_signals(x0, model.null_input(params), 0.0, pack(params), out)
+    with compile_step(f"the plant's kernels ({model.description})"):  # only its signals
+        model.kernels.plant_signals(x0, model.null_input(params), 0.0, pack(params), out)
     forces = {a: float(out[model.signals.index(_named(a, _LOAD_SIGNAL.name))]) for a in axes}
     if all(np.isfinite(f) and f == 0.0 for f in forces.values()):
         return x0

@@ -20,10 +20,13 @@ that is the hash of its text, so numba caches it like any other module.
 from __future__ import annotations
 
 import ast
+import ctypes
 import functools
 import hashlib
 import importlib.util
 import os
+import shutil
+import subprocess
 import sys
 import tempfile
 import threading
@@ -256,6 +259,7 @@ class compile_step:
     def __enter__(self) -> compile_step:
         self._t0 = time.perf_counter()
         self._started = False
+        _STEP_STACK.__dict__.setdefault("steps", []).append(self)
         if _WATCHES:
             self._events = _StepEvents(self)
             numba_event.register("numba:compile", self._events)
@@ -270,6 +274,7 @@ class compile_step:
                 watch.on_start_(self.what)
 
     def __exit__(self, *exc: object) -> None:
+        _STEP_STACK.steps.pop()
         if self._events is None:
             return
         numba_event.unregister("numba:compile", self._events)
@@ -279,6 +284,17 @@ class compile_step:
             seconds = time.perf_counter() - self._t0
             for watch in _WATCHES:
                 watch.on_end_(self.what, seconds)
+
+
+_STEP_STACK = threading.local()
+
+
+def mark_compiled() -> None:
+    """Mark the innermost :class:`compile_step` of this thread compiled (a compile numba
+    does not see: a C build)."""
+    steps = getattr(_STEP_STACK, "steps", None)
+    if steps:
+        steps[-1].compiled()
 
 
 class _StepEvents(numba_event.Listener):
@@ -370,15 +386,73 @@ def load_generated(source: str) -> ModuleType:
 _LOAD_LOCK = threading.RLock()
 
 
+def c_compiler() -> str | None:
+    """The system C compiler (``$CC``, else cc, gcc or clang on PATH), or None."""
+    for name in (os.environ.get("CC"), "cc", "gcc", "clang"):
+        if name and shutil.which(name):
+            return shutil.which(name)
+    return None
+
+
+#: how :func:`build_c` compiles: ISO C99 (no contraction of a*b+c into an FMA), -O2, for
+#: the baseline of the target (no -march): the same numbers as numba's kernels on any CPU
+C_FLAGS = ("-std=c99", "-O2", "-shared", "-fPIC")
+
+
+def build_c(files: dict[str, str]) -> ctypes.CDLL | None:
+    """The shared library built from the C ``files`` (name -> text; every ``.c`` compiled),
+    loaded: built once into the cache folder's ``native/`` under a hash of the texts, the
+    compiler and its flags, then read from there by every process (built under
+    :func:`exclusive`, renamed into place when complete). None when there is no C compiler
+    or the build fails: the caller falls back to numba."""
+    cc = c_compiler()
+    if cc is None:
+        return None
+    digest = hashlib.sha256(repr((cc, C_FLAGS, sorted(files.items()))).encode())
+    name = f"native_{digest.hexdigest()[:20]}"
+    try:
+        folder = _generated_dir().parent / "native"
+        folder.mkdir(exist_ok=True)
+    except OSError:
+        return None
+    library = folder / f"{name}.so"
+    with exclusive(name):
+        if not library.is_file():
+            with tempfile.TemporaryDirectory(dir=folder) as tmp:
+                for file, text in files.items():
+                    (Path(tmp) / file).write_text(text, encoding="utf-8")
+                sources = [str(Path(tmp) / f) for f in files if f.endswith(".c")]
+                built = Path(tmp) / "lib.so"
+                try:
+                    done = subprocess.run(
+                        [cc, *C_FLAGS, f"-I{tmp}", "-o", str(built), *sources, "-lm"],
+                        capture_output=True, text=True, timeout=120, check=False,
+                    )  # fmt: skip
+                except (OSError, subprocess.SubprocessError):
+                    return None
+                if done.returncode != 0 or not built.is_file():
+                    return None
+                os.replace(built, library)
+                mark_compiled()
+    try:
+        return ctypes.CDLL(str(library))
+    except OSError:
+        return None
+
+
 __all__ = [
+    "C_FLAGS",
     "GENERATED_PREFIX",
     "STEPS",
     "KernelCacheLocator",
+    "build_c",
+    "c_compiler",
     "compile_step",
     "exclusive",
     "first_call",
     "kernel_stamp",
     "load_generated",
+    "mark_compiled",
     "njit",
     "watch_compiles",
 ]

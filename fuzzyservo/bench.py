@@ -218,7 +218,7 @@ def run_compile_case(root: Path | None = None, *, calibrate: bool = True) -> Ben
     """What compiling costs a user, each command in a new process, with numba's cache
     emptied first (a fresh install): the first ``simulate dinca_cylinder p_k10`` (wall,
     everything included) against the same command warm; a rig never run before (seed 002's
-    with a second damper component: a new composition) first and warm; and with
+    with a spring added: a new composition) first and warm; and with
     ``calibrate``, a whole-library calibration of the friction example on that rig, first
     (empty cache) and warm. The same machine, one run."""
     root = root or data_root()
@@ -227,11 +227,11 @@ def run_compile_case(root: Path | None = None, *, calibrate: bool = True) -> Ben
     extra: dict[str, float] = {}
     with tempfile.TemporaryDirectory(prefix="fuzzyservo-bench-compile-") as folder:
         tmp = Path(folder)
-        new_rig = tmp / "dinca_seal.yaml"  # a rig the package does not ship
-        seal = ("    seal:\n      type: damper\n      parameters:\n"
-                "        coefficient: {value: 20, unit: N*s/m, source: bench}\n")  # fmt: skip
+        new_rig = tmp / "dinca_spring.yaml"  # a rig the package does not ship
+        seal = ("    seal:\n      type: spring\n      parameters:\n"
+                "        stiffness: {value: 10, unit: N/m, source: bench}\n")  # fmt: skip
         text = rig.read_text(encoding="utf-8").replace("    guides:\n", seal + "    guides:\n", 1)
-        new_rig.write_text(text.replace("name: dinca_cylinder", "name: dinca_seal", 1), "utf-8")
+        new_rig.write_text(text.replace("name: dinca_cylinder", "name: dinca_spring", 1), "utf-8")
         cache = tmp / "cache"
 
         def simulate(path: Path) -> tuple[float, list[str]]:

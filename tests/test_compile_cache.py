@@ -10,6 +10,7 @@ import subprocess
 import sys
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from fuzzyservo import _jit
@@ -32,8 +33,9 @@ print(json.dumps({"compiled": done, "status": result.status}))
 """
 
 
-def _run(package: Path, cache: Path, rig: str) -> dict:
-    env = {"PYTHONPATH": str(package), "NUMBA_CACHE_DIR": str(cache), "PATH": "/usr/bin:/bin"}
+def _run(package: Path, cache: Path, rig: str, kernels: str = "numba") -> dict:
+    env = {"PYTHONPATH": str(package), "NUMBA_CACHE_DIR": str(cache), "PATH": "/usr/bin:/bin",
+           "FUZZYSERVO_KERNELS": kernels}  # fmt: skip
     done = subprocess.run(
         [sys.executable, "-c", _RUN, str(ROOT / "rigs" / f"{rig}.yaml"),
          str(ROOT / "studies" / "controllers" / "p_k10.yaml")],
@@ -47,10 +49,12 @@ def _run(package: Path, cache: Path, rig: str) -> dict:
 
 @pytest.mark.slow
 def test_editing_one_component_recompiles_only_the_kernels_that_use_it(tmp_path) -> None:
-    """A copy of the package, run in new processes with one cache: a second rig compiles
+    """A copy of the package, run in new processes with one cache, its plants' kernels
+    compiled by numba (``FUZZYSERVO_KERNELS=numba``: no C compiler): a second rig compiles
     its plant's kernels and nothing of the loop; editing the cylinder's file then
     recompiles the plant kernels of the rigs that use it, and neither the loop, the
-    controller's step nor a rig without a cylinder."""
+    controller's step nor a rig without a cylinder. With the C compiler, the edit (a
+    comment) leaves the translated C as it was: nothing is built again."""
     package = tmp_path / "pkg"
     shutil.copytree(ROOT / "fuzzyservo", package / "fuzzyservo",
                     ignore=shutil.ignore_patterns("__pycache__"))  # fmt: skip
@@ -70,6 +74,12 @@ def test_editing_one_component_recompiles_only_the_kernels_that_use_it(tmp_path)
     again = _run(package, cache, "dinca_cylinder")["compiled"]
     assert again and all(w.startswith("the plant's kernels") for w in again), again
     assert _run(package, cache, "ehs160_motor")["compiled"] == []  # no cylinder in it
+
+    if _jit.c_compiler() is not None:
+        native = _run(package, cache, "dinca_cylinder", "")["compiled"]
+        assert native and all(w.startswith("the plant's kernels") for w in native), native
+        cylinders.write_text(cylinders.read_text() + "\n# edited again\n")
+        assert _run(package, cache, "dinca_cylinder", "")["compiled"] == []
 
 
 def test_a_kernel_s_stamp_follows_its_imports_and_nothing_else(tmp_path, monkeypatch) -> None:
@@ -130,3 +140,30 @@ def test_an_unreadable_cache_entry_is_compiled_again_not_trusted(tmp_path) -> No
                 path.write_bytes(b"\x80\x04garbage, not a pickle")
         assert run() == ["42.0", "0"], kind  # compiled again
         assert run() == ["42.0", "1"], kind  # and the rewritten entry is read
+
+
+@pytest.mark.parametrize("name", ["dinca_cylinder", "ehs160_motor", "hydroprax_pdcv", "servo_lift"])
+def test_the_c_compiled_kernels_give_numba_s_run_to_the_bit(name, monkeypatch) -> None:
+    """A composition's kernels built by the C compiler (plants/native.py) and by numba give
+    the same run, every signal to the bit (the loop's own Jacobian against the
+    composition's: the same numbers, plants/_jacobian.py)."""
+    from support import controller_named, rig_named
+
+    from fuzzyservo.plants import native
+    from fuzzyservo.simulation import binding, simulate
+
+    if _jit.c_compiler() is None:
+        pytest.skip("no C compiler: numba compiles every plant's kernels")
+    rig = rig_named(name)
+    controller = controller_named("p_k10" if name == "dinca_cylinder" else "open_loop")
+    plant = rig.plant.for_params(rig.params)
+    assert native.native_kernels(plant) is not None
+    with_c = simulate(rig, controller, duration_s=2.0)
+    monkeypatch.setattr(binding, "_BOUND", {})
+    monkeypatch.setenv(native.KERNELS_VARIABLE, "numba")
+    with_numba = simulate(rig, controller, duration_s=2.0)
+    assert binding.bind(plant).fn[binding.JACOBIAN] != 0  # numba's: the composition's own
+    assert with_c.status == with_numba.status
+    assert with_c.integration_steps == with_numba.integration_steps
+    for key, values in with_numba.signals.items():
+        assert np.array_equal(with_c.signals[key], values, equal_nan=True), key

@@ -124,8 +124,9 @@ def test_every_plant_runs_the_one_compiled_loop_through_its_kernel_table() -> No
     assert bind(_LINEAR) is loop
     assert all(loop.fn[s] != 0 for s in (RHS, SIGNALS, END_STOP))
     assert loop.fn[JACOBIAN] == 0 and loop.fn[ADVANCE] == 0  # the loop's defaults serve
-    composed = bind(rig_named("dinca_cylinder").plant)
-    assert composed.fn[JACOBIAN] != 0  # a composition's own Jacobian
+    plant = rig_named("dinca_cylinder").plant
+    assert bind(plant.binding).fn[JACOBIAN] != 0  # numba's kernels: the composition's own
+    assert bind(plant).fn[RHS] != 0
     assert len(_plant_loop.closed_loop.overloads) <= 1  # one compiled loop for both
     with pytest.raises(ValueError, match="plant_signals"):
         bind("def plant_rhs(): pass\ndef plant_in_end_stop(): pass")
@@ -230,7 +231,7 @@ def test_the_composed_jacobian_is_the_forward_difference_to_the_bit(name: str) -
     rig = rig_named(name)
     prep = prepare(rig, controller_named("p_k10"), duration_s=0.1)
     assert "def plant_jacobian" in rig.plant.binding  # the composition's own, not the default
-    loop = bind(rig.plant)
+    loop = bind(rig.plant.binding)  # numba's kernels, with the composition's Jacobian
     rng = np.random.default_rng(1)
     x = prep.x0 + 0.05 * prep.typical * rng.standard_normal(prep.x0.size)
     a = prep.null + 0.3 * rig.actuator.rated

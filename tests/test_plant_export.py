@@ -97,7 +97,7 @@ def test_every_plant_effect_translates_bit_for_bit(tmp_path):
 
 
 def test_code_outside_the_translated_subset_is_refused_by_function_and_line(monkeypatch):
-    from fuzzyservo.codegen import _plant_c
+    from fuzzyservo.plants import c_source as _plant_c
 
     def uses_a_list(P, X, u):
         values = [u, 2.0 * u]

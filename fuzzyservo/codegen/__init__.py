@@ -17,9 +17,9 @@ from fuzzyservo.codegen._check import c_compiler, single_precision_error
 from fuzzyservo.codegen._fmi import fmu_model, fmu_sources, model_description
 from fuzzyservo.codegen._fmu import FmuBuild, fmi_headers, fmu_build
 from fuzzyservo.codegen._lut import LutError, lut_error, lut_interp, lut_table
-from fuzzyservo.codegen._plant_c import TranslationError, plant_c_sources
 from fuzzyservo.codegen._plant_export import fmu_signals, plant_fmu, plant_fmu_model
 from fuzzyservo.codegen._st_system import system_st_source
+from fuzzyservo.plants.c_source import TranslationError, plant_c_sources
 
 __all__ = [
     "FmuBuild",

@@ -3,27 +3,17 @@ with the system's C compiler and run on inputs spread over the input ranges."""
 
 from __future__ import annotations
 
-import os
-import shutil
 import subprocess
 import tempfile
 from pathlib import Path
 
 import numpy as np
 
+from fuzzyservo._jit import c_compiler
 from fuzzyservo.atomic import write_files
 from fuzzyservo.codegen._c import c_sources, identifier, system_c_sources
 from fuzzyservo.controllers.fuzzy.controller import FuzzyController
 from fuzzyservo.controllers.fuzzy.system import FuzzySystem
-
-
-def c_compiler() -> str | None:
-    """The system C compiler (``$CC``, else cc, gcc or clang on PATH), or None."""
-    for name in (os.environ.get("CC"), "cc", "gcc", "clang"):
-        if name and shutil.which(name):
-            return shutil.which(name)
-    return None
-
 
 _SWEEP_MAIN = r"""#include <stdio.h>
 #include "@P@.h"

@@ -3,7 +3,7 @@
 :func:`plant_fmu_model` gathers the FMU's variables from a rig — the plant's states
 (named ``<instance>.<state>``, starting where the rig's default scenario starts), its
 input and load, its signals as outputs, the parameters the plant reads (the rig's
-values as start values) — and the C that :mod:`._plant_c` translates from the
+values as start values) — and the C that :mod:`fuzzyservo.plants.c_source` translates from the
 components' equations. :mod:`._plant_wrapper` writes the model description and the FMI
 wrapper (model exchange and co-simulation) around it.
 
@@ -21,10 +21,10 @@ from typing import Any
 import numpy as np
 
 from fuzzyservo.codegen._fmu import FmuBuild
-from fuzzyservo.codegen._plant_c import plant_c_sources
 from fuzzyservo.codegen._plant_wrapper import PlantFmuModel, PlantVariable, plant_fmu_build
 from fuzzyservo.components.effects import INPUT_EFFECTS, LIBRARY
 from fuzzyservo.plants import PlantModel
+from fuzzyservo.plants.c_source import plant_c_sources
 from fuzzyservo.rig import Rig
 from fuzzyservo.simulation import DEFAULT_TOL
 

@@ -1,6 +1,6 @@
 """A plant's C model as an FMU for model exchange and co-simulation (FMI 3.0 or 2.0):
 the text of ``modelDescription.xml``, of the FMI wrapper ``fmu.c`` around the model's
-``plant_rhs``/``plant_signals`` (:mod:`._plant_c`), and the build.
+``plant_rhs``/``plant_signals`` (:mod:`fuzzyservo.plants.c_source`), and the build.
 
 Value references: 0 time (FMI 3.0 only), then the states, their derivatives
 ``der(<state>)``, the input, the load, the outputs, the parameters and ``tolerance``. The

@@ -42,6 +42,7 @@ from fuzzyservo.components.effects import INPUT_EFFECTS, LIBRARY, EffectParams, 
 from fuzzyservo.params import index_of, pack, quantity, vector, vector_offset
 from fuzzyservo.plants import PlantModel
 from fuzzyservo.plants._jacobian import jacobian_source
+from fuzzyservo.plants.native import native_kernels
 
 _STATIC_FORCE = "static_force"
 
@@ -562,8 +563,10 @@ def _initial_state(
 
     x0 = once({})
     out = np.empty(len(model.signals))
-    with compile_step(f"the plant's kernels ({model.description})"):  # only its signals
-        model.kernels.plant_signals(x0, model.null_input(params), 0.0, pack(params), out)
+    with compile_step(f"the plant's kernels ({model.description})"):
+        native = native_kernels(model)
+        signals = model.kernels.plant_signals if native is None else native.signals
+        signals(x0, model.null_input(params), 0.0, pack(params), out)
     forces = {a: float(out[model.signals.index(_named(a, _LOAD_SIGNAL.name))]) for a in axes}
     if all(np.isfinite(f) and f == 0.0 for f in forces.values()):
         return x0

@@ -11,7 +11,8 @@ turns an address into a C function of the kernel's signature and calls it: every
 argument is passed as its data pointer followed by its shape, every number as itself.
 :data:`SIGNATURES` is that C signature per kernel, the one place both sides read it.
 
-A C call is not inlined into the loop; the plant's own code runs as compiled as before,
+The plant's side of this contract is declared in :mod:`fuzzyservo.plants.abi`. A C call
+is not inlined into the loop; the plant's own code runs as compiled as before,
 and the numbers are the same to the bit (no fast-math on either side).
 """
 
@@ -21,45 +22,25 @@ from llvmlite import ir
 from numba import types
 from numba.extending import intrinsic
 
-#: the slots of a plant's kernel table ``fn``
-RHS, JACOBIAN, SIGNALS, END_STOP, ADVANCE = range(5)
-SLOTS = 5
+from fuzzyservo.plants.abi import (
+    ADVANCE,
+    ARRAYS,
+    END_STOP,
+    JACOBIAN,
+    KERNELS,
+    RHS,
+    SIGNALS,
+    SLOTS,
+    signature,
+)
+from fuzzyservo.plants.abi import SIGNATURES as PLANT_SIGNATURES
+
 #: the controller's step kernel: not in a plant's table, passed on its own
 STEP = SLOTS
-#: each kernel as the plant (or controller) writes it: (name, arguments, what it returns)
-KERNELS = {
-    RHS: ("plant_rhs", ("x", "u", "f_ext", "p", "dx"), types.void),
-    JACOBIAN: (
-        "plant_jacobian",
-        ("x", "u", "f_ext", "p", "f0", "typical", "jac", "ftmp"),
-        types.void,
-    ),
-    SIGNALS: ("plant_signals", ("x", "u", "f_ext", "p", "out"), types.void),
-    END_STOP: ("plant_in_end_stop", ("x", "p"), types.int64),
-    ADVANCE: ("plant_advance", ("x", "u", "f_ext", "p", "duration"), types.int64),
-    STEP: ("step", ("cp", "cs", "r", "y"), types.float64),
-}
-#: the arguments that are arrays, and their dimensions (every other argument is a float64)
-ARRAYS = {
-    "x": 1, "p": 1, "dx": 1, "f0": 1, "typical": 1, "jac": 2, "ftmp": 1, "out": 1, "cp": 1,
-    "cs": 1,
-}  # fmt: skip
-
-_PTR = types.CPointer(types.float64)
-
-
-def _c_arguments(names: tuple[str, ...]) -> list[types.Type]:
-    out: list[types.Type] = []
-    for name in names:
-        if name in ARRAYS:
-            out += [_PTR] + [types.int64] * ARRAYS[name]
-        else:
-            out.append(types.float64)
-    return out
-
-
-#: each slot's C signature: an array is (double *data, int64 size[, int64 columns])
-SIGNATURES = {slot: result(*_c_arguments(args)) for slot, (_, args, result) in KERNELS.items()}
+#: every kernel the loop calls: a plant's (plants/abi.py) and the controller's step
+CALLS = {**KERNELS, STEP: ("step", ("cp", "cs", "r", "y"), types.float64)}
+#: each one's C signature
+SIGNATURES = {**PLANT_SIGNATURES, STEP: signature(CALLS[STEP][1], CALLS[STEP][2])}
 
 
 def _lower(context, builder, signature, values):
@@ -92,7 +73,7 @@ def _checked(args: tuple[types.Type, ...], names: tuple[str, ...]) -> None:
 
 def _caller(slot: int):
     """The intrinsic ``call(address, *arguments)`` of one slot's kernel."""
-    _, names, result = KERNELS[slot]
+    _, names, result = CALLS[slot]
     if result == types.void:
         result = types.none
 
@@ -108,11 +89,11 @@ def _caller(slot: int):
     params = ", ".join(names)
     scope = {"typer": typer}
     exec(
-        f"def call_{KERNELS[slot][0]}(typingctx, fn, {params}):\n"
+        f"def call_{CALLS[slot][0]}(typingctx, fn, {params}):\n"
         f"    return typer(typingctx, fn, {params})\n",
         scope,
     )
-    return intrinsic(scope[f"call_{KERNELS[slot][0]}"])
+    return intrinsic(scope[f"call_{CALLS[slot][0]}"])
 
 
 call_rhs = _caller(RHS)
@@ -121,3 +102,23 @@ call_signals = _caller(SIGNALS)
 call_end_stop = _caller(END_STOP)
 call_advance = _caller(ADVANCE)
 call_step = _caller(STEP)
+
+
+__all__ = [
+    "ADVANCE",
+    "ARRAYS",
+    "CALLS",
+    "END_STOP",
+    "JACOBIAN",
+    "RHS",
+    "SIGNALS",
+    "SIGNATURES",
+    "SLOTS",
+    "STEP",
+    "call_advance",
+    "call_end_stop",
+    "call_jacobian",
+    "call_rhs",
+    "call_signals",
+    "call_step",
+]

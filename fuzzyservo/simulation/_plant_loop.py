@@ -90,7 +90,7 @@ def plant_jacobian(
             jac[i, j] = (ftmp[i] - f0[i]) / dj
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def loop_rhs(
     fn: np.ndarray, x: np.ndarray, a: float, load: float, p: np.ndarray, null: float, dx: np.ndarray
 ) -> None:
@@ -102,7 +102,7 @@ def loop_rhs(
     call_rhs(fn[RHS], x, u, load, p, dx)
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def loop_jacobian(
     fn: np.ndarray,
     x: np.ndarray,

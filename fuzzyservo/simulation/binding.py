@@ -22,8 +22,18 @@ import numpy as np
 from numba import types
 
 from fuzzyservo._jit import compile_step, first_call, load_generated
+from fuzzyservo.plants.native import native_kernels
 from fuzzyservo.simulation import _plant_loop as loop
-from fuzzyservo.simulation._calls import ARRAYS, END_STOP, KERNELS, RHS, SIGNALS, SLOTS, STEP
+from fuzzyservo.simulation._calls import (
+    ARRAYS,
+    CALLS,
+    END_STOP,
+    JACOBIAN,
+    RHS,
+    SIGNALS,
+    SLOTS,
+    STEP,
+)
 
 if TYPE_CHECKING:
     from types import ModuleType
@@ -45,7 +55,7 @@ def _entry_points(module: str, kernels: dict[int, str]) -> str:
         ")",
     ]
     for slot in kernels:
-        name, args, result = KERNELS[slot]
+        name, args, result = CALLS[slot]
         c_args: list[str] = []
         call: list[str] = []
         for arg in args:
@@ -75,14 +85,18 @@ class BoundLoop:
     first (:attr:`fn`), which this passes. ``plant_rhs``, ``plant_signals`` and
     ``plant_in_end_stop`` are the plant's own kernels, callable from Python."""
 
-    def __init__(self, kernels: ModuleType, entry_points: ModuleType) -> None:
+    def __init__(
+        self, kernels: ModuleType, entry_points: ModuleType | None, given: dict[int, int]
+    ) -> None:
         self.kernels = kernels
         self._entry_points = entry_points  # keeps the compiled functions alive
         table = np.zeros(SLOTS, dtype=np.int64)
         for slot in range(SLOTS):
-            entry = getattr(entry_points, f"c_{KERNELS[slot][0]}", None)
+            entry = getattr(entry_points, f"c_{CALLS[slot][0]}", None)
             if entry is not None:
                 table[slot] = entry.address
+            elif slot in given:
+                table[slot] = given[slot]
         self.fn = table
 
     def __getattr__(self, name: str) -> Any:
@@ -121,38 +135,44 @@ class BoundLoop:
         return bool(loop.in_end_stop(self.fn, x, p))
 
 
-_BOUND: dict[str, BoundLoop] = {}
+_BOUND: dict[tuple[str, bool], BoundLoop] = {}
 #: the kernels every plant has (a Jacobian and its own solver are optional)
 _REQUIRED = (RHS, SIGNALS, END_STOP)
 _LOCK = threading.RLock()
 
 
 def bind(plant: PlantModel | str) -> BoundLoop:
-    """The closed loop bound to ``plant`` (a plant, or the source of its kernels, its
-    :attr:`~fuzzyservo.plants.PlantModel.binding`): its kernels compiled (or read from the
-    cache) as C functions. The same binding gives the same object in a process. Raises
-    ValueError when the kernels lack one the loop needs."""
+    """The closed loop bound to ``plant``: its kernels compiled (or read from the cache) as
+    C functions, by the C compiler where it can (:mod:`fuzzyservo.plants.native`), else
+    by numba; given the source of a plant's kernels (its
+    :attr:`~fuzzyservo.plants.PlantModel.binding`) alone, by numba. The same plant gives
+    the same object in a process. Raises ValueError when the kernels lack one the loop
+    needs."""
     binding = plant if isinstance(plant, str) else plant.binding
-    hit = _BOUND.get(binding)
+    key = (binding, isinstance(plant, str))  # a source alone: numba's kernels
+    hit = _BOUND.get(key)
     if hit is not None:
         return hit
     what = "the plant's kernels" + ("" if isinstance(plant, str) else f" ({plant.description})")
     with _LOCK, compile_step(what) as step:
-        hit = _BOUND.get(binding)
+        hit = _BOUND.get(key)
         if hit is None:
             kernels = load_generated(binding)
-            missing = [KERNELS[s][0] for s in _REQUIRED if not hasattr(kernels, KERNELS[s][0])]
+            missing = [CALLS[s][0] for s in _REQUIRED if not hasattr(kernels, CALLS[s][0])]
             if missing:
                 raise ValueError(f"a plant's kernels must define {missing}; they do not")
+            native = None if isinstance(plant, str) else native_kernels(plant)
+            given = {} if native is None else native.addresses
             present = {
-                slot: KERNELS[slot][0]
+                slot: CALLS[slot][0]
                 for slot in range(SLOTS)
-                if hasattr(kernels, KERNELS[slot][0])
-            }
-            entries = load_generated(_entry_points(kernels.__name__, present))
-            if _compiled(entries):
+                if hasattr(kernels, CALLS[slot][0]) and slot not in given
+                and not (native is not None and slot == JACOBIAN)  # the loop's differences
+            }  # fmt: skip
+            entries = load_generated(_entry_points(kernels.__name__, present)) if present else None
+            if entries is not None and _compiled(entries):
                 step.compiled()
-            hit = _BOUND[binding] = BoundLoop(kernels, entries)
+            hit = _BOUND[key] = BoundLoop(kernels, entries, given)
     return hit
 
 

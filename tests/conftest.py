@@ -39,12 +39,47 @@ def _checkout_files() -> set[str] | None:
     return {p for p in paths if not any(c in p for c in _CACHES)}
 
 
+# what each process of the run compiled (numba's kernels, C builds): (what, seconds)
+_COMPILED: list[tuple[str, float]] = []
+
+
 def pytest_sessionstart(session: pytest.Session) -> None:
+    from fuzzyservo._jit import watch_compiles
+
+    watch_compiles(lambda what: None, lambda what, seconds: _COMPILED.append((what, seconds)))
     if not hasattr(session.config, "workerinput"):  # the controller, under xdist too
         session.config._files_before = _checkout_files()  # type: ignore[attr-defined]
+        session.config._compiled = {"controller": _COMPILED}  # type: ignore[attr-defined]
+
+
+def pytest_testnodedown(node, error) -> None:  # noqa: ANN001 - xdist's hook
+    """A worker's compiles, for the summary (xdist sends its ``workeroutput``)."""
+    compiled = getattr(node.config, "_compiled", None)
+    if compiled is not None:
+        compiled[node.gateway.id] = node.workeroutput.get("compiled", [])
+
+
+def pytest_terminal_summary(terminalreporter, exitstatus, config) -> None:  # noqa: ANN001
+    """One line per process: how many top-level compiles it made and their seconds (a
+    compile is counted where it ran; a process that found it in the cache counts none)."""
+    compiled = getattr(config, "_compiled", None)
+    if not compiled:
+        return
+    parts = [
+        f"{name} {len(items)} in {sum(s for _, s in items):.0f} s"
+        for name, items in sorted(compiled.items())
+    ]
+    terminalreporter.write_line("compiles (steps, seconds) by process: " + "; ".join(parts))
+    every = [what for items in compiled.values() for what, _ in items]
+    twice = sorted({w for w in every if every.count(w) > 1})
+    if twice:
+        terminalreporter.write_line(f"compiled by more than one process: {twice[:5]}")
 
 
 def pytest_sessionfinish(session: pytest.Session, exitstatus: int) -> None:
+    workeroutput = getattr(session.config, "workeroutput", None)
+    if workeroutput is not None:  # an xdist worker: its compiles to the controller
+        workeroutput["compiled"] = list(_COMPILED)
     before = getattr(session.config, "_files_before", None)
     after = _checkout_files() if before is not None else None
     if after is None:

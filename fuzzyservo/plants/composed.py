@@ -563,7 +563,7 @@ def _initial_state(
 
     x0 = once({})
     out = np.empty(len(model.signals))
-    with compile_step(f"the plant's kernels ({model.description})"):
+    with compile_step(f"the plant's kernels ({model.description}; {len(model.states)} states)"):
         native = native_kernels(model)
         signals = model.kernels.plant_signals if native is None else native.signals
         signals(x0, model.null_input(params), 0.0, pack(params), out)

@@ -153,7 +153,9 @@ def bind(plant: PlantModel | str) -> BoundLoop:
     hit = _BOUND.get(key)
     if hit is not None:
         return hit
-    what = "the plant's kernels" + ("" if isinstance(plant, str) else f" ({plant.description})")
+    what = "the plant's kernels" + (
+        "" if isinstance(plant, str) else f" ({plant.description}; {len(plant.states)} states)"
+    )
     with _LOCK, compile_step(what) as step:
         hit = _BOUND.get(key)
         if hit is None:

@@ -79,7 +79,7 @@ def valve_data(path: Path, n: int = 300, seed: int = 3) -> Path:
     flows = np.empty((n, 2))
     for k in range(n):
         x[at["p_s"]], x[at["p_a"]], x[at["p_b"]] = p_s[k], p_a[k], p_b[k]
-        model.loop.plant_signals(x, u[k], 0.0, packed, out)
+        model.kernels.plant_signals(x, u[k], 0.0, packed, out)
         flows[k] = out[q_a], out[q_b]
     return write_valve_csv(path, np.column_stack([p_s, u, p_a, p_b, flows]))
 

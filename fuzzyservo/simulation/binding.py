@@ -3,14 +3,16 @@ in the table the loop calls them through.
 
 The closed loop (``_plant_loop.py``) is compiled once per install, for every plant. A
 plant brings only its own kernels (:attr:`~fuzzyservo.plants.PlantModel.kernels`): its
-right-hand side, Jacobian, signals and end stops, and a stepped plant's own solver.
-:func:`bind` compiles each as a numba ``cfunc`` of the C signature its slot declares
-(:data:`._calls.SIGNATURES`), in a small module generated beside the plant's
-kernels, and returns a :class:`BoundLoop`: the loop's functions with the plant's table
-passed first. A new plant, or a plant whose components changed, compiles those few
-kernels, seconds, not the whole loop. A controller's step is bound the same way
-(:func:`controller_entry`): the loop calls it through its address, so a P controller's
-first run never compiles the fuzzy controller's kernel.
+right-hand side, Jacobian, signals and end stops, and a stepped plant's own solver, each
+a C function of the signature its slot declares (:mod:`fuzzyservo.plants.abi`).
+:func:`bind` takes a composition's from the system's C compiler
+(:mod:`fuzzyservo.plants.native`: a fraction of a second) and compiles the others as numba
+``cfunc`` entry points, in a small module generated beside the plant's kernels; it returns
+a :class:`BoundLoop`, the loop's functions with the plant's table passed first. A new
+plant, or a plant whose components changed, compiles those few kernels, not the whole
+loop. A controller's step is bound the same way (:func:`controller_entry`): the loop calls
+it through its address, so a P controller's first run never compiles the fuzzy
+controller's kernel.
 """
 
 from __future__ import annotations
@@ -82,8 +84,8 @@ def _entry_points(module: str, kernels: dict[int, str]) -> str:
 
 class BoundLoop:
     """The closed loop's functions for one plant: each takes the plant's kernel table
-    first (:attr:`fn`), which this passes. ``plant_rhs``, ``plant_signals`` and
-    ``plant_in_end_stop`` are the plant's own kernels, callable from Python."""
+    first (:attr:`fn`: the address of each kernel, :mod:`fuzzyservo.plants.abi`), which
+    this passes; ``kernels`` is the plant's kernels module (numba's, callable from Python)."""
 
     def __init__(
         self, kernels: ModuleType, entry_points: ModuleType | None, given: dict[int, int]
@@ -98,11 +100,6 @@ class BoundLoop:
             elif slot in given:
                 table[slot] = given[slot]
         self.fn = table
-
-    def __getattr__(self, name: str) -> Any:
-        if name.startswith("plant_"):
-            return getattr(self.kernels, name)
-        raise AttributeError(name)
 
     def closed_loop(self, *args: Any) -> tuple[int, int, int]:
         """:func:`._plant_loop.closed_loop` on this plant."""

@@ -52,14 +52,14 @@ def pytest_sessionstart(session: pytest.Session) -> None:
         session.config._compiled = {"controller": _COMPILED}  # type: ignore[attr-defined]
 
 
-def pytest_testnodedown(node, error) -> None:  # noqa: ANN001 - xdist's hook
+def pytest_testnodedown(node, error) -> None:
     """A worker's compiles, for the summary (xdist sends its ``workeroutput``)."""
     compiled = getattr(node.config, "_compiled", None)
     if compiled is not None:
         compiled[node.gateway.id] = node.workeroutput.get("compiled", [])
 
 
-def pytest_terminal_summary(terminalreporter, exitstatus, config) -> None:  # noqa: ANN001
+def pytest_terminal_summary(terminalreporter, exitstatus, config) -> None:
     """One line per process: how many top-level compiles it made and their seconds (a
     compile is counted where it ran; a process that found it in the cache counts none)."""
     compiled = getattr(config, "_compiled", None)

@@ -70,7 +70,7 @@ def pytest_terminal_summary(terminalreporter, exitstatus, config) -> None:
         for name, items in sorted(compiled.items())
     ]
     terminalreporter.write_line("compiles (steps, seconds) by process: " + "; ".join(parts))
-    every = [what for items in compiled.values() for what, _ in items]
+    every = [what for items in compiled.values() for what in {w for w, _ in items}]
     twice = sorted({w for w in every if every.count(w) > 1})
     if twice:
         terminalreporter.write_line(f"compiled by more than one process: {twice[:5]}")

@@ -8,8 +8,9 @@ effect to this). :func:`native_kernels` builds it, with an entry point per kerne
 loop's ABI (:mod:`.abi`), once per composition and machine (:func:`fuzzyservo._jit.build_c`).
 It gives None where there is no C compiler, where the translation cannot follow a
 component's code, or when ``FUZZYSERVO_KERNELS=numba`` is set: numba compiles them then.
-The Jacobian is left to the loop's forward differences, the same numbers as a
-composition's own.
+A composition's Jacobian (plants/_jacobian.py: each column re-runs only what its state
+reaches) is translated too; without one the loop's forward differences serve, the same
+numbers.
 """
 
 from __future__ import annotations
@@ -23,7 +24,7 @@ from numba import types
 
 from fuzzyservo._jit import build_c
 from fuzzyservo.plants import PlantModel
-from fuzzyservo.plants.abi import END_STOP, KERNELS, RHS, SIGNALS, c_prototype
+from fuzzyservo.plants.abi import END_STOP, JACOBIAN, KERNELS, RHS, SIGNALS, c_prototype
 from fuzzyservo.plants.c_source import TranslationError, plant_c_sources
 
 #: the environment variable that picks numba for every plant's kernels ("numba")
@@ -34,6 +35,7 @@ _CALLS = {
     RHS: "plant_rhs(x, u, f_ext, p, dx)",
     SIGNALS: "plant_signals(x, u, f_ext, p, out)",
     END_STOP: "(int64_t)(plant_in_end_stop(x, p) != 0.0)",
+    JACOBIAN: "plant_jacobian(x, u, f_ext, p, f0, typical, jac, (long)jac_n1, ftmp)",
 }
 
 
@@ -56,11 +58,16 @@ class NativeKernels:
         )  # fmt: skip
 
 
-def _entry_points() -> str:
+def _entry_points(has_jacobian: bool) -> str:
     """The C of the loop's entry points, each calling the translated function."""
     lines = ["#include <stdint.h>", '#include "plant_model.h"', "",
-             "double plant_in_end_stop(const double *x, const double *p);", ""]  # fmt: skip
+             "double plant_in_end_stop(const double *x, const double *p);",
+             "void plant_jacobian(const double *x, double u, double f_ext, const double *p, "
+             "double *f0, const double *typical, double *jac, long jac_n1, double *ftmp);",
+             ""]  # fmt: skip
     for slot, call in _CALLS.items():
+        if slot == JACOBIAN and not has_jacobian:
+            continue
         prototype, _ = c_prototype(slot, f"fs_entry_{KERNELS[slot][0]}")
         returns = "" if KERNELS[slot][2] == types.void else "return "
         lines += [prototype, "{", f"    {returns}{call};", "}", ""]
@@ -85,13 +92,15 @@ def _built(plant: PlantModel) -> NativeKernels | None:
         files = plant_c_sources(plant, end_stop=True)
     except TranslationError:
         return None
-    files["entry_points.c"] = _entry_points()
+    has_jacobian = "void plant_jacobian(" in files["plant_model.c"]
+    files["entry_points.c"] = _entry_points(has_jacobian)
     library = build_c(files)
     if library is None:
         return None
     addresses = {
         slot: ctypes.cast(getattr(library, f"fs_entry_{KERNELS[slot][0]}"), ctypes.c_void_p).value
         for slot in _CALLS
+        if slot != JACOBIAN or has_jacobian
     }
     library.plant_signals.restype = None
     return NativeKernels(library, addresses)

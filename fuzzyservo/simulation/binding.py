@@ -166,7 +166,7 @@ def bind(plant: PlantModel | str) -> BoundLoop:
                 slot: CALLS[slot][0]
                 for slot in range(SLOTS)
                 if hasattr(kernels, CALLS[slot][0]) and slot not in given
-                and not (native is not None and slot == JACOBIAN)  # the loop's differences
+                and not (native is not None and slot == JACOBIAN)  # else the loop's differences
             }  # fmt: skip
             entries = load_generated(_entry_points(kernels.__name__, present)) if present else None
             if entries is not None and _compiled(entries):

@@ -39,6 +39,12 @@ ARRAYS = {
 _PTR = types.CPointer(types.float64)
 
 
+def c_parameters(name: str) -> list[str]:
+    """The C parameter names of a kernel's Python argument ``name``: an array's data
+    pointer ``<name>`` and its shape ``<name>_n0`` (``<name>_n1``), else ``<name>``."""
+    return [name, *(f"{name}_n{d}" for d in range(ARRAYS.get(name, 0)))]
+
+
 def c_arguments(names: tuple[str, ...]) -> list[types.Type]:
     """The C arguments of a kernel's Python arguments ``names`` (numba types)."""
     out: list[types.Type] = []
@@ -61,23 +67,16 @@ SIGNATURES = {slot: signature(args, result) for slot, (_, args, result) in KERNE
 _C_TYPES = {types.void: "void", types.int64: "int64_t", types.float64: "double"}
 
 
-def c_prototype(slot: int, name: str) -> tuple[str, list[str]]:
+def c_prototype(slot: int, name: str) -> str:
     """The C prototype of slot ``slot``'s kernel named ``name`` (``int64_t`` from
-    ``<stdint.h>``), and its parameter names: arrays as ``<arg>`` and ``<arg>_n<d>``."""
+    ``<stdint.h>``), its parameters named by :func:`c_parameters`."""
     _, args, result = KERNELS[slot]
-    params: list[str] = []
-    names: list[str] = []
-    for arg in args:
-        if arg in ARRAYS:
-            params.append(f"double *{arg}")
-            names.append(arg)
-            for d in range(ARRAYS[arg]):
-                params.append(f"int64_t {arg}_n{d}")
-                names.append(f"{arg}_n{d}")
-        else:
-            params.append(f"double {arg}")
-            names.append(arg)
-    return f"{_C_TYPES[result]} {name}({', '.join(params)})", names
+    params = [
+        ("double *" if i == 0 and arg in ARRAYS else "int64_t " if i else "double ") + param
+        for arg in args
+        for i, param in enumerate(c_parameters(arg))
+    ]
+    return f"{_C_TYPES[result]} {name}({', '.join(params)})"
 
 
 __all__ = [
@@ -91,6 +90,7 @@ __all__ = [
     "SIGNATURES",
     "SLOTS",
     "c_arguments",
+    "c_parameters",
     "c_prototype",
     "signature",
 ]

@@ -60,15 +60,11 @@ class NativeKernels:
 
 def _entry_points(has_jacobian: bool) -> str:
     """The C of the loop's entry points, each calling the translated function."""
-    lines = ["#include <stdint.h>", '#include "plant_model.h"', "",
-             "double plant_in_end_stop(const double *x, const double *p);",
-             "void plant_jacobian(const double *x, double u, double f_ext, const double *p, "
-             "double *f0, const double *typical, double *jac, long jac_n1, double *ftmp);",
-             ""]  # fmt: skip
+    lines = ["#include <stdint.h>", '#include "plant_model.h"', ""]
     for slot, call in _CALLS.items():
         if slot == JACOBIAN and not has_jacobian:
             continue
-        prototype, _ = c_prototype(slot, f"fs_entry_{KERNELS[slot][0]}")
+        prototype = c_prototype(slot, f"fs_entry_{KERNELS[slot][0]}")
         returns = "" if KERNELS[slot][2] == types.void else "return "
         lines += [prototype, "{", f"    {returns}{call};", "}", ""]
     return "\n".join(lines)
@@ -92,7 +88,7 @@ def _built(plant: PlantModel) -> NativeKernels | None:
         files = plant_c_sources(plant, end_stop=True)
     except TranslationError:
         return None
-    has_jacobian = "void plant_jacobian(" in files["plant_model.c"]
+    has_jacobian = "void plant_jacobian(" in files["plant_model.h"]
     files["entry_points.c"] = _entry_points(has_jacobian)
     library = build_c(files)
     if library is None:

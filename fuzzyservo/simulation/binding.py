@@ -24,6 +24,7 @@ import numpy as np
 from numba import types
 
 from fuzzyservo._jit import compile_step, first_call, load_generated
+from fuzzyservo.plants.abi import c_parameters
 from fuzzyservo.plants.native import native_kernels
 from fuzzyservo.simulation import _plant_loop as loop
 from fuzzyservo.simulation._calls import (
@@ -58,16 +59,14 @@ def _entry_points(module: str, kernels: dict[int, str]) -> str:
     ]
     for slot in kernels:
         name, args, result = CALLS[slot]
-        c_args: list[str] = []
+        c_args = [param for arg in args for param in c_parameters(arg)]
         call: list[str] = []
         for arg in args:
-            if arg in ARRAYS:
-                dims = [f"{arg}_n{d}" for d in range(ARRAYS[arg])]
-                c_args += [arg, *dims]
+            if arg in ARRAYS:  # a view of the pointer with its shape
+                _, *dims = c_parameters(arg)
                 shape = dims[0] if len(dims) == 1 else f"({', '.join(dims)})"
                 call.append(f"carray({arg}, {shape})")
             else:
-                c_args.append(arg)
                 call.append(arg)
         body = f"k_{slot}({', '.join(call)})"
         if result == types.int64:

@@ -320,7 +320,8 @@ def cmd_calibrate(args: argparse.Namespace) -> int:
     effects = [e.strip() for e in args.effects.split(",") if e.strip()] if args.effects else None
     records = [read_rig_data(d, rig.measured, resample=args.resample) for d in args.data]
     setup = prepare(rig, records[0] if len(records) == 1 else records, controller,
-                    effects=effects, per_record=(args.per_record or "").split(","))  # fmt: skip
+                    effects=effects, per_record=(args.per_record or "").split(","),
+                    segments=args.segments)  # fmt: skip
     print(setup.describe())
     bar = progress_bar(setup.steps(args.max_effects), "candidates")
     try:
@@ -531,6 +532,9 @@ CALIBRATE = [
     _arg("--workers", type=int, default=os.cpu_count() or 1,
          help="processes that fit a round's candidates in parallel (default: one per core)"),
     _arg("--resample", action="store_true", help="resample uneven or repeated time stamps"),
+    _arg("--segments", action="store_true",
+         help="fit and test on short segments, each restarted from the recorded state "
+         "(where the whole replay is chaotic, e.g. friction holding the piston)"),
     CLUSTER,
 ]  # fmt: skip
 FIT_VALVE = [

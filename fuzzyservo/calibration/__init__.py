@@ -26,6 +26,7 @@ def calibrate(
     cluster: str | None = None,
     progress: Callable[[str], object] | None = None,
     bootstrap_draws: int = DRAWS,
+    segments: bool = False,
 ) -> CalibrationResult:
     """Fit ``rig`` to measured ``data`` (a :class:`Measured`; read a data file with
     :func:`fuzzyservo.io.measured.read_rig_data`): its unknowns
@@ -42,11 +43,17 @@ def calibrate(
     against the residual level and its detection limit); the result states the
     false-positive rate on the record, negligible effects and candidates not established.
 
+    ``segments``: fit, test and size the effects on segments of the record, each
+    restarted from the state the record shows at its start (calibration/segments.py),
+    where a whole-record replay is chaotic (friction holding a piston); the overlays
+    and fit % still replay the whole record.
+
     With a ``controller`` the data's reference drives the closed loop; without, its
     recorded valve input drives the plant. Print the result, or write the report and
     the calibrated rig file with :func:`fuzzyservo.io.calibration_report.write_calibration`.
     """
-    setup = prepare(rig, data, controller, effects=effects, per_record=per_record)
+    setup = prepare(rig, data, controller, effects=effects, per_record=per_record,
+                    segments=segments)  # fmt: skip
     return setup.run(max_effects=max_effects, workers=workers, cluster=cluster,
                      progress=progress, bootstrap_draws=bootstrap_draws)  # fmt: skip
 

@@ -163,8 +163,24 @@ class JointReplay(Scored):
         return {c: self.join([m[c] for m, _ in runs]) for c in self.channels}, status
 
     def with_controller(self, controller: Controller) -> JointReplay:
-        records = tuple(dataclasses.replace(r, controller=controller) for r in self.records)
+        records = tuple(r.with_controller(controller) for r in self.records)
         return dataclasses.replace(self, records=records)
+
+    def whole(self) -> JointReplay:
+        """Every record run through, never restarted (replay.py)."""
+        records = tuple(r.whole() for r in self.records)
+        if all(a is b for a, b in zip(records, self.records, strict=True)):
+            return self
+        return dataclasses.replace(self, records=records)
+
+    @property
+    def segment_s(self) -> float:
+        """The first record's segment length (segments.py; NaN: not segmented)."""
+        return self.records[0].segment_s
+
+    @property
+    def segment_words(self) -> str:
+        return self.records[0].segment_words
 
     def with_values(self, fitted: Mapping[str, float]) -> JointReplay:
         """The per-record values among ``fitted`` (``<field>@<k>`` -> value) taken on."""

@@ -41,7 +41,8 @@ from fuzzyservo.errors import DataError
 from fuzzyservo.measured import Measured
 from fuzzyservo.rig import Rig, Scenario
 from fuzzyservo.signals import Sampled
-from fuzzyservo.simulation import DEFAULT_TOL, simulate
+from fuzzyservo.simulation import DEFAULT_TOL, Resets, simulate
+from fuzzyservo.simulation.closed_loop import NO_RESETS
 from fuzzyservo.simulation.result import SimResult
 
 VALIDATION_FRACTION = 0.3
@@ -145,6 +146,11 @@ class Replay(Scored):
     # gains fitted on the logged command u: gain -> (value, lower, upper); its fit %
     logged_gains: dict[str, tuple[float, float, float]] = field(default_factory=dict)
     logged_fit: float = float("nan")
+    # a segmented replay (calibration/segments.py): the states set from the record at
+    # each segment's start, the segments' length and the words that say so
+    resets: Resets = NO_RESETS
+    segment_s: float = float("nan")
+    segment_words: str = ""
 
     @property
     def t(self) -> np.ndarray:
@@ -171,7 +177,7 @@ class Replay(Scored):
         integrated at ``tol`` (:func:`~fuzzyservo.simulation.closed_loop.simulate`)."""
         replay_rig = dataclasses.replace(rig, sample_time_s=self.sample_time_s, initial={})
         return simulate(replay_rig, controller or self.controller, self.scenario,
-                        duration_s=duration_s, tol=tol)  # fmt: skip
+                        duration_s=duration_s, tol=tol, resets=self.resets)  # fmt: skip
 
     @cached_property
     def training_s(self) -> float:
@@ -223,6 +229,14 @@ class Replay(Scored):
     def with_values(self, fitted: Mapping[str, float]) -> Replay:
         """A single record has no per-record values (joint.py): itself."""
         return self
+
+    def whole(self) -> Replay:
+        """This replay run through from the record's start, never restarted: what the
+        overlays and the fit % show (a segmented one's is calibration/segments.py's)."""
+        if not len(self.resets.at):
+            return self
+        return dataclasses.replace(self, resets=NO_RESETS, segment_s=float("nan"),
+                                   segment_words="")  # fmt: skip
 
 
 def make_replay(rig: Rig, data: Measured, controller: Controller | None = None) -> Replay:

@@ -122,6 +122,7 @@ class Calibration:
             f"{self.replay.mode}; {sum(len(d) for d in self.records)} samples, "
             f"channels {', '.join(self.replay.channels)}; {n} candidate "
             f"effect{'' if n == 1 else 's'}{named}"
+            + (f"\nfitted on {self.replay.segment_words}" if self.replay.segment_words else "")
             + "".join(f"\nskipped: {name}: {why}" for name, why in self.skipped.items())
         )
 
@@ -145,7 +146,7 @@ class Calibration:
         outcome = search_effects(self.replay, self.rig, effects=effects, max_effects=max_effects,
                          progress=progress, workers=workers, cluster=cluster,
                          bootstrap_draws=DRAWS if bootstrap_draws is None else bootstrap_draws)  # fmt: skip
-        return CalibrationResult(outcome, self.replay, self.skipped)
+        return CalibrationResult(outcome, self.replay.whole(), self.skipped)
 
 
 def skipped_effects(rig: Rig, effects: Sequence[str]) -> dict[str, str]:
@@ -191,13 +192,17 @@ def prepare(
     *,
     effects: Sequence[str] | None = None,
     per_record: Sequence[str] = (),
+    segments: bool = False,
 ) -> Calibration:
     """Replay the measured ``data`` (a :class:`Measured`, or a list of them to calibrate
     together; :func:`fuzzyservo.io.measured.read_rig_data` reads a data file as the rig
     file's ``measured:`` says) on ``rig`` (closed loop through ``controller`` when given)
-    and check the effect names. ``per_record``: rig-file keys of unknowns fitted per record."""
+    and check the effect names. ``per_record``: rig-file keys of unknowns fitted per record.
+    ``segments``: fit and test on segments restarted from the recorded state
+    (calibration/segments.py); the overlays and fit % still replay the whole record."""
     from fuzzyservo.calibration.joint import joint_replay, per_record_fields
     from fuzzyservo.calibration.replay import make_replay
+    from fuzzyservo.calibration.segments import probe_rigs, segmented
 
     several = isinstance(data, Sequence)
     records = tuple(data) if several else (data,)
@@ -210,6 +215,9 @@ def prepare(
             )
     effects = None if effects is None else tuple(dict.fromkeys(effects))  # each once
     replays = [make_replay(rig, d, controller) for d in records]
+    if segments:
+        probes = probe_rigs(rig, candidate_effects(rig, effects))
+        replays = [segmented(r, rig, probes) for r in replays]
     replay = joint_replay(replays, rig, fields) if several or fields else replays[0]
     still = replay.still_channels()
     if len(still) == len(replay.channels):

@@ -122,6 +122,9 @@ def search_effects(
     declared_model, _ = replay.run(rig)
     cost_declared = replay.cost(declared_model, held_out)
     nominal, current_model, cost_nominal = rig, declared_model, cost_declared
+    # what the user sees: each model run through the record (a segmented replay's fit
+    # and test restart it; segments.py), its channels kept where they are that already
+    shown = {"declared": _shown(replay, rig, declared_model)}
     if rig.unknowns or _gains.gain_unknowns(replay.controller, replay.drive == "ref"):
         nominal, fitted = fit(replay, rig, None, max_evaluations=120)
         current_model, cost_nominal = fitted.model, fitted.cost_val
@@ -129,9 +132,9 @@ def search_effects(
         replay = replay.with_controller(
             _gains.with_gains(replay.controller, fitted.unknowns)
         ).with_values(fitted.unknowns)
+    shown["nominal"] = _shown(replay, nominal, current_model)
     current = nominal
     cost = cost_nominal
-    models = {"declared": declared_model, "nominal": current_model}
     added: list[Candidate] = []
     rounds: list[Round] = []
     executor = make_executor(max(1, min(workers, len(names))), cluster)
@@ -169,8 +172,10 @@ def search_effects(
             replay, current, added, current_model, cost
         )
         replay = replay.with_values(refitted)
-    models["calibrated"] = current_model
     uncertainty = fitted_intervals(replay, current, added, current_model)
+    shown["calibrated"] = _shown(replay, current, current_model)
+    models = {key: model for key, (model, _) in shown.items()}
+    costs = {key: cost for key, (_, cost) in shown.items()}
     return SearchOutcome(
         declared=rig,
         nominal=nominal,
@@ -178,15 +183,26 @@ def search_effects(
         added=tuple(added),
         rounds=tuple(rounds),
         noise_cost=noise,
-        cost_declared=cost_declared,
-        cost_nominal=cost_nominal,
-        cost_final=cost,
+        cost_declared=costs["declared"],
+        cost_nominal=costs["nominal"],
+        cost_final=costs["calibrated"],
         models=models,
         seconds=time.perf_counter() - start,
         controller=replay.controller,
         uncertainty=uncertainty,
         per_record=dict(replay.values),
     )
+
+
+def _shown(
+    replay: Replay, rig: Rig, model: dict[str, np.ndarray]
+) -> tuple[dict[str, np.ndarray], float]:
+    """``rig``'s channels run through the record, and their held-out cost: ``model``
+    when ``replay`` is not segmented (segments.py)."""
+    whole = replay.whole()
+    if whole is not replay:
+        model = whole.run(rig)[0]
+    return model, whole.cost(model, slice(whole.split, None))
 
 
 def decide(

@@ -2,7 +2,16 @@
 
 from fuzzyservo.simulation._loop import ROS34PW2, Tableau
 from fuzzyservo.simulation.binding import BoundLoop, bind
-from fuzzyservo.simulation.closed_loop import DEFAULT_TOL, simulate
+from fuzzyservo.simulation.closed_loop import DEFAULT_TOL, Resets, simulate
 from fuzzyservo.simulation.result import SimResult
 
-__all__ = ["DEFAULT_TOL", "ROS34PW2", "BoundLoop", "SimResult", "Tableau", "bind", "simulate"]
+__all__ = [
+    "DEFAULT_TOL",
+    "ROS34PW2",
+    "BoundLoop",
+    "Resets",
+    "SimResult",
+    "Tableau",
+    "bind",
+    "simulate",
+]

@@ -294,6 +294,9 @@ def closed_loop(
     command: np.ndarray,
     actuator: np.ndarray,
     saturated: np.ndarray,
+    reset_at: np.ndarray,
+    reset_idx: np.ndarray,
+    reset_val: np.ndarray,
 ) -> tuple[int, int, int]:
     """Run the sampled loop over ``ref.size`` control intervals of ``s.dt`` seconds.
 
@@ -307,6 +310,10 @@ def closed_loop(
     ``(status, sample of the first problem or -1, integration steps)``. After a
     failure the remaining samples are NaN. It releases the GIL, so runs in Python
     threads go side by side (:func:`fuzzyservo.analysis.margins.margins`).
+
+    Resets (a segmented replay, calibration/segments.py): before sample
+    ``reset_at[m]`` (increasing), state ``reset_idx[j]`` is set to ``reset_val[m, j]``
+    where that is finite; the other states run on from where the loop has them.
     """
     n = ref.size
     x = x0.copy()
@@ -319,7 +326,13 @@ def closed_loop(
     lag = p[E.valve_lag_s] > 0.0
     n_plant = plant_states(x, p)
     whole, part = delay_split(p, s)
+    next_reset = 0
     for k in range(n):
+        if next_reset < reset_at.size and reset_at[next_reset] == k:
+            for j in range(reset_idx.size):
+                if math.isfinite(reset_val[next_reset, j]):
+                    x[reset_idx[j]] = reset_val[next_reset, j]
+            next_reset += 1
         for i in range(x.size):
             states[k, i] = x[i]
         y, u, a, sat = sample(ctrl, cp, cs, ref[k], x, s, noise[k])
@@ -394,12 +407,14 @@ def closed_loop_batch(
     signals), ``settings[b]`` its loop settings (a sampled I/O delay, a scaled actuator);
     ``out[b]`` gets its ``(status, where, steps)``. The samples run in parallel over the
     cores (numba ``prange``), each exactly as :func:`closed_loop` runs it alone."""
+    no_resets = np.empty(0, dtype=np.int64)
+    no_values = np.empty((0, 0))
     for b in prange(p.shape[0]):
         s = settings[np.int64(b)]  # prange counts unsigned; a typed list wants a signed index
         status, where, steps = closed_loop(
             fn, p[b], null[b], x0[b], ctrl, cp, cs[b], ref, load, noise[b], s,
             scale[b], typical[b], states[b], measured[b], command[b], actuator[b],
-            saturated[b],
+            saturated[b], no_resets, no_resets, no_values,
         )  # fmt: skip
         out[b, 0] = status
         out[b, 1] = where

@@ -39,6 +39,30 @@ _STATUS = {
 
 
 @dataclass(frozen=True)
+class Resets:
+    """Plant states set from outside during a run (a segmented replay restarts each
+    segment from the state a record shows, calibration/segments.py): before sample
+    ``at[m]`` (increasing) the state named ``states[j]`` takes ``values[m, j]``; a NaN
+    value leaves that state where the run has it."""
+
+    at: np.ndarray
+    states: tuple[str, ...]
+    values: np.ndarray
+
+    def arrays(self, plant: PlantModel) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """``(at, state indices, values)`` as the compiled loop reads them."""
+        return (
+            np.ascontiguousarray(self.at, dtype=np.int64),
+            np.array([plant.states.index(name) for name in self.states], dtype=np.int64),
+            np.ascontiguousarray(np.reshape(self.values, (len(self.at), len(self.states))),
+                                 dtype=np.float64),
+        )  # fmt: skip
+
+
+NO_RESETS = Resets(np.empty(0, dtype=np.int64), (), np.empty((0, 0)))
+
+
+@dataclass(frozen=True)
 class Prepared:
     """Everything a run needs, as arrays: shared by the compiled and the reference path."""
 
@@ -134,6 +158,7 @@ def simulate(
     tol: float = DEFAULT_TOL,
     noise: bool | None = None,
     noise_seed: int = 0,
+    resets: Resets = NO_RESETS,
 ) -> SimResult:
     """Simulate ``controller`` on ``rig`` for a scenario (default: the rig's first).
 
@@ -145,10 +170,11 @@ def simulate(
     (``rig.io_delay_s``) before its command reaches the actuator. Never raises for a run
     that fails: the result's ``status`` and ``message`` say what happened. A controller
     that is not compiled (an FMU) runs sample by sample (:func:`simulate_stepped`).
+    ``resets``: plant states set during the run (:class:`Resets`).
     """
     if getattr(controller, "stepped", False):
         return simulate_stepped(rig, controller, scenario, duration_s=duration_s, tol=tol,
-                                noise=noise, noise_seed=noise_seed)  # fmt: skip
+                                noise=noise, noise_seed=noise_seed, resets=resets)  # fmt: skip
     prep = prepare(rig, controller, scenario, duration_s, noise=noise, noise_seed=noise_seed)
     n = prep.t.size
     nx = prep.x0.size
@@ -176,6 +202,7 @@ def simulate(
         command,
         actuator,
         saturated,
+        *resets.arrays(prep.plant),
     )
     return assemble(
         prep, states, measured, command, actuator, saturated, _STATUS[status], where, steps
@@ -382,6 +409,7 @@ def simulate_stepped(
     tol: float = DEFAULT_TOL,
     noise: bool | None = None,
     noise_seed: int = 0,
+    resets: Resets = NO_RESETS,
 ) -> SimResult:
     """:func:`simulate` with ``controller.step`` called from Python at every sample (its
     state from ``controller.init``), for a controller that is not compiled (an FMU).
@@ -409,8 +437,15 @@ def simulate_stepped(
     lag = p[E.valve_lag_s] > 0.0
     spool = prep.plant_states  # the spool's position, after the plant's states
     whole, part = _loop.delay_split(p, settings)
+    reset_at, reset_idx, reset_val = resets.arrays(prep.plant)
+    next_reset = 0
     try:
         for k in range(n):
+            if next_reset < reset_at.size and reset_at[next_reset] == k:
+                row = reset_val[next_reset]
+                keep = np.isfinite(row)
+                x[reset_idx[keep]] = row[keep]
+                next_reset += 1
             states[k] = x
             y = _loop.sample(open_loop, cp, cs, 0.0, x, settings, prep.noise[k])[0]
             u, state = c.step(state, prep.ref[k], y)

@@ -314,14 +314,12 @@ def cmd_calibrate(args: argparse.Namespace) -> int:
     _at_least(0, max_effects=args.max_effects, bootstrap_draws=args.bootstrap_draws)
     _at_least(1, workers=args.workers)
     rig = load_rig(resolve(args.rig, "rigs", "rig"))
-    controller = None
-    if args.controller:
-        controller = load_controller(resolve(args.controller, "studies/controllers", "controller"))
+    controller = (load_controller(resolve(args.controller, "studies/controllers", "controller"))
+                  if args.controller else None)  # fmt: skip
     effects = [e.strip() for e in args.effects.split(",") if e.strip()] if args.effects else None
     records = [read_rig_data(d, rig.measured, resample=args.resample) for d in args.data]
-    setup = prepare(rig, records[0] if len(records) == 1 else records, controller,
-                    effects=effects, per_record=(args.per_record or "").split(","),
-                    segments=args.segments)  # fmt: skip
+    setup = prepare(rig, records[0] if len(records) == 1 else records, controller, effects=effects,
+                    per_record=(args.per_record or "").split(","), segments=args.segments)  # fmt: skip
     print(setup.describe())
     bar = progress_bar(setup.steps(args.max_effects), "candidates")
     try:
@@ -517,9 +515,8 @@ CALIBRATE = [
     _arg("data", nargs="+",
          help="measured data: CSV with <signal>_<unit> columns, or .mat; several files are "
          "calibrated together (shared effects and unknowns)"),
-    _arg("--per-record",
-         help="comma-separated rig-file keys of unknowns (fit: [lower, upper]) fitted once per "
-         "data file, e.g. bias_current (default: every unknown is shared)"),
+    _arg("--per-record", help="comma-separated rig-file keys of unknowns (fit: [lower, "
+         "upper]) fitted once per data file, e.g. bias_current (default: all shared)"),
     _arg("--controller",
          help="replay closed loop through this controller from the data's ref column "
          "(default: open loop from the recorded i or u)"),
@@ -532,9 +529,7 @@ CALIBRATE = [
     _arg("--workers", type=int, default=os.cpu_count() or 1,
          help="processes that fit a round's candidates in parallel (default: one per core)"),
     _arg("--resample", action="store_true", help="resample uneven or repeated time stamps"),
-    _arg("--segments", action="store_true",
-         help="fit and test on short segments, each restarted from the recorded state "
-         "(where the whole replay is chaotic, e.g. friction holding the piston)"),
+    _arg("--segments", action="store_true", help="fit on segments restarted from the recorded state"),
     CLUSTER,
 ]  # fmt: skip
 FIT_VALVE = [

@@ -196,7 +196,7 @@ def test_fitted_values_carry_intervals_and_at_bound_flags_into_the_rig(rig, tmp_
 
     import yaml
 
-    from fuzzyservo.calibration import CalibrationResult
+    from fuzzyservo.calibration import conclude
     from fuzzyservo.io.calibration_report import write_calibration
 
     ctl = controller_named("p_k10")
@@ -213,7 +213,7 @@ def test_fitted_values_carry_intervals_and_at_bound_flags_into_the_rig(rig, tmp_
     outcome = search_effects(replay, rig, effects=["valve_bias"])
     bias = outcome.uncertainty["valve_bias_si"]
     assert bias.at_bound and bias.value == pytest.approx(1.5e-3, rel=1e-3)
-    paths = write_calibration(CalibrationResult(outcome, replay), tmp_path / "out", "d.csv")
+    paths = write_calibration(conclude(outcome, replay), tmp_path / "out", "d.csv")
     summary = json.loads(paths["summary"].read_text(encoding="utf-8"))
     assert any("valve_bias.offset" in w and "bound" in w for w in summary["warnings"])
     text = yaml.safe_load(Path(summary["calibrated_rig"]).read_text(encoding="utf-8"))

@@ -93,3 +93,38 @@ def test_a_segmented_calibration_finds_the_friction_and_shows_the_whole_record(f
     for channel, values in shown.items():
         np.testing.assert_array_equal(result.models["calibrated"][channel], values)
     assert result.cost_final < result.cost_declared
+
+
+def test_writing_a_calibrations_files_simulates_nothing(tmp_path, friction_record):
+    """The result carries everything computed (calibration/run.py ``conclude``): writing
+    its report, figures, summary and calibrated rig from ``io`` calls no function of
+    the simulation, the plants' compilers or the search, directly or through others
+    (every Python call is followed while it writes)."""
+    import sys
+
+    from fuzzyservo.io.calibration_report import write_calibration
+
+    rig, controller, data, _, _ = friction_record
+    result = calibrate(rig, data, controller, effects=["valve_bias"], max_effects=1,
+                       bootstrap_draws=0)  # fmt: skip
+    forbidden = ("fuzzyservo/simulation/", "fuzzyservo/plants/native", "fuzzyservo/codegen/",
+                 "fuzzyservo/calibration/search", "fuzzyservo/calibration/candidates",
+                 "fuzzyservo/calibration/replay")  # fmt: skip
+    called: set[str] = set()
+
+    def watch(frame, event, arg):
+        if event == "call":
+            name = frame.f_code.co_filename.replace("\\", "/")
+            if any(part in name for part in forbidden):
+                called.add(f"{name}:{frame.f_code.co_name}")
+
+    sys.setprofile(watch)
+    try:
+        paths = write_calibration(result, tmp_path / "out", "friction.csv")
+        result.to_dict()
+        result.text()
+    finally:
+        sys.setprofile(None)
+    assert paths["report"].is_file() and paths["summary"].is_file()
+    allowed = {"measured", "t", "split_s"}  # the replay's recorded data, read
+    assert {c for c in called if c.rsplit(":", 1)[1] not in allowed} == set()

@@ -6,7 +6,7 @@ from collections.abc import Callable, Sequence
 from typing import TYPE_CHECKING
 
 from fuzzyservo.calibration.null import DRAWS
-from fuzzyservo.calibration.run import Calibration, CalibrationResult, prepare
+from fuzzyservo.calibration.run import Calibration, CalibrationResult, conclude, prepare
 
 if TYPE_CHECKING:
     from fuzzyservo.controllers.base import Controller
@@ -58,4 +58,4 @@ def calibrate(
                      progress=progress, bootstrap_draws=bootstrap_draws)  # fmt: skip
 
 
-__all__ = ["Calibration", "CalibrationResult", "calibrate", "prepare"]
+__all__ = ["Calibration", "CalibrationResult", "calibrate", "conclude", "prepare"]

@@ -7,8 +7,7 @@ together), the candidate effects, the search, and what it concluded as a result 
 
 from __future__ import annotations
 
-import functools
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
 
@@ -30,50 +29,37 @@ if TYPE_CHECKING:
 @dataclass(frozen=True)
 class CalibrationResult(Result):
     """What a calibration concluded (:class:`~fuzzyservo.calibration.search.SearchOutcome`,
-    whose attributes read through: ``result.added``, ``result.calibrated`` ...) and the
-    replay it was fitted on. ``to_dict()`` is ``summary.json`` (without the written
-    rig's path) and what ``--json`` writes; :func:`fuzzyservo.io.calibration_report.write_calibration` writes the report."""
+    whose attributes read through: ``result.added``, ``result.calibrated`` ...), the
+    replay it is shown on (the whole record's) and everything computed from them, once,
+    by :func:`conclude`: ``summary`` is ``summary.json`` (without the written rig's path)
+    and what ``--json`` writes, ``correlations`` the residual figures' numbers. Nothing
+    reading it simulates: :func:`fuzzyservo.io.calibration_report.write_calibration`
+    only draws and writes."""
 
     outcome: SearchOutcome
     replay: Replay = field(repr=False)
     # effects asked for that were not tried, with why (:func:`skipped_effects`)
     skipped: dict[str, str] = field(default_factory=dict)
+    summary: Mapping[str, Any] = field(default_factory=dict, repr=False)
+    # the held-out residual's correlations before and after (``before``/``after``: the
+    # input name, the white band, each channel's Correlations; summary.residual_correlations)
+    correlations: Mapping[str, tuple[str, float, dict[str, Any]]] = field(
+        default_factory=dict, repr=False
+    )
 
     def __getattr__(self, name: str) -> Any:
         if name.startswith("__") or name in (
             "outcome",
             "replay",
             "skipped",
-            "diagnostics",
+            "summary",
             "correlations",
         ):
             raise AttributeError(name)
         return getattr(self.outcome, name)
 
     def to_dict(self) -> dict[str, Any]:
-        from fuzzyservo.calibration.summary import calibration_summary
-
-        return {**calibration_summary(self.outcome, self.replay, self.skipped),
-                **self.diagnostics}  # fmt: skip
-
-    @functools.cached_property
-    def correlations(self) -> dict[str, tuple[str, float, dict[str, Any]]]:
-        """The held-out residual's correlations before and after (``before``/``after``:
-        the input name, the white band, each channel's :class:`Correlations`) for the
-        residual figures (summary.residual_correlations)."""
-        from fuzzyservo.calibration.summary import RESIDUAL_MODELS, residual_correlations
-
-        models = self.outcome.models
-        return {label: residual_correlations(self.replay, models[key])
-                for label, key in RESIDUAL_MODELS}  # fmt: skip
-
-    @functools.cached_property
-    def diagnostics(self) -> dict[str, Any]:
-        """The residual analysis and the signatures' R² (summary.diagnostics), computed
-        once: they simulate."""
-        from fuzzyservo.calibration.summary import diagnostics
-
-        return diagnostics(self.outcome, self.replay)
+        return dict(self.summary)
 
     def text(self) -> str:
         """Warnings, the first round's ranking, then the verdict (report.verdict_lines):
@@ -88,6 +74,26 @@ class CalibrationResult(Result):
         lines.append("verdict:")
         lines += [f"  {line}" for line in summary["verdict"]]
         return "\n".join(lines)
+
+
+def conclude(
+    outcome: SearchOutcome, replay: Replay, skipped: Mapping[str, str] | None = None
+) -> CalibrationResult:
+    """The :class:`CalibrationResult` of ``outcome`` shown on ``replay`` (the whole
+    record's), its summary, residual analysis and correlations computed here: the
+    residual analysis and the signatures' R² simulate."""
+    from fuzzyservo.calibration.summary import (
+        RESIDUAL_MODELS,
+        calibration_summary,
+        diagnostics,
+        residual_correlations,
+    )
+
+    skipped = dict(skipped or {})
+    summary = {**calibration_summary(outcome, replay, skipped), **diagnostics(outcome, replay)}
+    correlations = {label: residual_correlations(replay, outcome.models[key])
+                    for label, key in RESIDUAL_MODELS}  # fmt: skip
+    return CalibrationResult(outcome, replay, skipped, summary, correlations)
 
 
 @dataclass(frozen=True)
@@ -146,7 +152,7 @@ class Calibration:
         outcome = search_effects(self.replay, self.rig, effects=effects, max_effects=max_effects,
                          progress=progress, workers=workers, cluster=cluster,
                          bootstrap_draws=DRAWS if bootstrap_draws is None else bootstrap_draws)  # fmt: skip
-        return CalibrationResult(outcome, self.replay.whole(), self.skipped)
+        return conclude(outcome, self.replay.whole(), self.skipped)
 
 
 def skipped_effects(rig: Rig, effects: Sequence[str]) -> dict[str, str]:

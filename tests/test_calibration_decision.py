@@ -191,7 +191,8 @@ def test_leakage_and_null_shift_are_ambiguous_and_the_suggested_experiment_separ
 def test_fitted_values_carry_intervals_and_at_bound_flags_into_the_rig(rig, tmp_path) -> None:
     """A 300 N friction and a 0.5 mA null bias lie inside their intervals; a null bias of
     2 mA, beyond the library's ±1.5 mA (5 % of rated), is fitted on the bound and
-    flagged, in the report's warnings and in the calibrated rig file, which loads."""
+    flagged, in the report's warnings and in the calibrated rig file, which loads; the
+    verdict reports that effect as present with its size unresolved, not as a size."""
     import json
 
     import yaml
@@ -220,6 +221,11 @@ def test_fitted_values_carry_intervals_and_at_bound_flags_into_the_rig(rig, tmp_
     entry = text["effects"]["valve_bias"]["offset"]
     assert entry["at_bound"] is True and len(entry["interval"]) == 2
     assert load_rig(summary["calibrated_rig"]).effects == ("valve_bias",)
+    # a value on its bound is no size: the verdict says the effect is there, unsized
+    assert summary["effects_added"][0]["size_resolved"] is False
+    added = next(line for line in summary["verdict"] if line.startswith("added:"))
+    assert "present, size unresolved" in added and "offset pressed against its bound" in added
+    assert "95 % interval" not in added
 
 
 # ------------------------------------------------------------------ the record's null (issue 28)

@@ -78,7 +78,7 @@ def fitted_intervals(
 
     residuals = objective.residuals(z).reshape(channels, -1)
     found = estimates(jac, residuals, z, values, space.value, space.bounds, cost, JACOBIAN_STEP,
-                      replay.noise_cost())  # fmt: skip
+                      replay.noise_cost(), names=[f for _, f in space.names])  # fmt: skip
     return {f: e for (_, f), e in zip(space.names, found, strict=True)}
 
 

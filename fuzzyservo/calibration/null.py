@@ -46,8 +46,9 @@ explain little, so this is the residual of the fitted nominal model up to that:
    that is the ``s`` at which the data's ``z`` scales to the threshold plus the
    ``REQUIRED`` quantile of the candidate's z over the surrogates (its null spread).
 4. **The starting model's own prediction uncertainty** (:func:`prediction_band`). From
-   the second round on, the starting model carries effects added earlier whose fitted
-   parameters the round's candidates do not move (the rig's unknowns they refit). Those
+   the second round on, the starting model carries effects added earlier. The round's
+   candidates refit their parameters along (search.py ``_freed``), but a candidate's
+   gain is judged against what re-estimating them alone would do: those
    parameters are known only to their 95 % interval (each with the others held: the
    ends are models the data allow), and the outputs of the starting model at the ends
    of that interval differ from its replay by ``β`` (root sum of squares over the

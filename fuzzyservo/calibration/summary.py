@@ -127,7 +127,7 @@ def _key(outcome: SearchOutcome, name: str) -> str:
     parsed = split_field(name)
     if parsed:
         return f"{fields[parsed[0]].metadata['key']} (record {parsed[1] + 1})"
-    return fields[name].metadata["key"]
+    return fields[name].metadata["key"] if name in fields else name  # a controller gain
 
 
 def calibration_summary(
@@ -146,6 +146,13 @@ def calibration_summary(
                 "ambiguous_with": list(_round_of(outcome, c.name).ambiguous_with),
                 "z": c.evidence.z if c.evidence else None,
                 "lookalike": LIBRARY[c.name].lookalike,
+                # no parameter on its bound: the size is a measurement (verdict.py)
+                "size_resolved": not any(
+                    outcome.uncertainty[p.field].at_bound
+                    for p in LIBRARY[c.name].fitted
+                    if p.field in outcome.uncertainty
+                    and not (p.optional and not c.params.get(p.key))
+                ),
             }
             for c in outcome.added
         ],
@@ -218,6 +225,11 @@ def calibration_summary(
             "interval": list(e.interval),
             "bounds": list(e.bounds),
             "at_bound": e.at_bound,
+            **(
+                {"trades_with": _key(outcome, e.trades_with), "correlation": e.correlation}
+                if e.trades_with
+                else {}
+            ),
         }
         for f, e in outcome.uncertainty.items()
     }

@@ -65,8 +65,9 @@ by the training cost and by the residual's lag-one autocorrelation (:func:`effec
 
 from __future__ import annotations
 
+import dataclasses
 import math
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -76,6 +77,9 @@ from fuzzyservo.calibration.replay import DIVERGED_COST, Replay
 
 Z95 = 1.959964  # two-sided 95 % normal quantile
 AT_BOUND = 1e-3  # distance to a bound on the unit box that counts as "at the bound"
+# a correlation of two fitted values beyond which the record trades one against the other
+# (a value on its bound then reports what it cannot be told from)
+TRADES = 0.7
 UNCORRELATED = 0.05  # autocorrelation below which residual samples count as uncorrelated
 HAC_SPAN = 3  # Newey-West lags, in correlation times of the residual
 BLOCKS = 20  # blocks of the training part in a bootstrap resample (fewer if longer)
@@ -96,6 +100,10 @@ class Estimate:
     interval: tuple[float, float]
     bounds: tuple[float, float]
     at_bound: bool
+    # the other fitted value it is most correlated with (estimates' ``names``) and the
+    # correlation, where that exceeds TRADES: what the record cannot tell it from
+    trades_with: str = ""
+    correlation: float = math.nan
 
 
 def correlation_time(residuals: np.ndarray) -> int:
@@ -319,6 +327,7 @@ def estimates(
     cost: Callable[[int, float], np.ndarray] | None = None,
     spacing: float = 0.0,
     floor: float = 0.0,
+    names: Sequence[str] = (),
 ) -> list[Estimate]:
     """95 % intervals of the values fitted at the unit-box point ``z``: the sandwich's
     and the profile's together (module docstring).
@@ -330,6 +339,8 @@ def estimates(
     sandwich alone); ``spacing``: the profile's smallest spacing on the unit box (the
     scale the Jacobian looks at); ``floor``: the least the summed cost can be (a perfect
     model's). A parameter the data do not inform (a zero column) gets its bounds.
+    ``names``: the values' names, for each one's ``trades_with`` (the sandwich's
+    correlation beyond TRADES).
     """
     tau = correlation_time(residuals)
     n = residuals.shape[1]
@@ -347,8 +358,29 @@ def estimates(
                 lambda v, j=j: cost(j, v), float(z[j]), step, block, SEED + j, floor
             )
             zl, zh = min(zl, pl), max(zh, ph)
-        out.append(_estimate(value, z[j], zl, zh, lambda u, j=j: to_value(j, u), bounds[j]))
+        estimate = _estimate(value, z[j], zl, zh, lambda u, j=j: to_value(j, u), bounds[j])
+        partner = _partner(cov, informed, j)
+        if names and partner is not None:
+            k, r = partner
+            estimate = dataclasses.replace(estimate, trades_with=names[k], correlation=r)
+        out.append(estimate)
     return out
+
+
+def _partner(cov: np.ndarray, informed: np.ndarray, j: int) -> tuple[int, float] | None:
+    """The informed value most correlated with value ``j`` in ``cov`` and their
+    correlation, when its magnitude exceeds TRADES."""
+    best = None
+    for k in range(cov.shape[0]):
+        if k == j or not (informed[j] and informed[k]):
+            continue
+        denominator = math.sqrt(max(cov[j, j] * cov[k, k], 0.0))
+        if not (denominator > 0.0 and math.isfinite(denominator)):
+            continue
+        r = float(cov[j, k] / denominator)
+        if abs(r) > TRADES and (best is None or abs(r) > abs(best[1])):
+            best = (k, r)
+    return best
 
 
 def _estimate(

@@ -191,14 +191,26 @@ def is_finite(value: float | None) -> bool:
 
 
 def _added_size(e: dict[str, Any], uncertainty: dict[str, Any]) -> str:
-    """Each fitted parameter of an added effect in its unit with its 95 % interval."""
-    parts = []
+    """Each fitted parameter of an added effect in its unit with its 95 % interval. A
+    value on its bound is no size: the effect is "present, size unresolved", with the
+    bound the data pressed against and the value the record trades it against."""
+    parts, unresolved = [], []
     for param in LIBRARY[e["name"]].fitted:
         value = e["params"].get(param.key, 0.0)
         if param.optional and not value:
             continue  # an optional part left off (friction that does not stick)
         unit = e.get("units", {}).get(param.key, "")
         u = uncertainty.get(f"{e['name']}.{param.key}")
+        if u is not None and u["at_bound"]:
+            (text,), shown = quantity_text([value], unit)
+            trade = (
+                f", traded against {u['trades_with']} (correlation {u['correlation']:.2f})"
+                if u.get("trades_with")
+                else ""
+            )
+            unresolved.append(f"{param.key} pressed against its bound {text} {shown}"
+                              .replace("  ", " ").rstrip() + trade)  # fmt: skip
+            continue
         if u is None or not all(is_finite(v) for v in u["interval"]):
             (text,), shown = quantity_text([value], unit)
             parts.append(f"{param.key} {text} {shown}".rstrip())
@@ -206,10 +218,10 @@ def _added_size(e: dict[str, Any], uncertainty: dict[str, Any]) -> str:
         lo, hi = u["interval"]
         (text, a, b), shown = quantity_text([value, lo, hi], unit, _digits(value, lo, hi))
         shown = f" {shown}" if shown else ""
-        parts.append(
-            f"{param.key} {text}{shown} (95 % interval {a} to {b}{shown}"
-            + (", on its bound: the data want it further out)" if u["at_bound"] else ")")
-        )
+        parts.append(f"{param.key} {text}{shown} (95 % interval {a} to {b}{shown})")
+    if unresolved:
+        parts.insert(0, f"present, size unresolved ({'; '.join(unresolved)}: widen the bound "
+                        "with fit: [lower, upper] if physics allows)")  # fmt: skip
     return "; ".join(parts)
 
 

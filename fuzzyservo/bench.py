@@ -186,6 +186,7 @@ FUZZY_EVAL = "fuzzy_eval"
 STUDY = "study_dinca_flc"
 ROBUST_STUDY = "study_dinca_robust"
 CALIBRATE = "calibrate_dinca"
+CALIBRATE_SEGMENTS = "calibrate_segments"
 MARGINS = "margins"
 FMU_PLANT = "dinca_fmu_me_p10"
 COMPILE = "compile"
@@ -263,14 +264,19 @@ def run_compile_case(root: Path | None = None, *, calibrate: bool = True) -> Ben
     )
 
 
-def run_calibrate_case(root: Path | None = None, *, workers: int = 2) -> BenchResult:
+def run_calibrate_case(
+    root: Path | None = None, *, workers: int = 2, segments: bool = False
+) -> BenchResult:
     """``calibrate`` with the whole effect library on a 30 s, 100 Hz seed-002 run
     (P K=10, `pulses`) with Coulomb friction of 300 N undeclared, 5 µm and 0.05 bar of
     noise, each round's candidates fitted on ``workers`` processes (the command's
     default is one per core; the result is the same on any number); the issue's budget
-    is 12 s on the 2-core machine with nothing else running."""
+    is 12 s on the 2-core machine with nothing else running. ``segments``: on the
+    segmented replay (``calibrate --segments``; measuring its horizon included)."""
+    from fuzzyservo.calibration.candidates import candidate_effects
     from fuzzyservo.calibration.replay import make_replay
     from fuzzyservo.calibration.search import search_effects
+    from fuzzyservo.calibration.segments import probe_rigs, segmented
     from fuzzyservo.calibration.synthetic import synthetic_run
     from fuzzyservo.io.controllers import load_controller
     from fuzzyservo.io.rigs import load_rig
@@ -284,12 +290,15 @@ def run_calibrate_case(root: Path | None = None, *, workers: int = 2) -> BenchRe
     )
     t0 = time.perf_counter()
     replay = make_replay(rig, data, controller)
+    if segments:
+        replay = segmented(replay, rig, probe_rigs(rig, candidate_effects(rig)))
     outcome = search_effects(replay, rig, workers=workers)
     wall = time.perf_counter() - t0
     runs = sum(c.evaluations for r in outcome.rounds for c in r.candidates)
     return BenchResult.once(
-        CALIBRATE,
-        "calibrate, whole library, 30 s of seed-002 data at 100 Hz (Coulomb friction undeclared)",
+        CALIBRATE_SEGMENTS if segments else CALIBRATE,
+        "calibrate, whole library, 30 s of seed-002 data at 100 Hz (Coulomb friction undeclared)"
+        + (f", on {replay.segment_words}" if segments else ""),
         wall,
         simulated_s=30.0,
         error={"fitted_force_n": outcome.added[0].params["force"] if outcome.added else math.nan},
@@ -609,6 +618,10 @@ REGISTRY: dict[str, tuple[Callable[[BenchOptions], BenchResult], str | None]] = 
     },
     STUDY: (lambda o: run_study_case(trials=o.study_trials, workers=o.workers), _STUDY_LINE),
     CALIBRATE: (lambda o: run_calibrate_case(workers=o.workers), _CALIBRATE_LINE),
+    CALIBRATE_SEGMENTS: (
+        lambda o: run_calibrate_case(workers=o.workers, segments=True),
+        _CALIBRATE_LINE,
+    ),
     MARGINS: (lambda o: run_margins_case(), _MARGINS_LINE),
     FMU_PLANT: (lambda o: run_fmu_plant_case(runs=o.runs), _FMU_LINE),
     COMPILE: (lambda o: run_compile_case(), _COMPILE_LINE),

@@ -301,3 +301,33 @@ def test_the_ranking_names_a_failed_fit_as_such() -> None:
     ]}]}  # fmt: skip
     line = ranking_line(summary)
     assert line.endswith("coulomb_friction 1.2, valve_lag failed fit"), line
+
+
+def test_a_stribeck_law_reads_with_its_breakaway_and_a_value_on_its_bound_as_no_size():
+    """The verdict's words for an added Stribeck law (the Festo record's, values as it
+    fitted them): its stiction is stored as the part above the Coulomb level, so the
+    breakaway force is printed as their sum; the stiction on its bound is no size."""
+    from fuzzyservo.calibration.verdict import _added_size
+
+    effect = {
+        "name": "stribeck_friction",
+        "params": {"coulomb_force": 8.8, "stiction_force": 120.6, "stribeck_velocity": 1.73e-3,
+                   "presliding_distance": 0.0, "smoothing_velocity": 4e-4},
+        "units": {"coulomb_force": "N", "stiction_force": "N", "stribeck_velocity": "m/s",
+                  "presliding_distance": "m", "smoothing_velocity": "m/s"},
+    }  # fmt: skip
+    uncertainty = {
+        "stribeck_friction.coulomb_force": {"interval": [0.0, 32.0], "at_bound": False},
+        "stribeck_friction.stiction_force": {"interval": [0.0, 120.6], "at_bound": True,
+                                             "trades_with": "coulomb_force",
+                                             "correlation": -0.93},
+        "stribeck_friction.stribeck_velocity": {"interval": [5.9e-4, 5.08e-3],
+                                                "at_bound": False},
+    }  # fmt: skip
+    words = _added_size(effect, uncertainty)
+    assert words.startswith(
+        "present, size unresolved (stiction_force pressed against its "
+        "bound 121 N, traded against coulomb_force (correlation -0.93)"
+    )
+    assert "stiction_force 121 N (95 %" not in words
+    assert words.endswith("breakaway (coulomb_force + stiction_force) 129 N")

@@ -219,6 +219,11 @@ def _added_size(e: dict[str, Any], uncertainty: dict[str, Any]) -> str:
         (text, a, b), shown = quantity_text([value, lo, hi], unit, _digits(value, lo, hi))
         shown = f" {shown}" if shown else ""
         parts.append(f"{param.key} {text}{shown} (95 % interval {a} to {b}{shown})")
+    for name, keys in LIBRARY[e["name"]].totals:  # a Stribeck law's breakaway force
+        units = {e.get("units", {}).get(k, "") for k in keys}
+        if len(units) == 1 and all(k in e["params"] for k in keys):
+            (text,), shown = quantity_text([sum(e["params"][k] for k in keys)], units.pop())
+            parts.append(f"{name} ({' + '.join(keys)}) {text} {shown}".rstrip())
     if unresolved:
         parts.insert(0, f"present, size unresolved ({'; '.join(unresolved)}: widen the bound "
                         "with fit: [lower, upper] if physics allows)")  # fmt: skip

@@ -144,6 +144,10 @@ class Effect:
     lookalike: str = ""
     special_cases: tuple[str, ...] = ()  # effects this one becomes with a parameter at 0
     stick_slip: bool = False
+    # sums a reader looks for, of parameters stored as parts: (name, parameter keys); a
+    # Stribeck law stores its stiction as the part above the Coulomb level, and its
+    # breakaway force is their sum
+    totals: tuple[tuple[str, tuple[str, ...]], ...] = ()
 
     @property
     def fitted(self) -> tuple[EffectParam, ...]:
@@ -230,6 +234,7 @@ LIBRARY: dict[str, Effect] = {
             "Canudas de Wit, Olsson, Åström and Lischinsky 1995 (LuGre)",
             special_cases=("coulomb_friction",),  # Fst = 0
             stick_slip=True,
+            totals=(("breakaway", ("coulomb_force", "stiction_force")),),
         ),
         Effect(
             "line_resistance",

@@ -87,6 +87,15 @@ class Candidate:
     # move with its fitted unknowns, so a later round's box may not hold the value
     bounds: dict[str, tuple[float, float]] = field(default_factory=dict, repr=False, compare=False)
 
+    def boxes(self) -> dict[str, tuple[float, float]]:
+        """Field -> the box its fit had, of each fitted parameter of the effect that is
+        part of the model (an optional part the fit left off is not)."""
+        return {
+            param.field: self.bounds[param.field]
+            for param in LIBRARY[self.name].fitted
+            if not (param.optional and not self.params.get(param.key))
+        }
+
 
 @dataclass
 class Space:

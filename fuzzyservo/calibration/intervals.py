@@ -99,13 +99,10 @@ def frozen_ends(
         return []
     unknowns = {}
     for candidate in added:
-        for param in LIBRARY[candidate.name].fitted:
-            if param.optional and not candidate.params.get(param.key):
-                continue  # an optional part the fit left off: not part of the model
-            # the box its fit had: one fitted in an earlier round's box (the rig's scales
-            # move with its fitted unknowns) may lie outside today's, and an end clipped
-            # onto the box would move it for no uncertainty of its own
-            unknowns[param.field] = candidate.bounds[param.field]
+        # the box its fit had: one fitted in an earlier round's box (the rig's scales
+        # move with its fitted unknowns) may lie outside today's, and an end clipped
+        # onto the box would move it for no uncertainty of its own
+        unknowns.update(candidate.boxes())
     space = fit_space(dataclasses.replace(rig, unknowns=unknowns), None)
     objective = Objective(replay, rig, None, space)
     values = [start_value(replay, rig, f) for _, f in space.names]

@@ -174,12 +174,8 @@ class JointReplay(Scored):
         return dataclasses.replace(self, records=records)
 
     @property
-    def segment_s(self) -> float:
-        """The first record's segment length (segments.py; NaN: not segmented)."""
-        return self.records[0].segment_s
-
-    @property
     def segment_words(self) -> str:
+        """The first record's segments in words (segments.py; "" when not segmented)."""
         return self.records[0].segment_words
 
     def with_values(self, fitted: Mapping[str, float]) -> JointReplay:

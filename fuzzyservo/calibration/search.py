@@ -432,8 +432,6 @@ def _freed(best: Candidate) -> Rig:
     takes part of a spool lag's phase; refitted only after the last round, the lag was
     missed in 1 of 8 one-bit changes of a record)."""
     unknowns = dict(best.rig.unknowns)
-    for param in LIBRARY[best.name].fitted:
-        if param.optional and not best.params.get(param.key):
-            continue
-        unknowns.setdefault(param.field, best.bounds[param.field])
+    for name, box in best.boxes().items():
+        unknowns.setdefault(name, box)
     return dataclasses.replace(best.rig, unknowns=unknowns)

@@ -202,18 +202,17 @@ def _added_size(e: dict[str, Any], uncertainty: dict[str, Any]) -> str:
         unit = e.get("units", {}).get(param.key, "")
         u = uncertainty.get(f"{e['name']}.{param.key}")
         if u is not None and u["at_bound"]:
-            (text,), shown = quantity_text([value], unit)
             trade = (
                 f", traded against {u['trades_with']} (correlation {u['correlation']:.2f})"
                 if u.get("trades_with")
                 else ""
             )
-            unresolved.append(f"{param.key} pressed against its bound {text} {shown}"
-                              .replace("  ", " ").rstrip() + trade)  # fmt: skip
+            unresolved.append(
+                f"{param.key} pressed against its bound {_quantity(value, unit)}{trade}"
+            )
             continue
         if u is None or not all(is_finite(v) for v in u["interval"]):
-            (text,), shown = quantity_text([value], unit)
-            parts.append(f"{param.key} {text} {shown}".rstrip())
+            parts.append(f"{param.key} {_quantity(value, unit)}")
             continue
         lo, hi = u["interval"]
         (text, a, b), shown = quantity_text([value, lo, hi], unit, _digits(value, lo, hi))
@@ -222,12 +221,18 @@ def _added_size(e: dict[str, Any], uncertainty: dict[str, Any]) -> str:
     for name, keys in LIBRARY[e["name"]].totals:  # a Stribeck law's breakaway force
         units = {e.get("units", {}).get(k, "") for k in keys}
         if len(units) == 1 and all(k in e["params"] for k in keys):
-            (text,), shown = quantity_text([sum(e["params"][k] for k in keys)], units.pop())
-            parts.append(f"{name} ({' + '.join(keys)}) {text} {shown}".rstrip())
+            total = sum(e["params"][k] for k in keys)
+            parts.append(f"{name} ({' + '.join(keys)}) {_quantity(total, units.pop())}")
     if unresolved:
         parts.insert(0, f"present, size unresolved ({'; '.join(unresolved)}: widen the bound "
                         "with fit: [lower, upper] if physics allows)")  # fmt: skip
     return "; ".join(parts)
+
+
+def _quantity(value: float, unit: str) -> str:
+    """``value`` in the display form of ``unit`` (``121 N``; a bare number without one)."""
+    (text,), shown = quantity_text([value], unit)
+    return f"{text} {shown}".rstrip()
 
 
 def _digits(value: float, lo: float, hi: float) -> int:

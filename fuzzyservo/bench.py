@@ -405,8 +405,10 @@ def run_study_case(
         t0 = time.perf_counter()
         outcome = run_study(spec, Path(tmp), trials=trials, workers=workers, progress=False)
         wall = time.perf_counter() - t0
-    sampler = max(outcome.worker_time_s - outcome.sim_time_s, 0.0)
     split = time_split(outcome)
+    line = outcome.timeline
+    limit = outcome.sim_time_s / workers
+    told = outcome.trials_complete + outcome.trials_pruned
     return BenchResult.once(
         ROBUST_STUDY if spec.uncertainty is not None else STUDY,
         f"{trials} trials of studies/{study}.yaml on {workers} worker processes, SQLite storage",
@@ -416,16 +418,20 @@ def run_study_case(
             "baseline_objective": outcome.baseline.values[0],
         },
         extra={
-            "trials": outcome.trials_complete + outcome.trials_pruned,
+            "trials": told,
             "workers": workers,
             "simulation_s": outcome.sim_time_s,
-            "sampler_and_storage_s": sampler,
-            "trials_per_s": (outcome.trials_complete + outcome.trials_pruned) / wall,
+            # the physical limit: the trials' simulations (margin checks included) spread
+            # over the workers with nothing else to do
+            "limit_s": limit,
+            "of_limit": wall / limit if limit > 0 else math.nan,
+            "trials_per_s": told / wall,
             "trials_pruned": outcome.trials_pruned,
             "simulations": outcome.simulations,
             "simulations_per_s": outcome.simulations / wall,
             "samples_skipped": outcome.samples_skipped,
             **{f"{k}_s": v for k, v in split.items()},
+            **{k: line.get(k, math.nan) for k in ("startup_s", "trials_s", "finish_s", "idle_s")},
         },
     )
 
@@ -582,16 +588,17 @@ def _line(r: BenchResult, template: str | None) -> str:
     return f"{duration_text(x['wall_s']):>10} {'':>10} {'':>7}  " + row
 
 
-_STUDY_LINE = (
-    "{trials} trials on {workers} workers, {trials_per_s:.1f} trials/s; in the trials: "
-    "simulation {simulation_s:.1f} s, sampler/storage/building {sampler_and_storage_s:.1f} s; "
-    "{errors}"
+_STUDY_TIMES = (
+    "wall = startup {startup_s:.1f} s + trials {trials_s:.1f} s (workers idle {idle_s:.1f} s "
+    "in all) + finish {finish_s:.1f} s; simulation {simulation_s:.1f} s, on {workers} workers "
+    "at least {limit_s:.1f} s: {of_limit:.2f}× that (goal ≤ 1.15×); sampler {sampler_s:.1f} s, "
+    "storage {storage_s:.1f} s, building {building_s:.2f} s; {errors}"
 )
+_STUDY_LINE = "{trials} trials on {workers} workers, {trials_per_s:.1f} trials/s; " + _STUDY_TIMES
 _ROBUST_STUDY_LINE = (
     "{trials} trials on {workers} workers ({trials_pruned} pruned, {samples_skipped} sampled "
     "plants skipped), {trials_per_s:.1f} trials/s, {simulations} simulations, "
-    "{simulations_per_s:.0f} simulations/s; in the trials: simulation {simulation_s:.1f} s, "
-    "sampler {sampler_s:.1f} s, storage {storage_s:.1f} s, building {building_s:.2f} s; {errors}"
+    "{simulations_per_s:.0f} simulations/s; " + _STUDY_TIMES
 )
 _MARGINS_LINE = "{simulations} simulations of 22 s, {ms_per_simulation:.0f} ms each; {errors}"
 _CALIBRATE_LINE = (

@@ -420,7 +420,7 @@ TUNE = [
          help="Optuna storage URL, e.g. postgresql://user@host/db (default: SQLite in --out)"),
     _arg("--workers", type=int, help="local worker processes (default: the study's, else 1)"),
     CLUSTER,
-    _arg("--batch-size", type=int, help="trials asked at once (default: the study's, else 4)"),
+    _arg("--batch-size", type=int, help="trials in flight (default: the study's, else 4)"),
     _arg("--async", dest="asynchronous", action="store_true",
          help="each worker runs its own Optuna loop on the shared storage: not reproducible"),
     _arg("--out", help="output folder (default: out/<study name>)"),

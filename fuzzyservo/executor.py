@@ -27,15 +27,25 @@ import signal
 import sys
 import threading
 import time
-from collections.abc import Callable, Sequence
+from collections import deque
+from collections.abc import Callable, Iterable, Iterator, Sequence
 from typing import Any, Protocol
 
 from fuzzyservo.errors import ConfigError, WorkerError, require
 
 
+class Pending(Protocol):
+    """A submitted task: :meth:`result` waits for it (and raises what the task raised)."""
+
+    def result(self) -> Any: ...
+
+    def cancel(self) -> None: ...
+
+
 class Executor(Protocol):
     """Maps a function over items, results in the items' order; ``on_done(k)`` as item
-    ``k`` finishes (in any order: for progress only)."""
+    ``k`` finishes (in any order: for progress only). :meth:`submit` starts one task
+    (:func:`stream` keeps a fixed number of them in flight)."""
 
     #: how many tasks run at once at most (a hint for progress and batching)
     workers: int
@@ -43,7 +53,40 @@ class Executor(Protocol):
     def map(self, fn: Callable[[Any], Any], items: Sequence[Any],
             on_done: Callable[[int], object] | None = None) -> list[Any]: ...  # fmt: skip
 
+    def submit(self, fn: Callable[[Any], Any], item: Any) -> Pending: ...
+
     def close(self) -> None: ...
+
+
+def stream(submit: Callable[[Any], Pending], items: Iterable[Any], ahead: int) -> Iterator[Any]:
+    """The results of ``submit(item)`` (an executor's :meth:`~Executor.submit` of one
+    task) in the items' order, with ``ahead`` tasks in flight.
+
+    The items are drawn lazily and at fixed moments: ``ahead`` of them first, then one
+    more each time the caller comes back for the next result. A caller that learns from
+    each result before drawing the next item (a sampler told a trial before it asks the
+    next) therefore sees the same history at every draw on any executor, with any
+    number of workers, while the workers are never left without a task. Leaving the
+    loop early cancels the tasks still in flight."""
+    source = iter(items)
+    flight: deque[Pending] = deque()
+
+    def draw() -> None:
+        for item in source:
+            flight.append(submit(item))
+            return
+
+    try:
+        for _ in range(ahead):
+            draw()
+        while flight:
+            result = flight[0].result()
+            flight.popleft()
+            yield result
+            draw()
+    finally:
+        for pending in flight:
+            pending.cancel()
 
 
 class Inline:
@@ -60,11 +103,27 @@ class Inline:
                 on_done(k)
         return out
 
+    def submit(self, fn: Callable[[Any], Any], item: Any) -> Pending:
+        return _Later(fn, item)
+
     def close(self) -> None:
         pass
 
     def describe(self) -> str:
         return "1 worker (this process)"
+
+
+class _Later:
+    """An inline task: run when its result is asked for."""
+
+    def __init__(self, fn: Callable[[Any], Any], item: Any):
+        self.fn, self.item = fn, item
+
+    def result(self) -> Any:
+        return self.fn(self.item)
+
+    def cancel(self) -> None:
+        pass
 
 
 class LocalProcesses:
@@ -82,6 +141,7 @@ class LocalProcesses:
     def __init__(self, workers: int):
         self.workers = workers
         self._procs: dict[int, Any] = {}  # pid -> process of this pool
+        self._flight: list[_PoolTask] = []  # submitted tasks not yet awaited
         self._pool = self._start()
 
     def _start(self):
@@ -105,22 +165,51 @@ class LocalProcesses:
                 self._run(fn, items, results, on_done)
                 break
             except BrokenProcessPool:
-                codes = self._end_pool()
-                # the pool ends a dead worker's siblings with SIGTERM: name the one that died
-                term = (-signal.SIGTERM, 128 + signal.SIGTERM)
-                codes = [c for c in codes if c not in term] or codes
-                died = ", ".join(_exit_text(c) for c in codes) or "ended"
-                if restarts == self.RESTARTS:
-                    raise WorkerError(
-                        f"local worker processes died {restarts + 1} times in one batch "
-                        f"(last: {died}); the results told so far are kept: run the command "
-                        "again to resume, with fewer --workers if memory ran out"
-                    ) from None
-                left = len(items) - len(results)
-                print(f"fuzzyservo: a worker process died ({died}); {left} task(s) run again "
-                      "on new workers", file=sys.stderr, flush=True)  # fmt: skip
-                self._pool = self._start()
+                self._restart(restarts, len(items) - len(results))
         return [results[k] for k in range(len(items))]
+
+    def _restart(self, restarts: int, left: int) -> None:
+        """After the pool broke (a worker died): end it, say so, start a new one; the
+        ``restarts``-th time (counted from 0) past :data:`RESTARTS` raises WorkerError."""
+        codes = self._end_pool()
+        # the pool ends a dead worker's siblings with SIGTERM: name the one that died
+        term = (-signal.SIGTERM, 128 + signal.SIGTERM)
+        codes = [c for c in codes if c not in term] or codes
+        died = ", ".join(_exit_text(c) for c in codes) or "ended"
+        if restarts == self.RESTARTS:
+            raise WorkerError(
+                f"local worker processes died {restarts + 1} times in one batch "
+                f"(last: {died}); the results told so far are kept: run the command "
+                "again to resume, with fewer --workers if memory ran out"
+            ) from None
+        print(f"fuzzyservo: a worker process died ({died}); {left} task(s) run again "
+              "on new workers", file=sys.stderr, flush=True)  # fmt: skip
+        self._pool = self._start()
+
+    def submit(self, fn: Callable[[Any], Any], item: Any) -> Pending:
+        """One task; when its pool breaks while it is awaited, every task still in flight
+        is run again on a new pool (up to :data:`RESTARTS` times for one task)."""
+        task = _PoolTask(self, fn, item)
+        self._flight.append(task)
+        task.future = self._pool.submit(fn, item)
+        self._procs.update((getattr(self._pool, "_processes", None) or {}).items())
+        return task
+
+    def _await(self, task: _PoolTask) -> Any:
+        from concurrent.futures.process import BrokenProcessPool
+
+        restarts = 0
+        while True:
+            try:
+                result = task.future.result()
+            except BrokenProcessPool:
+                self._restart(restarts, len(self._flight))
+                restarts += 1
+                for waiting in self._flight:
+                    waiting.future = self._pool.submit(waiting.fn, waiting.item)
+                continue
+            self._flight.remove(task)
+            return result
 
     def _run(self, fn: Callable[[Any], Any], items: Sequence[Any], results: dict[int, Any],
              on_done: Callable[[int], object] | None) -> None:  # fmt: skip
@@ -169,6 +258,22 @@ class LocalProcesses:
         return f"{self.workers} local worker processes"
 
 
+class _PoolTask:
+    """A task submitted to :class:`LocalProcesses` (its future changes with the pool)."""
+
+    def __init__(self, owner: LocalProcesses, fn: Callable[[Any], Any], item: Any):
+        self.owner, self.fn, self.item = owner, fn, item
+        self.future: Any = None
+
+    def result(self) -> Any:
+        return self.owner._await(self)
+
+    def cancel(self) -> None:
+        self.future.cancel()
+        if self in self.owner._flight:
+            self.owner._flight.remove(self)
+
+
 class DaskCluster:
     """The workers of the Dask scheduler at ``address`` (``tcp://HOST:PORT``)."""
 
@@ -204,6 +309,10 @@ class DaskCluster:
             return self._client.gather(futures)
         finally:
             self._client.cancel(futures)
+
+    def submit(self, fn: Callable[[Any], Any], item: Any) -> Pending:
+        # pure=False, as in map; a task lost with its worker is re-run by the scheduler
+        return self._client.submit(fn, item, pure=False)
 
     def close(self) -> None:
         self._client.close()
@@ -288,5 +397,5 @@ def _exit_now(signum: int, frame: Any) -> None:
     os._exit(128 + int(signum))
 
 
-__all__ = ["DaskCluster", "Executor", "Inline", "LocalProcesses", "die_with_parent",
-           "make_executor"]  # fmt: skip
+__all__ = ["DaskCluster", "Executor", "Inline", "LocalProcesses", "Pending", "die_with_parent",
+           "make_executor", "stream"]  # fmt: skip

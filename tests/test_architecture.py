@@ -137,7 +137,7 @@ COMPUTING = (
     "fuzzyservo.analysis.compare",
     "fuzzyservo.tuning.runner",
     "fuzzyservo.tuning.objective",
-    "fuzzyservo.tuning.batches",
+    "fuzzyservo.tuning.pipeline",
     "fuzzyservo.calibration.search",
     "fuzzyservo.calibration.candidates",
     "fuzzyservo.calibration.summary",

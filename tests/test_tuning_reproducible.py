@@ -1,4 +1,4 @@
-"""Batch-synchronous studies (issue 26 items 1 and 2): the same seeded study gives the same
+"""Pipelined studies (issue 26 items 1 and 2, issue 57): the same seeded study gives the same
 trials, hence the same best, with one worker, two local worker processes and a real Dask
 cluster (a ``dask scheduler`` and two ``dask worker`` processes started here), after a
 Dask worker is killed mid-batch, and after the parent is killed (kill -9) and resumed;
@@ -39,7 +39,7 @@ from fuzzyservo.tuning.storage import open_study
 
 pytest.importorskip("distributed", reason="the cluster extra (dask[distributed]) is not installed")
 
-TRIALS = 12  # three batches of BATCH
+TRIALS = 12  # three times BATCH
 BATCH = 4
 DASK = Path(sys.executable).with_name("dask")  # the command the cluster extra installs
 
@@ -189,8 +189,8 @@ def test_parent_killed_and_resumed_ends_like_an_uninterrupted_run(tmp_path):
 
 
 def test_a_batch_killed_while_being_written_is_completed_on_resume(tmp_path):
-    """A kill between two trials of one batch's write: the resume asks that batch again
-    (the same trials), keeps the written ones and scores only the rest."""
+    """A kill between two trials of one write: the resume asks the stored trials again
+    (the same numbers), tells their stored results, and scores only the rest."""
     study, name = cheap_copy(tmp_path, "partial")
     spec = load_study(study)
     outcome, _ = _run(spec, tmp_path / "whole")
@@ -201,6 +201,24 @@ def test_a_batch_killed_while_being_written_is_completed_on_resume(tmp_path):
     open_study(spec, url).add_trials(trials[: BATCH + 3])  # a whole batch and 3 of the next
     _run(spec, tmp_path)
     assert snapshot(url, name) == snapshot(outcome.storage_url, name)
+
+
+def test_a_study_stored_with_another_batch_size_goes_on_from_its_trials(tmp_path):
+    """A study stored another way (here with batch_size 2) proposes other numbers when
+    asked again with batch_size 4: its stored trials are kept as they are, the study goes
+    on from them, and doing so twice gives the same trials."""
+    study, name = cheap_copy(tmp_path, "adopted")
+    spec = load_study(study)
+    runs = []
+    for tag in ("a", "b"):
+        out = tmp_path / tag
+        run_study(spec, out, trials=TRIALS - BATCH, progress=False, batch_size=2)
+        before = snapshot(sqlite_url(out, name), name)
+        _run(spec, out)
+        after = snapshot(sqlite_url(out, name), name)
+        assert {k: after[k] for k in before} == before and len(after) == TRIALS
+        runs.append(after)
+    assert runs[0] == runs[1]
 
 
 def test_cluster_without_dask_names_the_extra(tmp_path, capsys, monkeypatch):

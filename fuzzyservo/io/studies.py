@@ -27,7 +27,7 @@ trials: 300
 timeout_s: 600
 storage: null                      # default: SQLite in the output folder
 workers: 1                         # local worker processes (--workers overrides)
-batch_size: 4                      # trials asked at once; the result depends on it, not on workers
+batch_size: 4                      # trials in flight; the result depends on it, not on workers
 uncertainty:                       # optional: tune on sampled plants (tuning/uncertainty/sets.py)
   samples: 8                       # the same 8 plants and noise realisations for every trial
   seed: 1

@@ -1,6 +1,6 @@
 """A told batch of trials into an Optuna RDB storage in one transaction.
 
-The batch-synchronous runner (:func:`~fuzzyservo.tuning.batches.run_batches`) keeps its
+The pipelined runner (:func:`~fuzzyservo.tuning.pipeline.run_pipelined`) keeps its
 study in memory and stores each batch once it is told. Optuna's ``Study.add_trials``
 writes a trial in some 45 ORM statements (every parameter and attribute is looked up and
 upserted one at a time) and a transaction per trial: 15-30 ms a trial, a third of the

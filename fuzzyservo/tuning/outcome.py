@@ -8,6 +8,7 @@ from __future__ import annotations
 import dataclasses
 import json
 import math
+import time
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -21,9 +22,9 @@ from fuzzyservo.display import (
 )
 from fuzzyservo.metrics import METRIC_NAMES, format_value
 from fuzzyservo.results import Result
-from fuzzyservo.tuning.batches import STORAGE_ATTR
 from fuzzyservo.tuning.evaluation import Evaluation
 from fuzzyservo.tuning.objective import build_evaluator
+from fuzzyservo.tuning.pipeline import STORAGE_ATTR
 from fuzzyservo.tuning.spec import Study
 from fuzzyservo.tuning.storage import open_study
 from fuzzyservo.tuning.study_trials import finished_states, trial_counts
@@ -60,7 +61,9 @@ class StudyOutcome(Result):
     trials_asked: int = 0  # every trial the sampler proposed (any state)
     trials_failed: int = 0  # FAIL: an error or a killed worker (not counted)
     build_time_s: float = 0.0  # in the trials: building controllers
-    storage_time_s: float = 0.0  # batch mode: the parent writing the batches
+    storage_time_s: float = 0.0  # pipelined mode: the parent writing the trials
+    #: where the run's wall time went (:func:`timeline`), when the trials carry their times
+    timeline: dict[str, float] = field(default_factory=dict)
 
     def to_dict(self) -> dict[str, Any]:
         """The study's numbers, as ``summary.json`` holds them (NaN and inf before they
@@ -171,6 +174,35 @@ def best_trial_number(outcome: StudyOutcome) -> int | None:
     return int(min(pool, key=lambda h: h["values"][0])["number"])
 
 
+def timeline(trials: list, started: float, ended: float, workers: int) -> dict[str, float]:
+    """Where a run's wall time went, from its trials' start and end times (seconds since
+    the epoch, ``work.started`` and ``work.ended``): ``startup_s`` before the first trial
+    started (worker processes starting, the storage opened, the first asks),
+    ``trials_s`` from the first trial's start to the last one's end, ``finish_s`` after it
+    (the report's checks: the best and the baseline scored again, a robust study's fresh
+    samples, importances); in ``trials_s``, ``busy_s`` the trials' own time summed over
+    the ``workers`` and ``idle_s`` the workers' time without a trial. Empty when the
+    trials carry no times (stored before they did, or run asynchronously on several
+    machines' clocks)."""
+    spans = [(t.user_attrs.get("work", {}).get("started"), t.user_attrs.get("work", {}).get("ended"))
+             for t in trials]  # fmt: skip
+    spans = [(a, b) for a, b in spans if a is not None and b is not None]
+    if not spans or started is None:
+        return {}
+    first = min(a for a, _ in spans)
+    last = max(b for _, b in spans)
+    busy = sum(b - a for a, b in spans)
+    return {
+        "wall_s": ended - started,
+        "startup_s": max(first - started, 0.0),
+        "trials_s": last - first,
+        "finish_s": max(ended - last, 0.0),
+        "workers": float(workers),
+        "busy_s": busy,
+        "idle_s": max((last - first) * workers - busy, 0.0),
+    }
+
+
 def time_split(outcome: StudyOutcome) -> dict[str, float]:
     """The study's time by what it went to: the trials' simulations and controller
     building, the sampler's asks, and ``storage``: the parent writing the batches (batch
@@ -218,11 +250,12 @@ def _trial_time(trial) -> float:
 
 
 def collect(spec: Study, url: str, *, wall_s: float = 0.0, executor=None,
-            study=None) -> StudyOutcome:  # fmt: skip
+            study=None, started: float | None = None) -> StudyOutcome:  # fmt: skip
     """Read the study back: best (feasible) trial or Pareto front, history, importances.
     A robust study's best is chosen among its top trials on fresh samples
     (:func:`select_on_fresh_samples`, scored by ``executor``, default this process).
-    ``study``: the study at ``url`` already open (default: open it)."""
+    ``study``: the study at ``url`` already open (default: open it). ``started``: when
+    the run began (seconds since the epoch), for the outcome's :func:`timeline`."""
     import optuna
     from optuna.trial import TrialState
 
@@ -309,6 +342,7 @@ def collect(spec: Study, url: str, *, wall_s: float = 0.0, executor=None,
         trials_failed=counts["failed"],
         build_time_s=sum(_work(t, "build_s") for t in finished),
         storage_time_s=stored_time,
+        timeline=timeline(finished, started, time.time(), getattr(executor, "workers", 1)),
     )
 
 

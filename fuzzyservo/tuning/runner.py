@@ -7,19 +7,21 @@ result pass through :mod:`~fuzzyservo.tuning.study_trials`, progress is drawn by
 :mod:`~fuzzyservo.tuning.trial_bar` (:mod:`~fuzzyservo.tuning.integrity` and
 :mod:`~fuzzyservo.tuning.warmstart` read the study's objects too). Two ways to run a study:
 
-* **Batch-synchronous** (the default, :func:`~fuzzyservo.tuning.batches.run_batches`):
-  this process owns the sampler and the storage; it asks ``batch_size`` trials, an
-  executor (:mod:`fuzzyservo.executor`: this process, ``--workers N`` local processes, or
-  a Dask ``--cluster``) scores them, and it tells them in trial-number order. The same
-  seeded study gives the same trials, hence the same best, with any number of workers,
-  run twice, or killed (kill -9) and resumed. The batch size is the trade-off: the sampler learns from a batch only once it
-  is told (a larger batch learns less often, keeps more workers busy and prunes against an
-  older bound); the result depends on it, never on the workers.
+* **Pipelined** (the default, :func:`~fuzzyservo.tuning.pipeline.run_pipelined`):
+  this process owns the sampler and the storage; ``batch_size`` trials are in flight at
+  every moment, scored by an executor (:mod:`fuzzyservo.executor`: this process,
+  ``--workers N`` local processes, or a Dask ``--cluster``), and each told trial lets the
+  next one be asked. Trial ``n`` is sampled knowing exactly the trials up to
+  ``n - batch_size``, so the same seeded study gives the same trials, hence the same
+  best, with any number of workers, run twice, or killed (kill -9) and resumed; and the
+  workers never wait for the sampler, the storage or a batch's slowest trial. The batch
+  size is the trade-off: a larger one keeps more workers busy and searches less informed
+  (and prunes against an older bound); the result depends on it, never on the workers.
 * **Asynchronous** (``--async``): every worker process runs Optuna's own loop on the
   shared storage, which several ``tune`` commands, on several machines, may share
   (PostgreSQL). Not reproducible: the trials depend on which worker finished first.
 
-Trials are stored as they are told (in the first mode a batch at a time, in one
+Trials are stored as they are told (in the first mode ``batch_size`` at a time, in one
 transaction), so a study stopped at any moment (Ctrl-C, a killed process) resumes with
 the same command and loses no told trial. The count towards ``trials`` is the number of COMPLETE trials (and
 PRUNED ones: robust trials stopped once their worst sample so far is worse than the
@@ -41,10 +43,10 @@ from typing import Any
 
 from fuzzyservo.display import trial_counts_text
 from fuzzyservo.rig import Rig
-from fuzzyservo.tuning.batches import run_batches
 from fuzzyservo.tuning.integrity import die_with_parent
 from fuzzyservo.tuning.objective import Evaluator, build_evaluator
 from fuzzyservo.tuning.outcome import StudyOutcome, collect
+from fuzzyservo.tuning.pipeline import run_pipelined
 from fuzzyservo.tuning.spec import Study
 from fuzzyservo.tuning.storage import open_study, storage_error, storage_faults, storage_url
 from fuzzyservo.tuning.study_trials import (
@@ -56,7 +58,7 @@ from fuzzyservo.tuning.study_trials import (
     suggest,
     trial_counts,
 )
-from fuzzyservo.tuning.trial import score
+from fuzzyservo.tuning.trial import TrialRunner, score, warm_kernels
 from fuzzyservo.tuning.trial_bar import postfix, refresh, trial_bar
 from fuzzyservo.tuning.warmstart import enqueue, patience_callback
 
@@ -139,7 +141,7 @@ def run_study(
 ) -> StudyOutcome:
     """Run (or resume) the study until it holds ``trials`` complete trials; return the outcome.
 
-    Batch-synchronous (the default; :func:`run_batches`): the same seeded study gives the
+    Pipelined (the default; :func:`run_pipelined`): the same seeded study gives the
     same trials, hence the same best, with any ``workers`` (local processes) or on the Dask
     ``cluster`` (``tcp://HOST:PORT``), run twice, or interrupted and resumed.
     ``asynchronous``: every worker runs Optuna's own loop on the shared storage (several
@@ -159,7 +161,7 @@ def run_study(
     if cluster and asynchronous:
         from fuzzyservo.errors import ConfigError
 
-        raise ConfigError("--cluster runs batches; leave out --async (or --cluster)")
+        raise ConfigError("--cluster runs pipelined; leave out --async (or --cluster)")
     executor = None
     if not asynchronous:  # a cluster that cannot be used fails before anything starts
         from fuzzyservo.executor import make_executor
@@ -176,6 +178,18 @@ def run_study(
 
 def _run(spec: Study, url: str, total: int, executor, workers: int, shared: bool, progress):
     """:func:`run_study` once its storage URL and executor are known."""
+    t0, started = time.perf_counter(), time.time()
+    runner = None
+    if executor is not None:  # the workers start (import, load the kernels) while we open
+        import json
+
+        from fuzzyservo.tuning.integrity import fingerprint
+
+        runner = TrialRunner(spec, json.dumps(fingerprint(spec), sort_keys=True))
+        warming = [executor.submit(runner.warm, k) for k in range(executor.workers)]
+    # before the bar (its rate and ETA should not count compiling); on a fresh install
+    # one process compiles each kernel, the others wait for it and load it (_jit.first_call)
+    warm_kernels(spec)
     study = open_study(spec, url)  # creates it (and its tables) before any worker starts
     done_before = count_complete(study)
     if done_before and progress:
@@ -183,13 +197,13 @@ def _run(spec: Study, url: str, total: int, executor, workers: int, shared: bool
         counts = trial_counts_text(**trial_counts(study))
         print(f"resuming study {spec.name}: {done_before} of {total} trials done "
               f"({counts}), {left} to run ({url})", file=sys.stderr, flush=True)  # fmt: skip
-    t0 = time.perf_counter()
-    _warm_kernels(spec)  # before the bar: its rate (and ETA) should not count compiling
     bar = trial_bar(total, done_before, spec.name, progress)
     try:
         if executor is not None:
             with _interruptible() as interrupted:
-                run_batches(spec, study, total, executor, bar, interrupted)
+                for pending in warming:
+                    pending.result()
+                run_pipelined(spec, study, total, executor, bar, interrupted, runner)
         else:
             enqueue(study, spec)
             if workers <= 1:
@@ -199,8 +213,8 @@ def _run(spec: Study, url: str, total: int, executor, workers: int, shared: bool
     finally:
         bar.close()
     wall = time.perf_counter() - t0
-    # a batch run wrote every trial through this study: read it back without reopening
-    return collect(spec, url, wall_s=wall, executor=executor,
+    # a pipelined run wrote every trial through this study: read it back without reopening
+    return collect(spec, url, wall_s=wall, executor=executor, started=started,
                    study=study if executor is not None else None)  # fmt: skip
 
 
@@ -249,7 +263,6 @@ def _run_processes(spec: Study, url: str, total: int, workers: int, bar, shared:
     import os
     import signal
 
-    _warm_kernels(spec)
     ctx = mp.get_context("spawn")
     procs = [
         ctx.Process(target=_worker, args=(spec, url, total, w, shared, os.getpid()))
@@ -290,18 +303,3 @@ def _run_processes(spec: Study, url: str, total: int, workers: int, bar, shared:
         raise RuntimeError(
             f"{len(failed)} worker process(es) failed (exit codes {failed}); see their output above"
         )
-
-
-def _warm_kernels(spec: Study) -> None:
-    """Compile the kernels here, once, before the workers start (else each compiles them);
-    with a warm cache this only reads them, milliseconds."""
-    from fuzzyservo.simulation import simulate
-
-    rig = spec.rig
-    simulate(rig, spec.template, spec.scenarios[0], duration_s=10 * rig.sample_time_s)
-    if spec.uncertainty is not None:  # its trials run their samples' checks in lock-step
-        from fuzzyservo.simulation.closed_loop import simulate_batch
-        from fuzzyservo.tuning.uncertainty.robust import sample_rigs
-
-        seeds = [d.noise_seed for d in spec.uncertainty.draws[:2]]
-        simulate_batch(sample_rigs(rig, spec)[:2], spec.template, spec.scenarios[0], seeds)

@@ -30,12 +30,11 @@ if TYPE_CHECKING:
     from fuzzyservo.controllers.base import Controller
     from fuzzyservo.rig import Rig
 
-#: trials asked at once (batch-synchronous runs): the sampler learns from a batch only once
-#: it is told, so a larger batch keeps more workers busy, learns less often and prunes
-#: against an older bound. 4 keeps 2-4 local workers busy; on `dinca_flc` (48 trials,
-#: seed 1) batches of 1, 2, 4 and 8 ended at 1.12, 0.73, 0.57 and 1.70, on `dinca_robust`
-#: (300 trials) 4 and 8 at 0.548 and 0.542 (one seed each: the spread of a seed, not a
-#: ranking). Raise it for a cluster. Independent of the number of workers, so the result is.
+#: trials in flight (pipelined runs, tuning/pipeline.py): trial n is asked knowing the
+#: trials up to n - BATCH_SIZE, so a larger batch keeps more workers busy, searches less
+#: informed and prunes against an older bound. 4 keeps 2-3 local workers busy (one
+#: queued trial each while the parent asks); raise it for a cluster. Independent of the
+#: number of workers, so the result is.
 BATCH_SIZE = 4
 SAMPLERS = ("tpe", "cmaes", "nsga2", "gp", "qmc", "random")
 #: a study file's ``sampler`` when it names none: :func:`default_sampler` decides

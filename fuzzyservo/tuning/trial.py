@@ -47,6 +47,7 @@ def score(spec: Study, evaluator: Evaluator, params: dict[str, float],
           bound: float | None) -> TrialResult:  # fmt: skip
     """Score the template with ``params`` (see the module docstring)."""
     t0 = time.perf_counter()
+    started = time.time()
     try:
         controller = evaluator.controller(params)  # the template's name: no second build
     except ValueError as exc:  # a combination the template rejects: penalised, reason kept
@@ -77,7 +78,9 @@ def score(spec: Study, evaluator: Evaluator, params: dict[str, float],
     attrs["trial_time_s"] = time.perf_counter() - t0
     # where the time went besides simulating (bench, the report); the runner adds its
     # sampler's share (sample_s)
-    attrs["work"] = {"build_s": built - t0, "samples_skipped": ev.samples_skipped}
+    # and when it ran (seconds since the epoch: where the workers' time went, outcome.py)
+    attrs["work"] = {"build_s": built - t0, "samples_skipped": ev.samples_skipped,
+                     "started": started, "ended": time.time()}  # fmt: skip
     return TrialResult(
         values=ev.values,
         constraints=tuple(v if math.isfinite(v) else 1e300 for v in ev.violations),
@@ -107,3 +110,25 @@ class TrialRunner:
 
     def __call__(self, task: Task) -> TrialResult:
         return score(self.spec, self.evaluator(), task.params, task.bound)
+
+    def warm(self, worker: int = 0) -> None:
+        """Make a worker ready before its first trial: the evaluator built, the compiled
+        kernels loaded (``worker``: which of the executor's warm-up tasks this is)."""
+        self.evaluator()
+        warm_kernels(self.spec)
+
+
+def warm_kernels(spec: Study) -> None:
+    """Run the study's kernels once, briefly: the first time on a machine this compiles
+    them (minutes' worth of work done once, then cached); afterwards it loads them from
+    the cache, which takes a fraction of a second."""
+    from fuzzyservo.simulation import simulate
+
+    rig = spec.rig
+    simulate(rig, spec.template, spec.scenarios[0], duration_s=10 * rig.sample_time_s)
+    if spec.uncertainty is not None:  # its trials run their samples' checks in lock-step
+        from fuzzyservo.simulation.closed_loop import simulate_batch
+        from fuzzyservo.tuning.uncertainty.robust import sample_rigs
+
+        seeds = [d.noise_seed for d in spec.uncertainty.draws[:2]]
+        simulate_batch(sample_rigs(rig, spec)[:2], spec.template, spec.scenarios[0], seeds)

@@ -431,7 +431,10 @@ def run_study_case(
             "simulations_per_s": outcome.simulations / wall,
             "samples_skipped": outcome.samples_skipped,
             **{f"{k}_s": v for k, v in split.items()},
-            **{k: line.get(k, math.nan) for k in ("startup_s", "trials_s", "finish_s", "idle_s")},
+            **{
+                k: line.get(k, math.nan)
+                for k in ("startup_s", "trials_s", "finish_s", "idle_s", "parent_wait_s")
+            },
         },
     )
 
@@ -590,7 +593,7 @@ def _line(r: BenchResult, template: str | None) -> str:
 
 _STUDY_TIMES = (
     "wall = startup {startup_s:.1f} s + trials {trials_s:.1f} s (workers idle {idle_s:.1f} s "
-    "in all) + finish {finish_s:.1f} s; simulation {simulation_s:.1f} s, on {workers} workers "
+    "in all; the parent waited {parent_wait_s:.1f} s for them) + finish {finish_s:.1f} s; simulation {simulation_s:.1f} s, on {workers} workers "
     "at least {limit_s:.1f} s: {of_limit:.2f}× that (goal ≤ 1.15×); sampler {sampler_s:.1f} s, "
     "storage {storage_s:.1f} s, building {building_s:.2f} s; {errors}"
 )

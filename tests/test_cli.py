@@ -109,10 +109,12 @@ def test_bench_robust_study_row_shows_the_split_and_skipped_samples():
              "trials_per_s": 25.0, "simulations": 560, "simulations_per_s": 46.7,
              "simulation_s": 8.1, "sampler_s": 4.0, "storage_s": 6.5, "building_s": 1.1,
              "limit_s": 4.05, "of_limit": 2.96, "startup_s": 2.5, "trials_s": 8.0,
-             "finish_s": 1.5, "idle_s": 7.9}  # fmt: skip
+             "finish_s": 1.5, "idle_s": 7.9, "parent_wait_s": 3.0}  # fmt: skip
     row = BenchResult.once(ROBUST_STUDY, "robust", 12.0, extra=extra)
     text = BenchReport((row,)).text()
     assert "280 pruned, 1950 sampled plants skipped" in text and "47 simulations/s" in text
-    assert "startup 2.5 s + trials 8.0 s (workers idle 7.9 s in all) + finish 1.5 s" in text
+    assert (
+        "startup 2.5 s + trials 8.0 s (workers idle 7.9 s in all; the parent waited 3.0 s" in text
+    )
     assert "at least 4.0 s: 2.96× that" in text
     assert "sampler 4.0 s, storage 6.5 s, building 1.10 s" in text

@@ -24,7 +24,7 @@ from fuzzyservo.metrics import METRIC_NAMES, format_value
 from fuzzyservo.results import Result
 from fuzzyservo.tuning.evaluation import Evaluation
 from fuzzyservo.tuning.objective import build_evaluator
-from fuzzyservo.tuning.pipeline import STORAGE_ATTR
+from fuzzyservo.tuning.pipeline import STORAGE_ATTR, WAIT_ATTR
 from fuzzyservo.tuning.spec import Study
 from fuzzyservo.tuning.storage import open_study
 from fuzzyservo.tuning.study_trials import finished_states, trial_counts
@@ -174,7 +174,8 @@ def best_trial_number(outcome: StudyOutcome) -> int | None:
     return int(min(pool, key=lambda h: h["values"][0])["number"])
 
 
-def timeline(trials: list, started: float, ended: float, workers: int) -> dict[str, float]:
+def timeline(trials: list, started: float | None, ended: float, workers: int,
+             parent_wait: float | None = None) -> dict[str, float]:  # fmt: skip
     """Where a run's wall time went, from its trials' start and end times (seconds since
     the epoch, ``work.started`` and ``work.ended``): ``startup_s`` before the first trial
     started (worker processes starting, the storage opened, the first asks),
@@ -183,7 +184,8 @@ def timeline(trials: list, started: float, ended: float, workers: int) -> dict[s
     samples, importances); in ``trials_s``, ``busy_s`` the trials' own time summed over
     the ``workers`` and ``idle_s`` the workers' time without a trial. Empty when the
     trials carry no times (stored before they did, or run asynchronously on several
-    machines' clocks)."""
+    machines' clocks). ``parent_wait``: the time the parent spent waiting for a result
+    (pipelined runs): the rest of its time it asked, told and wrote."""
     spans = [(t.user_attrs.get("work", {}).get("started"), t.user_attrs.get("work", {}).get("ended"))
              for t in trials]  # fmt: skip
     spans = [(a, b) for a, b in spans if a is not None and b is not None]
@@ -200,6 +202,7 @@ def timeline(trials: list, started: float, ended: float, workers: int) -> dict[s
         "workers": float(workers),
         "busy_s": busy,
         "idle_s": max((last - first) * workers - busy, 0.0),
+        **({"parent_wait_s": parent_wait} if parent_wait is not None else {}),
     }
 
 
@@ -319,6 +322,8 @@ def collect(spec: Study, url: str, *, wall_s: float = 0.0, executor=None,
     sim = sum(t.user_attrs.get("sim_time_s", 0.0) for t in finished)
     worker_time = sum(_trial_time(t) for t in finished)
     counts = trial_counts(study)
+    workers = getattr(executor, "workers", 1)
+    line = timeline(finished, started, time.time(), workers, study.user_attrs.get(WAIT_ATTR))
     return StudyOutcome(
         spec=spec,
         storage_url=url,
@@ -342,7 +347,7 @@ def collect(spec: Study, url: str, *, wall_s: float = 0.0, executor=None,
         trials_failed=counts["failed"],
         build_time_s=sum(_work(t, "build_s") for t in finished),
         storage_time_s=stored_time,
-        timeline=timeline(finished, started, time.time(), getattr(executor, "workers", 1)),
+        timeline=line,
     )
 
 

@@ -34,6 +34,7 @@ from fuzzyservo.tuning.trial_bar import postfix
 from fuzzyservo.tuning.warmstart import out_of_patience, start_points
 
 STORAGE_ATTR = "storage_s"  # study attribute: the parent's time writing trials [s]
+WAIT_ATTR = "parent_wait_s"  # study attribute: the parent's time waiting for a result [s]
 #: a user attribute the batch-synchronous loop of before stored on each trial
 _LEGACY_ATTRS = ("constraints", "batch")
 
@@ -93,14 +94,26 @@ def run_pipelined(
 
     order: deque = deque()  # the trials in flight, in the order their results come
 
+    asking = 0.0  # the asks' seconds so far
+
     def submit(item: tuple):
+        nonlocal asking
         trial, task, sample_s = item
         order.append((trial, sample_s))
+        asking += sample_s
         return executor.submit(runner, task)
 
+    waited = stored.user_attrs.get(WAIT_ATTR, 0.0)
+    results = stream(submit, chain(flight, asked()), ahead)
     try:
-        for result in stream(submit, chain(flight, asked()), ahead):
+        while True:
+            came, asked_before = time.perf_counter(), asking
+            result = next(results, None)
+            if result is None:
+                break
             trial, sample_s = order.popleft()
+            # the time the workers kept this process waiting (less the ask it drew)
+            waited += max(time.perf_counter() - came - (asking - asked_before), 0.0)
             if interrupted():
                 raise KeyboardInterrupt
             result.user_attrs.setdefault("work", {})["sample_s"] = sample_s
@@ -123,8 +136,11 @@ def run_pipelined(
     except KeyboardInterrupt:
         write()  # what was told is kept; the trials in flight are asked again on resume
         raise
+    finally:
+        results.close()
     if written:
         stored.set_user_attr(STORAGE_ATTR, storage_s)
+        stored.set_user_attr(WAIT_ATTR, waited)
 
 
 def _memory(spec: Study):

@@ -19,18 +19,22 @@ def refresh(bar, study) -> None:
 
 def postfix(bar, study) -> None:
     """Show the study's best value so far beside the bar (single-objective studies)."""
+    if isinstance(bar, _NoBar):
+        return  # nothing shows it: no need to look (the parent's time is the workers')
     best = _best_value(study)
     if best is not None:
         bar.set_postfix_str(f"best {best:.4g}")
 
 
 def _best_value(study) -> float | None:
-    try:
-        if len(study.directions) == 1:
-            return study.best_value
-    except ValueError:
+    """The lowest value of a complete trial (Optuna's ``best_value``, without the copy of
+    the best trial it makes)."""
+    from optuna.trial import TrialState
+
+    if len(study.directions) != 1:
         return None
-    return None
+    values = [t.value for t in study.get_trials(deepcopy=False, states=(TrialState.COMPLETE,))]
+    return min(values) if values else None
 
 
 class _NoBar:

@@ -11,7 +11,7 @@ and spread of the final best per study and sampler) and ``samplers.png`` (median
 interquartile band of the best feasible objective against trials). NSGA-II on one
 objective is a genetic algorithm (what MATLAB's ``tunefis`` offers besides particle
 swarm); ``gp`` needs PyTorch (``pip install 'fuzzyservo[gp]'``) and is left out without it.
-Runs are reproducible (batch-synchronous tuning): the same command gives the same table.
+Runs are reproducible (pipelined tuning): the same command gives the same table.
 """
 
 from __future__ import annotations

@@ -294,8 +294,8 @@ def test_readme_main_job_figures_are_the_main_jobs(tmp_path, capsys):
     b, base = summary["best"]["metrics"], summary["baseline"]["metrics"]
     assert "settles four times faster" in prose
     assert 3.5 <= base["settling_time_s"] / b["settling_time_s"] < 4.5
-    assert "a twentieth of its steady-state error" in prose
-    assert 15 <= base["sse_abs"] / b["sse_abs"] < 25
+    assert "a ninth of its steady-state error" in prose
+    assert 8 <= base["sse_abs"] / b["sse_abs"] < 10
     assert "never saturates" in prose and b["saturation_time_s"] == 0
     rows = {c["controller"]: c for c in summary["comparison"]["controllers"]}
     assert "gain margin of 2 on every sample where P K=10 fails on all" in prose

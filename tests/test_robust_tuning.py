@@ -433,6 +433,32 @@ def test_lock_step_trial_equals_sequential_and_pruning_is_exact(tmp_path):
     assert first.status == "pruned" and first.samples_skipped == 2 and first.simulations == 1
 
 
+def test_pruned_trials_in_lock_step_pairs_equal_one_sample_at_a_time(tmp_path, monkeypatch):
+    """Past its first sample a prunable trial runs its samples two at a time in one
+    compiled call (robust.LOCKSTEP): every report the pruning sees, the value, the prune
+    step and the counts are those of one sample after the other, whatever the bound."""
+    from fuzzyservo.tuning.uncertainty import robust
+
+    evaluator = build_evaluator(_small(tmp_path, samples=5))
+    flc2 = load_controller(DATA / "studies" / "controllers" / "flc2_reshaped.yaml")
+    value = evaluator.evaluate(flc2).values[0]
+
+    def scored(pairs: int, bound: float):
+        monkeypatch.setattr(robust, "LOCKSTEP", pairs)
+        reports = []
+
+        def report(step, v):
+            reports.append((step, v))
+            return v > bound
+
+        ev = evaluator.evaluate(flc2, report=report)
+        return (ev.status, ev.values, ev.violations, ev.metrics, ev.simulations,
+                ev.samples_skipped, reports)  # fmt: skip
+
+    for bound in (math.inf, value, value * (1 - 1e-9), 0.0):
+        assert scored(2, bound) == scored(1, bound), bound
+
+
 def test_evaluator_scores_its_baseline_when_asked(tmp_path):
     """A worker that only scores trials does not pay for the baseline (a run per sample
     and scenario): it is scored on first use, and then as before."""

@@ -27,14 +27,13 @@ def postfix(bar, study) -> None:
 
 
 def _best_value(study) -> float | None:
-    """The lowest value of a complete trial (Optuna's ``best_value``, without the copy of
-    the best trial it makes)."""
-    from optuna.trial import TrialState
+    """The best feasible value so far (Optuna's ``best_value`` among the trials that meet
+    the constraints, without the copy of the best trial it makes)."""
+    from fuzzyservo.tuning.study_trials import best_feasible_value
 
     if len(study.directions) != 1:
         return None
-    values = [t.value for t in study.get_trials(deepcopy=False, states=(TrialState.COMPLETE,))]
-    return min(values) if values else None
+    return best_feasible_value(study)
 
 
 class _NoBar:

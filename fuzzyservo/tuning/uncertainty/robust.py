@@ -31,6 +31,7 @@ from fuzzyservo.tuning.uncertainty.robustness import (
     SUMMARY_METRICS,
     MonteCarlo,
     SampleRun,
+    lockstep_runs,
     margin_checks_batch,
     monte_carlo,
     run_sample,
@@ -38,6 +39,12 @@ from fuzzyservo.tuning.uncertainty.robustness import (
     summary,
 )
 from fuzzyservo.tuning.uncertainty.sets import aggregate, sample_rig
+
+#: samples simulated together once a trial's first sample ran through (it is pruned or
+#: fails there most often): the results are those of one sample after the other, and
+#: are used in the same order, so the trial's value, pruning and counts are the same;
+#: a trial stopped at the first of a pair ran the second for nothing
+LOCKSTEP = 2
 
 
 def sample_rigs(rig: Rig, spec: Study) -> list[Rig]:
@@ -105,7 +112,13 @@ def evaluate_samples(
             status = runs[-1].status
             message = f"{u.draws[len(runs) - 1].describe(u.parameters)}: {runs[-1].message}"
     else:
-        for sample, rig in zip(u.draws, evaluator.sample_rigs, strict=True):
+        ran: dict[int, dict] = {}  # results simulated ahead, in lock-step, by sample
+        for k, (sample, rig) in enumerate(zip(u.draws, evaluator.sample_rigs, strict=True)):
+            if k and k not in ran:  # past the first sample: this one and the next together
+                group = range(k, min(k + LOCKSTEP, len(u.draws)))
+                ahead = lockstep_runs([evaluator.sample_rigs[j] for j in group], controller,
+                                      scenarios, [u.draws[j].noise_seed for j in group])  # fmt: skip
+                ran.update(zip(group, ahead, strict=True))
             stop = None
             if within:
                 before = max(
@@ -119,7 +132,7 @@ def evaluate_samples(
 
             run = run_sample(
                 sample.index, rig, controller, scenarios, sample.noise_seed,
-                aggregate=spec.aggregate, stop=stop,
+                aggregate=spec.aggregate, stop=stop, ran=ran.pop(k, None),
             )  # fmt: skip
             runs.append(run)
             if run.status == "pruned":

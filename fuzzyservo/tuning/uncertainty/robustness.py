@@ -71,18 +71,21 @@ def run_sample(
     margin_scenario: str | None = None,
     keep_results: bool = False,
     stop: Callable[[dict[str, float]], bool] | None = None,
+    ran: dict[str, SimResult] | None = None,
 ) -> SampleRun:
     """Simulate every scenario on ``rig`` (noise seeded ``noise_seed``), then the margin
     checks asked for (``gain``, ``delay_s``) on ``margin_scenario``, unless a run failed.
 
     ``stop(metrics)``, when given, is asked after each scenario but the last with the
     metrics aggregated over the scenarios run so far; True ends the sample there with
-    status ``pruned`` (a robust trial that is already lost: tuning/uncertainty/robust.py)."""
+    status ``pruned`` (a robust trial that is already lost: tuning/uncertainty/robust.py).
+    ``ran``: the scenarios' results already simulated (in lock-step with other samples,
+    :func:`lockstep_runs`), taken instead of simulating them again."""
     per: dict[str, dict[str, float]] = {}
     results: dict[str, SimResult] = {}
     status, message = "ok", ""
     for n, scenario in enumerate(scenarios, 1):
-        r = simulate(rig, controller, scenario, noise_seed=noise_seed)
+        r = (ran or {}).get(scenario) or simulate(rig, controller, scenario, noise_seed=noise_seed)
         if keep_results:
             results[scenario] = r
         per[scenario] = result_metrics(r).aggregate
@@ -99,6 +102,26 @@ def run_sample(
             rig, controller, margin_scenario or scenarios[0], noise_seed, gain, delay_s
         )
     return SampleRun(index, status, message, metrics, per, gain_ok, delay_ok, results)
+
+
+def lockstep_runs(
+    rigs: Sequence[Rig],
+    controller: Controller,
+    scenarios: Sequence[str],
+    noise_seeds: Sequence[int],
+) -> list[dict[str, SimResult]]:
+    """Every scenario on each rig of ``rigs`` (each with its noise seed), the rigs of one
+    scenario in one compiled call (:func:`~fuzzyservo.simulation.closed_loop.
+    simulate_batch`, parallel over the cores): per rig, its results by scenario, each the
+    one :func:`simulate` gives (for :func:`run_sample`'s ``ran``)."""
+    from fuzzyservo.simulation.closed_loop import simulate_batch
+
+    out: list[dict[str, SimResult]] = [{} for _ in rigs]
+    for scenario in scenarios:
+        for ran, r in zip(out, simulate_batch(rigs, controller, scenario, noise_seeds),
+                          strict=True):  # fmt: skip
+            ran[scenario] = r
+    return out
 
 
 def margin_checks(

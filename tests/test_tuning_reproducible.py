@@ -219,6 +219,8 @@ def test_a_study_stored_with_another_batch_size_goes_on_from_its_trials(tmp_path
         assert {k: after[k] for k in before} == before and len(after) == TRIALS
         runs.append(after)
     assert runs[0] == runs[1]
+    run_study(spec, tmp_path / "a", trials=BATCH, progress=False)  # holds more: runs none
+    assert snapshot(sqlite_url(tmp_path / "a", name), name) == runs[0]
 
 
 def test_cluster_without_dask_names_the_extra(tmp_path, capsys, monkeypatch):

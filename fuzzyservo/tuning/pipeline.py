@@ -58,6 +58,8 @@ def run_pipelined(
     from fuzzyservo.tuning.study_trials import finished_states
 
     told = stored.get_trials(deepcopy=False, states=finished_states())
+    if len(told) >= total:
+        return  # done already (or asked for fewer trials than it holds)
     ahead = spec.batch_size
     runner = runner or TrialRunner(spec, json.dumps(fingerprint(spec), sort_keys=True))
     memory, flight = _replayed(spec, told, total, ahead, bar)

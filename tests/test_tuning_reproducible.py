@@ -10,6 +10,7 @@ where and in which order trials run, not the objective.
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import os
 import signal
@@ -221,6 +222,22 @@ def test_a_study_stored_with_another_batch_size_goes_on_from_its_trials(tmp_path
     assert runs[0] == runs[1]
     run_study(spec, tmp_path / "a", trials=BATCH, progress=False)  # holds more: runs none
     assert snapshot(sqlite_url(tmp_path / "a", name), name) == runs[0]
+
+
+def test_a_resumed_study_counts_each_trial_once(tmp_path):
+    """The progress count of a resumed run starts at the stored trials and ends at the
+    total: the stored trials the resume asks again are not counted a second time."""
+    from fuzzyservo.executor import Inline
+    from fuzzyservo.tuning.pipeline import run_pipelined
+    from fuzzyservo.tuning.trial_bar import trial_bar
+
+    study, name = cheap_copy(tmp_path, "counted")
+    spec = load_study(study)
+    run_study(spec, tmp_path, trials=BATCH + 2, progress=False, batch_size=BATCH)
+    stored = open_study(spec, sqlite_url(tmp_path, name))
+    bar = trial_bar(TRIALS, BATCH + 2, name, False)
+    run_pipelined(dataclasses.replace(spec, batch_size=BATCH), stored, TRIALS, Inline(), bar)
+    assert bar.n == TRIALS == len(snapshot(sqlite_url(tmp_path, name), name))
 
 
 def test_cluster_without_dask_names_the_extra(tmp_path, capsys, monkeypatch):

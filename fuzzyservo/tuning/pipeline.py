@@ -62,7 +62,7 @@ def run_pipelined(
         return  # done already (or asked for fewer trials than it holds)
     ahead = spec.batch_size
     runner = runner or TrialRunner(spec, json.dumps(fingerprint(spec), sort_keys=True))
-    memory, flight = _replayed(spec, told, total, ahead, bar)
+    memory, flight = _replayed(spec, told, total, ahead)  # the bar counts them already
     if spec.patience and spec.objective.n_values == 1 and out_of_patience(memory, spec.patience):
         return  # it had stopped for want of progress: nothing more to ask
     writer = BatchWriter(stored)
@@ -164,7 +164,7 @@ def _ask(memory, spec: Study) -> tuple:
     return trial, task, time.perf_counter() - started
 
 
-def _replayed(spec: Study, told: list, total: int, ahead: int, bar) -> tuple:
+def _replayed(spec: Study, told: list, total: int, ahead: int) -> tuple:
     """The in-memory study with the stored trials ``told`` replayed (see the module
     docstring), and the trials asked but not told (in flight when the run stopped)."""
     memory = _memory(spec)
@@ -175,19 +175,15 @@ def _replayed(spec: Study, told: list, total: int, ahead: int, bar) -> tuple:
     flight: deque = deque()
     for _ in range(min(ahead, total)):
         flight.append(_ask(memory, spec))
-    for k, old in enumerate(told):
+    for old in told:
         trial, task, _ = flight.popleft()
         if task.params != old.params:  # stored another way: take the rest as it is
             memory = _memory(spec)
             memory.add_trials(told)
             for point in start_points(spec)[len(told) :]:
                 memory.enqueue_trial(point)
-            if bar is not None:
-                bar.update(len(told) - k)
             return memory, []
         _tell(memory, trial, spec, _result_of(old))
-        if bar is not None:
-            bar.update(1)
         if len(memory.get_trials(deepcopy=False)) < total:
             flight.append(_ask(memory, spec))
     return memory, list(flight)

@@ -179,14 +179,17 @@ def run_study(
 def _run(spec: Study, url: str, total: int, executor, workers: int, shared: bool, progress):
     """:func:`run_study` once its storage URL and executor are known."""
     t0, started = time.perf_counter(), time.time()
-    runner = None
-    if executor is not None:  # the workers start (import, load the kernels) while we open
+    runner, warming = None, []
+    if executor is not None:
         import json
 
+        from fuzzyservo.executor import Inline
         from fuzzyservo.tuning.integrity import fingerprint
 
         runner = TrialRunner(spec, json.dumps(fingerprint(spec), sort_keys=True))
-        warming = [executor.submit(runner.warm, k) for k in range(executor.workers)]
+        if not isinstance(executor, Inline):  # the workers start (import, load the
+            # kernels) while we open; inline, this process warms itself just below
+            warming = [executor.submit(runner.warm, k) for k in range(executor.workers)]
     # before the bar (its rate and ETA should not count compiling); on a fresh install
     # one process compiles each kernel, the others wait for it and load it (_jit.first_call)
     warm_kernels(spec)

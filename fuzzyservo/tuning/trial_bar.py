@@ -6,7 +6,7 @@ above it (pyproject.toml's import-linter contract), so tuning may not use it."""
 
 from __future__ import annotations
 
-from fuzzyservo.tuning.study_trials import count_complete
+from fuzzyservo.tuning.study_trials import best_feasible_value, count_complete
 
 
 def refresh(bar, study) -> None:
@@ -29,8 +29,6 @@ def postfix(bar, study) -> None:
 def _best_value(study) -> float | None:
     """The best feasible value so far (Optuna's ``best_value`` among the trials that meet
     the constraints, without the copy of the best trial it makes)."""
-    from fuzzyservo.tuning.study_trials import best_feasible_value
-
     if len(study.directions) != 1:
         return None
     return best_feasible_value(study)

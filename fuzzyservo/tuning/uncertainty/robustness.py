@@ -85,7 +85,9 @@ def run_sample(
     results: dict[str, SimResult] = {}
     status, message = "ok", ""
     for n, scenario in enumerate(scenarios, 1):
-        r = (ran or {}).get(scenario) or simulate(rig, controller, scenario, noise_seed=noise_seed)
+        r = (ran or {}).get(scenario)
+        if r is None:
+            r = simulate(rig, controller, scenario, noise_seed=noise_seed)
         if keep_results:
             results[scenario] = r
         per[scenario] = result_metrics(r).aggregate
